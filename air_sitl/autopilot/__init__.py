@@ -1,0 +1,1 @@
+"""Autopilot: mission executor and guidance (what to fly) and control (how to fly it)."""

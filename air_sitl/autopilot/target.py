@@ -1,0 +1,28 @@
+"""The boundary between guidance (what to fly) and control (how to move the surfaces)."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+
+class ControlPhase(enum.Enum):
+    """Which control law the controller runs."""
+
+    IDLE = "idle"  # on the ground: throttle 0, brakes on, surfaces neutral
+    GROUND_ROLL = "ground_roll"  # take-off run: full throttle, steer heading, rotate at speed
+    CLIMB = "climb"  # climb-out: climb throttle, wings level-ish, pitch for airspeed
+    CRUISE = "cruise"  # total-energy speed/height control plus roll tracking
+    LAND = "land"  # glide: throttle idle, hold approach airspeed/glide slope, flare, roll out
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ControlTarget:
+    """What guidance asks of the controller at one instant."""
+
+    phase: ControlPhase
+    roll_rad: float = 0.0  # commanded bank (positive = right wing down)
+    altitude_amsl_m: float = 0.0
+    airspeed_m_s: float = 15.0
+    heading_rad: float = 0.0  # used on the ground (GROUND_ROLL) and for the roll-out
+    climb_rate_limit_m_s: float = 3.0  # max climb / sink rate demanded by the height loop

@@ -1,0 +1,1 @@
+"""Flight dynamics: the FlightModel protocol and the JSBSim adapter (the only jsbsim importer)."""

@@ -1,0 +1,47 @@
+"""The FlightModel protocol every flight dynamics back end implements."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+from air_sitl.state import ActuatorCommand, GeoPoint, VehicleState
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Wind:
+    """Steady wind (the direction it blows FROM, like a METAR) plus optional turbulence."""
+
+    speed_m_s: float = 0.0
+    from_deg: float = 0.0
+    turbulence: float = 0.0  # 0 = off; otherwise JSBSim Milspec severity-like 0..1 scale
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class InitialCondition:
+    """Where and how a flight starts: on the ground at rest, or in the air trimmed."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float
+    heading_rad: float
+    airspeed_m_s: float = 0.0  # 0 and on_ground=True: at rest on the ground
+    on_ground: bool = True
+
+
+class FlightModel(Protocol):
+    """A fixed-step flight dynamics model.
+
+    ``ground`` is the home point: ground elevation is ``ground.alt_amsl_m`` everywhere, and
+    ``pos_ned_m`` in states is relative to it.
+    """
+
+    step_ns: int
+
+    def reset(self, ground: GeoPoint, initial: InitialCondition, wind: Wind) -> VehicleState:
+        """Place the aircraft (trimmed when airborne) and return the state at time 0."""
+        ...
+
+    def step(self, command: ActuatorCommand) -> VehicleState:
+        """Apply ``command`` and advance one step of ``step_ns``; return the new state."""
+        ...

@@ -1,0 +1,227 @@
+"""Wires one vehicle together and runs it: clock -> flight model -> autopilot -> sensors -> sinks.
+
+One thread (the caller of :meth:`Flight.run`) owns all simulation state. Other threads talk to
+it only through ``inbox``: a queue of callables that run on the simulation thread between
+physics steps (the MAVLink endpoint posts its commands there).
+"""
+
+from __future__ import annotations
+
+import math
+import queue
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S, PHYSICS_STEP_NS, Pacer, SimClock
+from air_sitl.errors import PlanError
+from air_sitl.fdm.base import FlightModel, InitialCondition, Wind
+from air_sitl.flightlog import FlightStats
+from air_sitl.frames import geodetic2ned
+from air_sitl.mission.items import MavCmd, Mission
+from air_sitl.options import FlightOptions
+from air_sitl.sensors import SensorNoise, SensorSuite
+from air_sitl.sinks import FlightResult, FrameSource, Sink
+from air_sitl.state import GeoPoint, SimSample, VehicleState
+
+if TYPE_CHECKING:
+    from air_sitl.autopilot.autopilot import Autopilot
+
+InboxItem = Callable[["Flight"], None]
+ProgressFn = Callable[[SimSample, "Flight"], None]
+
+
+@dataclass(slots=True)
+class FlightCounters:
+    """What happened so far, for progress displays and summaries."""
+
+    steps: int = 0
+    frames_submitted: int = 0
+    frames_delivered: int = 0
+    capture_ticks: int = 0
+
+
+@dataclass(slots=True)
+class Flight:
+    """One simulated vehicle and everything that consumes its output."""
+
+    fdm: FlightModel
+    autopilot: Autopilot
+    sensors: SensorSuite
+    sinks: Sequence[Sink] = ()
+    camera: FrameSource | None = None
+    pacer: Pacer = field(default_factory=lambda: Pacer(0.0))
+    # Frames with a lower index are counted but not rendered (resume of a partial archive).
+    first_frame_to_render: int = 0
+    stats: FlightStats = field(default_factory=lambda: FlightStats(0))
+    counters: FlightCounters = field(default_factory=FlightCounters)
+    clock: SimClock = field(default_factory=lambda: SimClock(PHYSICS_STEP_NS))
+    state: VehicleState | None = None
+    last_sample: SimSample | None = None
+
+    def start(self, ground: GeoPoint, initial: InitialCondition, wind: Wind) -> VehicleState:
+        """Place the aircraft; simulation time restarts at 0."""
+        self.clock = SimClock(self.fdm.step_ns)
+        self.state = self.fdm.reset(ground, initial, wind)
+        return self.state
+
+    def step(self) -> SimSample:
+        """Run one physics step: autopilot, sensors, sinks, camera, then the flight model."""
+        state = self.state
+        assert state is not None, "Flight.start() first"
+        command, status = self.autopilot.update(state)
+        imu, gps = self.sensors.sample(state)
+        sample = SimSample(state=state, autopilot=status, imu=imu, gps=gps)
+        self.stats.add(sample)
+        for sink in self.sinks:
+            sink.on_sample(sample)
+        if status.capturing and state.sim_time_ns % CAMERA_PERIOD_NS == 0:
+            index = self.counters.capture_ticks
+            self.counters.capture_ticks += 1
+            if self.camera is not None and index >= self.first_frame_to_render:
+                self.camera.submit(sample, index)
+                self.counters.frames_submitted += 1
+        if self.camera is not None:
+            self._deliver(self.camera.ready())
+        self.last_sample = sample
+        self.state = self.fdm.step(command)
+        self.clock.tick()
+        self.counters.steps += 1
+        return sample
+
+    def _deliver(self, frames: Iterable[object]) -> None:
+        for frame in frames:
+            for sink in self.sinks:
+                sink.on_frame(frame)  # type: ignore[arg-type]
+            self.counters.frames_delivered += 1
+
+    def run(
+        self,
+        *,
+        stop: Callable[[SimSample], bool],
+        max_sim_time_ns: int,
+        inbox: queue.SimpleQueue[InboxItem] | None = None,
+        progress: ProgressFn | None = None,
+        progress_period_ns: int = NS_PER_S,
+    ) -> FlightResult:
+        """Step until ``stop(sample)`` is true or ``max_sim_time_ns`` passes; close every sink.
+
+        Sinks are closed even when a sink or the model raises, so what was written stays valid.
+        """
+        wall_start = time.monotonic()
+        try:
+            while True:
+                if inbox is not None:
+                    while True:
+                        try:
+                            item = inbox.get_nowait()
+                        except queue.Empty:
+                            break
+                        item(self)
+                sample = self.step()
+                t = sample.state.sim_time_ns
+                if progress is not None and t % progress_period_ns == 0:
+                    progress(sample, self)
+                self.pacer.wait(t)
+                if stop(sample):
+                    break
+                if t >= max_sim_time_ns:
+                    break
+            if self.camera is not None:
+                self._deliver(self.camera.flush())
+        finally:
+            wall = time.monotonic() - wall_start
+            summary = self.stats.summary(wall)
+            result = FlightResult(
+                mission_completed=self.stats.mission_completed,
+                sim_time_ns=self.stats.sim_time_ns,
+                wall_time_s=wall,
+                summary=summary,
+            )
+            if self.camera is not None:
+                self.camera.close()
+            for sink in self.sinks:
+                sink.close(result)
+        return result
+
+
+def ground_start_heading_rad(mission: Mission, home: GeoPoint) -> float:
+    """Heading of a ground start: toward the first positioned item away from home."""
+    for item in mission.items:
+        if not item.is_nav or item.command == MavCmd.NAV_RETURN_TO_LAUNCH:
+            continue
+        if item.lat_deg == 0.0 and item.lon_deg == 0.0:
+            continue
+        n, e, _ = geodetic2ned(
+            item.lat_deg, item.lon_deg, home.alt_amsl_m, home.lat_deg, home.lon_deg, home.alt_amsl_m
+        )
+        if math.hypot(n, e) > 1.0:
+            return math.atan2(e, n)
+    return 0.0
+
+
+def home_of(mission: Mission) -> GeoPoint:
+    """The planned home of a mission (where the vehicle starts on the ground)."""
+    if mission.planned_home is not None:
+        return mission.planned_home
+    for item in mission.items:
+        if item.is_nav and not (item.lat_deg == 0.0 and item.lon_deg == 0.0):
+            return GeoPoint(lat_deg=item.lat_deg, lon_deg=item.lon_deg, alt_amsl_m=0.0)
+    msg = f"{mission.source}: the plan has no planned home and no positioned item"
+    raise PlanError(msg)
+
+
+def assemble_flight(
+    mission: Mission,
+    options: FlightOptions,
+    *,
+    sinks: Sequence[Sink] = (),
+    camera: FrameSource | None = None,
+    home: GeoPoint | None = None,
+) -> tuple[Flight, GeoPoint, InitialCondition]:
+    """Build the flight model, autopilot and sensors for ``mission`` and place the aircraft."""
+    from air_sitl.autopilot.autopilot import Autopilot, air_start_pose
+    from air_sitl.autopilot.control import Controller, gains_for
+    from air_sitl.autopilot.params import ParamStore
+    from air_sitl.fdm.jsbsim_model import JSBSimModel
+
+    home = home or home_of(mission)
+    fdm = JSBSimModel(aircraft=options.aircraft)
+    autopilot = Autopilot(
+        mission,
+        home,
+        ParamStore(),
+        Controller(gains_for(options.aircraft)),
+        air_start=options.air_start,
+    )
+    if options.air_start:
+        lat, lon, alt, heading, airspeed = air_start_pose(mission, home)
+        initial = InitialCondition(
+            lat_deg=lat,
+            lon_deg=lon,
+            alt_amsl_m=alt,
+            heading_rad=heading,
+            airspeed_m_s=airspeed,
+            on_ground=False,
+        )
+    else:
+        initial = InitialCondition(
+            lat_deg=home.lat_deg,
+            lon_deg=home.lon_deg,
+            alt_amsl_m=home.alt_amsl_m,
+            heading_rad=ground_start_heading_rad(mission, home),
+        )
+    noise = SensorNoise().scaled(options.sensor_noise)
+    sensors = SensorSuite(home, seed=options.seed, step_ns=fdm.step_ns, noise=noise)
+    flight = Flight(
+        fdm=fdm,
+        autopilot=autopilot,
+        sensors=sensors,
+        sinks=sinks,
+        camera=camera,
+        pacer=Pacer(options.speed),
+        stats=FlightStats(sum(1 for item in mission.items if item.is_nav)),
+    )
+    flight.start(home, initial, options.wind)
+    return flight, home, initial

@@ -1,0 +1,133 @@
+"""Core value types shared by every stage: frozen dataclasses, units in names, no dependencies.
+
+Conventions (SPEC section 2): local frame NED relative to home, body frame FRD, quaternions
+Hamilton scalar-first ``(w, x, y, z)`` rotating body to NED, time in integer nanoseconds of
+simulation time.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GeoPoint:
+    """A WGS84 position; altitude above mean sea level."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class VehicleState:
+    """Truth state of the aircraft at one simulation instant."""
+
+    sim_time_ns: int
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float
+    alt_agl_m: float  # above the ground plane (home elevation)
+    pos_ned_m: Vec3  # relative to home
+    q_body_to_ned_wxyz: Quat  # Hamilton, scalar first
+    roll_rad: float
+    pitch_rad: float
+    yaw_rad: float  # heading, 0 = north, clockwise positive, in [-pi, pi)
+    vel_ned_m_s: Vec3
+    rate_frd_rad_s: Vec3  # body angular rates p, q, r
+    specific_force_frd_m_s2: Vec3  # what an accelerometer measures (about (0,0,-9.81) at rest)
+    airspeed_m_s: float  # true airspeed
+    on_ground: bool
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ActuatorCommand:
+    """Normalised control inputs to the flight model.
+
+    ``aileron`` positive rolls right, ``elevator`` positive pitches nose DOWN (JSBSim's
+    convention), ``rudder`` positive yaws right, ``throttle`` in [0, 1].
+    """
+
+    aileron: float = 0.0
+    elevator: float = 0.0
+    rudder: float = 0.0
+    throttle: float = 0.0
+
+
+class FlightMode(enum.Enum):
+    """What the autopilot is doing; mapped to PX4 main/sub modes by the MAVLink layer."""
+
+    IDLE = "idle"  # on the ground, disarmed or armed and waiting
+    TAKEOFF = "takeoff"
+    MISSION = "mission"
+    LOITER = "loiter"  # hold: circle the current point
+    RTL = "rtl"
+    LAND = "land"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class AutopilotStatus:
+    """The autopilot's externally visible state after one update."""
+
+    mode: FlightMode
+    armed: bool
+    current_seq: int  # index of the active mission item, -1 when none
+    capturing: bool  # inside the capture window (IMAGE_START..STOP, or AIR's default window)
+    mission_completed: bool  # the last navigation item is done
+    reached_seq: int = -1  # item reached during this update, -1 when none
+    # Path-tracking errors of guidance (NaN when not on a straight leg or loiter circle).
+    cross_track_m: float = float("nan")
+    alt_error_m: float = float("nan")
+    tracking_settled: bool = False  # 10 s or more since the turn onto the current leg/circle
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ImuSample:
+    """One reading of the simulated IMU/AHRS (with noise, bias and drift)."""
+
+    sim_time_ns: int
+    gyro_frd_rad_s: Vec3
+    accel_frd_m_s2: Vec3  # specific force
+    q_ahrs_body_to_ned_wxyz: Quat  # the attitude the on-board filter reports
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class GpsFix:
+    """One reading of the simulated GNSS receiver."""
+
+    sim_time_ns: int
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float
+    vel_ned_m_s: Vec3
+    fix_type: int  # 0 none, 3 = 3D fix (MAVLink GPS_FIX_TYPE)
+    satellites: int
+    eph_m: float
+    epv_m: float
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SimSample:
+    """Everything produced at one physics step; what sinks receive."""
+
+    state: VehicleState
+    autopilot: AutopilotStatus
+    imu: ImuSample
+    gps: GpsFix | None  # None between GPS updates or while GPS is denied
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CameraFrame:
+    """One rendered camera frame with the pose it was taken from."""
+
+    index: int  # 0-based index within the capture window
+    sim_time_ns: int
+    jpeg: bytes
+    width_px: int
+    height_px: int
+    sample: SimSample  # the physics sample at the exposure instant
+    map_xy_px: tuple[int, int]  # where the image-centre ray meets the map, in map pixels

@@ -1,0 +1,83 @@
+"""Summary metrics and the trajectory file, fed with constructed samples."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from air_sitl.clock import PHYSICS_STEP_NS
+from air_sitl.flightlog import TRAJECTORY_COLUMNS, FlightStats, TrajectoryWriter
+from air_sitl.frames import euler2quat
+from air_sitl.sinks import FlightResult
+from air_sitl.state import AutopilotStatus, FlightMode, ImuSample, SimSample, VehicleState
+
+
+def _sample(k: int, *, capturing: bool, xt: float = 1.0, settled: bool = True) -> SimSample:
+    t = k * PHYSICS_STEP_NS
+    north = 15.0 * t / 1e9
+    state = VehicleState(
+        sim_time_ns=t,
+        lat_deg=50.0,
+        lon_deg=8.0,
+        alt_amsl_m=300.0,
+        alt_agl_m=200.0,
+        pos_ned_m=(north, 0.0, -200.0),
+        q_body_to_ned_wxyz=euler2quat(0.0, 0.0, 0.0),
+        roll_rad=0.0,
+        pitch_rad=0.0,
+        yaw_rad=0.0,
+        vel_ned_m_s=(15.0, 0.0, 0.0),
+        rate_frd_rad_s=(0.0, 0.0, 0.0),
+        specific_force_frd_m_s2=(0.0, 0.0, -9.81),
+        airspeed_m_s=15.0,
+        on_ground=False,
+    )
+    status = AutopilotStatus(
+        mode=FlightMode.MISSION,
+        armed=True,
+        current_seq=2,
+        capturing=capturing,
+        mission_completed=False,
+        reached_seq=2 if k == 10 else -1,
+        cross_track_m=xt,
+        alt_error_m=-xt / 2,
+        tracking_settled=settled,
+    )
+    imu = ImuSample(
+        sim_time_ns=t,
+        gyro_frd_rad_s=(0.0, 0.0, 0.0),
+        accel_frd_m_s2=(0.0, 0.0, -9.81),
+        q_ahrs_body_to_ned_wxyz=state.q_body_to_ned_wxyz,
+    )
+    return SimSample(state=state, autopilot=status, imu=imu, gps=None)
+
+
+def test_capture_frames_and_distance_count_50hz_samples_in_window() -> None:
+    stats = FlightStats(waypoints_total=5)
+    for k in range(400):  # 2 s at 200 Hz; capture during the second second
+        stats.add(_sample(k, capturing=k >= 200, xt=3.0 if k == 50 else 1.0, settled=k != 60))
+    s = stats.summary(wall_time_s=0.5)
+    assert s["capture_frames"] == 50
+    assert math.isclose(s["capture_distance_m"], 15.0 * 49 / 50, rel_tol=1e-9)
+    assert s["max_cross_track_m"] == 3.0
+    assert s["max_alt_error_m"] == 1.5
+    assert s["waypoints_reached"] == 1
+    assert s["waypoints_total"] == 5
+    assert s["mission_completed"] is False
+
+
+def test_unsettled_errors_are_not_counted() -> None:
+    stats = FlightStats(waypoints_total=1)
+    stats.add(_sample(0, capturing=False, xt=99.0, settled=False))
+    assert stats.summary(1.0)["max_cross_track_m"] == 0.0
+
+
+def test_trajectory_writes_50hz_rows(tmp_path: Path) -> None:
+    writer = TrajectoryWriter(tmp_path / "trajectory.csv")
+    for k in range(40):
+        writer.on_sample(_sample(k, capturing=False))
+    writer.close(FlightResult(mission_completed=True, sim_time_ns=0, wall_time_s=0.0))
+    lines = (tmp_path / "trajectory.csv").read_text().splitlines()
+    assert lines[0].split(",") == list(TRAJECTORY_COLUMNS)
+    assert len(lines) == 1 + 10
+    assert [int(line.split(",")[0]) for line in lines[1:3]] == [0, 20_000_000]
