@@ -135,7 +135,9 @@ class FlightStats:
             "capture_start_s": None
             if self.capture_start_ns is None
             else self.capture_start_ns / NS_PER_S,
-            "capture_end_s": None if self.capture_end_ns is None else self.capture_end_ns / NS_PER_S,
+            "capture_end_s": None
+            if self.capture_end_ns is None
+            else self.capture_end_ns / NS_PER_S,
             "max_cross_track_m": round(self.max_cross_track_m, 3),
             "max_alt_error_m": round(self.max_alt_error_m, 3),
             "sim_time_s": sim_s,

@@ -37,8 +37,10 @@ def ecef2geodetic(x: float, y: float, z: float) -> tuple[float, float, float]:
     for _ in range(6):
         sin_lat = math.sin(lat)
         n = WGS84_A_M / math.sqrt(1.0 - WGS84_E2 * sin_lat * sin_lat)
-        alt = p / math.cos(lat) - n if abs(lat) < math.radians(89.0) else z / sin_lat - n * (
-            1.0 - WGS84_E2
+        alt = (
+            p / math.cos(lat) - n
+            if abs(lat) < math.radians(89.0)
+            else z / sin_lat - n * (1.0 - WGS84_E2)
         )
         lat = math.atan2(z, p * (1.0 - WGS84_E2 * n / (n + alt)))
     return (math.degrees(lat), math.degrees(lon), alt)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from air_sitl.errors import OptionError
 from air_sitl.fdm.base import Wind
@@ -19,7 +19,7 @@ class FlightOptions:
 
     aircraft: str = DEFAULT_AIRCRAFT
     air_start: bool = False
-    wind: Wind = Wind()
+    wind: Wind = field(default_factory=Wind)
     seed: int = 0
     speed: float = 0.0  # 0 = as fast as possible, 1 = real time
     max_sim_time_s: float = 4 * 3600.0
@@ -60,13 +60,15 @@ def add_flight_arguments(parser: argparse.ArgumentParser, *, default_speed: floa
     g.add_argument(
         "--aircraft",
         default=DEFAULT_AIRCRAFT,
-        help="our UAV 'airsitl_uav' (default) or any aircraft the jsbsim package ships (c172p, J3Cub ...)",
+        help="our UAV 'airsitl_uav' (default) or any aircraft the jsbsim package ships "
+        "(c172p, J3Cub ...)",
     )
     g.add_argument("--seed", default="0", help="seed of every random process (default 0)")
     g.add_argument(
         "--speed",
         default=str(default_speed),
-        help=f"simulated seconds per wall second; 0 = as fast as possible (default {default_speed:g})",
+        help="simulated seconds per wall second; 0 = as fast as possible "
+        f"(default {default_speed:g})",
     )
     g.add_argument(
         "--air-start",

@@ -179,8 +179,12 @@ def assemble_flight(
     sinks: Sequence[Sink] = (),
     camera: FrameSource | None = None,
     home: GeoPoint | None = None,
+    auto_start: bool = True,
 ) -> tuple[Flight, GeoPoint, InitialCondition]:
-    """Build the flight model, autopilot and sensors for ``mission`` and place the aircraft."""
+    """Build the flight model, autopilot and sensors for ``mission`` and place the aircraft.
+
+    ``auto_start=False`` (serve): the vehicle waits on the ground, disarmed, for a client.
+    """
     from air_sitl.autopilot.autopilot import Autopilot, air_start_pose
     from air_sitl.autopilot.control import Controller, gains_for
     from air_sitl.autopilot.params import ParamStore
@@ -194,6 +198,7 @@ def assemble_flight(
         ParamStore(),
         Controller(gains_for(options.aircraft)),
         air_start=options.air_start,
+        auto_start=auto_start,
     )
     if options.air_start:
         lat, lon, alt, heading, airspeed = air_start_pose(mission, home)

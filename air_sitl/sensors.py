@@ -97,9 +97,17 @@ class SensorSuite:
         self._gps = _Normals(np.random.default_rng(gps_seq))
         n = self.noise
         b = self._imu.next3()
-        self._gyro_bias = [b[0] * n.gyro_bias_rad_s, b[1] * n.gyro_bias_rad_s, b[2] * n.gyro_bias_rad_s]
+        self._gyro_bias = [
+            b[0] * n.gyro_bias_rad_s,
+            b[1] * n.gyro_bias_rad_s,
+            b[2] * n.gyro_bias_rad_s,
+        ]
         a = self._imu.next3()
-        self._accel_bias = (a[0] * n.accel_bias_m_s2, a[1] * n.accel_bias_m_s2, a[2] * n.accel_bias_m_s2)
+        self._accel_bias = (
+            a[0] * n.accel_bias_m_s2,
+            a[1] * n.accel_bias_m_s2,
+            a[2] * n.accel_bias_m_s2,
+        )
         self._ahrs_drift = [0.0, 0.0, 0.0]
 
     def gps_denied(self, sim_time_ns: int) -> bool:

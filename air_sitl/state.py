@@ -49,13 +49,15 @@ class ActuatorCommand:
     """Normalised control inputs to the flight model.
 
     ``aileron`` positive rolls right, ``elevator`` positive pitches nose DOWN (JSBSim's
-    convention), ``rudder`` positive yaws right, ``throttle`` in [0, 1].
+    convention), ``rudder`` positive yaws right (and steers the nose wheel right),
+    ``throttle`` and ``brake`` in [0, 1].
     """
 
     aileron: float = 0.0
     elevator: float = 0.0
     rudder: float = 0.0
     throttle: float = 0.0
+    brake: float = 0.0  # wheel brakes, 0 (off) to 1 (full); ignored by aircraft without brakes
 
 
 class FlightMode(enum.Enum):

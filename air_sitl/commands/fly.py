@@ -1,4 +1,10 @@
-"""``air-sitl fly PLAN``: fly a mission plan to its end and record it."""
+"""``air-sitl fly PLAN``: fly a mission plan to its end and record it.
+
+With the camera (default) DIR becomes an AIR archive: JPEG frames of the capture window,
+``metadata.csv``, ``frames.csv``, ``imu.csv``, ``camera.yaml``, the plan as flown,
+``trajectory.csv``, ``summary.json`` and ``manifest.json`` (last). ``--no-camera`` writes only
+``trajectory.csv`` and ``summary.json``. ``--resume`` continues a killed recording.
+"""
 
 from __future__ import annotations
 
@@ -13,6 +19,7 @@ HELP = "fly a QGC mission plan (.plan or QGC WPL) to its end and record trajecto
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``fly``."""
+    from air_sitl.camera.options import add_camera_arguments, add_map_arguments
     from air_sitl.options import add_flight_arguments
 
     parser.add_argument("plan", metavar="PLAN", help="QGroundControl .plan file or QGC WPL 110 text")
@@ -20,27 +27,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--out", default=None, help="output folder (created; refused if not empty). Default: out/<plan>"
     )
     parser.add_argument("--no-camera", action="store_true", help="do not render camera frames")
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue an unfinished recording in --out (same plan and options) from its last "
+        "whole frame; the result is byte-identical to an uninterrupted run",
+    )
+    parser.add_argument(
+        "--render-workers",
+        default="2",
+        metavar="N",
+        help="camera rendering threads (default 2; 0 renders on the simulation thread)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
     add_flight_arguments(parser, default_speed=0.0)
+    add_map_arguments(parser)
+    add_camera_arguments(parser)
 
 
 def prepare_out_dir(path: Path) -> Path:
     """Create ``path``; refuse an existing non-empty folder or a file in the way."""
-    from air_sitl.errors import DatasetError
+    from air_sitl.recording import prepare_out_dir as prepare
 
-    if path.exists():
-        if not path.is_dir():
-            msg = f"{path}: exists and is not a folder"
-            raise DatasetError(msg)
-        if any(path.iterdir()):
-            msg = f"{path}: folder exists and is not empty (choose another --out)"
-            raise DatasetError(msg)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        msg = f"{path}: cannot create the output folder: {err.strerror}"
-        raise DatasetError(msg) from None
-    return path
+    return prepare(path)
 
 
 def write_json(path: Path, content: dict[str, Any]) -> None:
@@ -50,31 +59,66 @@ def write_json(path: Path, content: dict[str, Any]) -> None:
     tmp.replace(path)
 
 
+def _workers(text: str) -> int:
+    from air_sitl.errors import OptionError
+
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= 64:
+        msg = f"--render-workers: {text!r} is not an integer 0..64"
+        raise OptionError(msg)
+    return value
+
+
 def run(args: argparse.Namespace) -> int:
     """Fly the plan; exit 0 when the mission completed, 1 when it did not."""
-    from air_sitl.flightlog import TrajectoryWriter
+    from air_sitl.camera.options import camera_from_args
     from air_sitl.mission.plan_file import load_mission
     from air_sitl.options import flight_options_from_args
     from air_sitl.progress import ProgressBar, print_summary
-    from air_sitl.runner import assemble_flight
+    from air_sitl.recording import MapChoice, RecordingRequest, record_flight
 
     options = flight_options_from_args(args)
-    mission = load_mission(Path(args.plan))
-    out = prepare_out_dir(Path(args.out) if args.out else Path("out") / (mission.name or "flight"))
-    sinks = [TrajectoryWriter(out / "trajectory.csv")]
-    flight, _home, _initial = assemble_flight(mission, options, sinks=sinks)
-    show = not args.quiet and sys.stderr.isatty()
-    bar = ProgressBar(mission, sys.stderr) if show else None
-    result = flight.run(
-        stop=lambda sample: sample.autopilot.mission_completed,
-        max_sim_time_ns=int(options.max_sim_time_s * 1e9),
-        progress=bar.update if bar else None,
+    workers = _workers(args.render_workers)
+    camera = None if args.no_camera else camera_from_args(args)
+    plan = Path(args.plan)
+    out = Path(args.out) if args.out else None
+    if out is None:
+        mission = load_mission(plan)
+        out = Path("out") / (mission.name or "flight")
+    request = RecordingRequest(
+        plan=plan,
+        out=out,
+        options=options,
+        camera=camera,
+        map=MapChoice(spec=args.map, seed=args.map_seed, date=args.map_date),
+        render_workers=workers,
+        resume=bool(args.resume),
     )
-    if bar:
-        bar.finish()
-    summary = dict(result.summary)
-    summary["plan"] = str(args.plan)
-    write_json(out / "summary.json", summary)
+    show = not args.quiet and sys.stderr.isatty()
+    bars: list[ProgressBar] = []
+
+    def on_start(mission: Any, first_frame: int) -> None:
+        if show:
+            bars.append(ProgressBar(mission, sys.stderr))
+        if first_frame and not args.quiet:
+            print(f"resuming {out} from frame {first_frame}", file=sys.stderr)
+
+    def progress(sample: Any, flight: Any) -> None:
+        if bars:
+            bars[0].update(sample, flight)
+
+    result = record_flight(request, progress=progress, on_start=on_start)
+    if bars:
+        bars[0].finish()
+    if result.already_complete:
+        if not args.quiet:
+            print(f"{out}: already complete ({result.resumed_from_frame} frames); nothing to do")
+        return 0
     if not args.quiet:
-        print_summary(summary, out, sys.stdout)
+        print_summary(result.summary, out, sys.stdout)
+        if result.manifest is not None:
+            print(f"  archive          {result.manifest.get('frame_count')} frames, manifest written")
     return 0 if result.mission_completed else 1

@@ -17,7 +17,10 @@ def test_physics_step_divides_camera_period() -> None:
     clock = SimClock()
     ticks = [clock.tick() for _ in range(8)]
     assert ticks[-1] == 8 * PHYSICS_STEP_NS
-    assert [t for t in ticks if t % CAMERA_PERIOD_NS == 0] == [CAMERA_PERIOD_NS, 2 * CAMERA_PERIOD_NS]
+    assert [t for t in ticks if t % CAMERA_PERIOD_NS == 0] == [
+        CAMERA_PERIOD_NS,
+        2 * CAMERA_PERIOD_NS,
+    ]
 
 
 def test_pacer_holds_real_time_at_speed_4() -> None:

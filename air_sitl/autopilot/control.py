@@ -1,0 +1,417 @@
+"""Inner-loop control: attitude, total-energy speed/height, take-off and landing laws.
+
+Turns a :class:`ControlTarget` (what guidance wants: bank, altitude, airspeed, phase) into an
+:class:`ActuatorCommand` once per physics step. Pure Python math on plain floats, so a flight
+is cheap and bit-for-bit repeatable.
+
+Loops (all gains in :class:`ControlGains`):
+
+- roll: bank error -> aileron, roll-rate damping, small integrator (prop torque, asymmetry);
+- pitch: pitch error -> elevator, pitch-rate damping with the turn's steady pitch rate fed
+  forward, integrator that becomes the elevator trim;
+- yaw: rudder cancels the lateral specific force (sideslip) and damps yaw rate about the
+  coordinated turn rate; on the ground the rudder (and nose wheel) steers to the heading;
+- TECS: throttle closes the total specific-energy rate (flight-path angle plus
+  acceleration / g), pitch the energy balance (flight-path angle minus acceleration / g),
+  both with anti-windup integrators, climb/sink rate and pitch limits.
+
+Surface gains are scheduled with dynamic pressure: effectiveness goes as airspeed squared.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from air_sitl.autopilot.target import ControlPhase, ControlTarget
+from air_sitl.clock import NS_PER_S, PHYSICS_STEP_NS
+from air_sitl.state import ActuatorCommand, VehicleState
+
+GRAVITY_M_S2 = 9.80665
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ControlGains:
+    """Gains, limits and reference figures of one airframe (defaults: airsitl_uav)."""
+
+    # Reference (trim) point: surface gains are tuned here and scaled with (ref / V)^2.
+    ref_airspeed_m_s: float = 15.0
+    trim_throttle: float = 0.63
+    trim_elevator: float = 0.01
+    trim_pitch_rad: float = 0.022
+    min_airspeed_m_s: float = 11.0  # scheduling and speed-demand floor (above stall)
+    max_airspeed_m_s: float = 24.0
+    # Roll
+    roll_kp: float = 1.0  # aileron per rad of bank error
+    roll_ki: float = 0.2  # aileron per rad*s
+    roll_kd: float = 0.08  # aileron per rad/s of roll rate
+    roll_i_limit: float = 0.2
+    max_bank_rad: float = math.radians(45.0)
+    # Pitch
+    pitch_kp: float = 1.2  # elevator per rad of pitch error (elevator + = nose down)
+    pitch_ki: float = 0.8
+    pitch_kd: float = 0.25  # elevator per rad/s of pitch rate
+    pitch_i_limit: float = 0.6
+    max_pitch_rad: float = math.radians(25.0)
+    min_pitch_rad: float = math.radians(-20.0)
+    # Yaw
+    yaw_ky: float = 0.05  # rudder per m/s^2 of lateral specific force
+    yaw_kr: float = 0.3  # rudder per rad/s of yaw-rate error
+    # TECS (energy rates in rad: flight-path angle plus or minus acceleration / g)
+    height_k: float = 0.25  # demanded climb rate per m of height error, 1/s
+    speed_k: float = 0.3  # demanded acceleration per m/s of speed error, 1/s
+    max_accel_m_s2: float = 1.5
+    max_vert_accel_m_s2: float = 1.0  # slew limit of the demanded climb rate
+    accel_filter_s: float = 0.5  # time constant of the along-path acceleration estimate
+    throttle_ff: float = 1.0  # throttle per rad of demanded energy rate
+    throttle_kp: float = 1.2
+    throttle_ki: float = 0.3
+    balance_kp: float = 1.0  # pitch (rad) per rad of energy-balance error
+    balance_ki: float = 0.25
+    energy_i_limit: float = 0.5
+    # Take-off and climb-out
+    rotate_airspeed_m_s: float = 11.0
+    rotate_pitch_rad: float = math.radians(8.0)
+    climb_throttle: float = 1.0
+    climb_pitch_rad: float = math.radians(12.0)  # nominal climb attitude, trimmed for speed
+    climb_speed_k: float = 0.05  # rad of pitch per m/s of speed excess
+    steer_k: float = 1.0  # rudder / nose wheel per rad of heading error on the ground
+    steer_kr: float = 0.3
+    # Landing
+    flare_height_m: float = 3.0
+    flare_sink_m_s: float = 0.3
+    flare_k: float = 0.5  # demanded sink rate per m of height (1/s) during the flare
+    touchdown_pitch_rad: float = math.radians(4.0)
+
+
+def gains_for(aircraft: str) -> ControlGains:
+    """Default gains for a known aircraft; the airsitl_uav set for any other."""
+    if aircraft == "c172p":
+        return ControlGains(
+            ref_airspeed_m_s=50.0,
+            trim_throttle=0.65,
+            trim_elevator=0.0,
+            trim_pitch_rad=0.0,
+            min_airspeed_m_s=30.0,
+            max_airspeed_m_s=60.0,
+            roll_kp=1.2,
+            roll_kd=0.3,
+            pitch_kp=2.0,
+            pitch_kd=0.8,
+            yaw_ky=0.02,
+            height_k=0.15,
+            speed_k=0.2,
+            throttle_ff=1.5,
+            rotate_airspeed_m_s=28.0,
+            rotate_pitch_rad=math.radians(6.0),
+            climb_pitch_rad=math.radians(8.0),
+            climb_speed_k=0.03,
+            steer_k=0.5,
+            flare_height_m=5.0,
+        )
+    if aircraft == "J3Cub":
+        return ControlGains(
+            ref_airspeed_m_s=35.0,
+            trim_throttle=0.6,
+            trim_elevator=0.0,
+            trim_pitch_rad=0.0,
+            min_airspeed_m_s=22.0,
+            max_airspeed_m_s=45.0,
+            roll_kp=1.2,
+            roll_kd=0.3,
+            pitch_kp=2.0,
+            pitch_kd=0.8,
+            yaw_ky=0.02,
+            height_k=0.15,
+            speed_k=0.2,
+            throttle_ff=1.5,
+            rotate_airspeed_m_s=20.0,
+            rotate_pitch_rad=math.radians(6.0),
+            climb_pitch_rad=math.radians(8.0),
+            climb_speed_k=0.03,
+            steer_k=0.5,
+            flare_height_m=4.0,
+        )
+    return ControlGains()
+
+
+def _clamp(x: float, lo: float, hi: float) -> float:
+    return lo if x < lo else hi if x > hi else x
+
+
+def _wrap_pi(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+class Controller:
+    """The control laws of every phase; state is a handful of plain floats (integrators).
+
+    ``trim`` (for example :attr:`JSBSimModel.trim_command` after an air start) seeds the
+    elevator and throttle integrators so a trimmed start stays steady from the first step.
+    """
+
+    def __init__(
+        self,
+        gains: ControlGains | None = None,
+        *,
+        dt_s: float = PHYSICS_STEP_NS / NS_PER_S,
+        trim: ActuatorCommand | None = None,
+    ) -> None:
+        self.gains = gains if gains is not None else ControlGains()
+        self.dt_s = dt_s
+        self._roll_i = 0.0
+        self._pitch_i = 0.0
+        self._throttle_i = 0.0
+        self._balance_i = 0.0
+        self._vdot = 0.0
+        self._hdot_dem = 0.0
+        self._prev_phase = ControlPhase.IDLE
+        self.reset(trim)
+
+    def reset(self, trim: ActuatorCommand | None = None) -> None:
+        """Clear the integrators and filters; seed them from ``trim`` (an air start) if given."""
+        self._roll_i = 0.0
+        self._pitch_i = self.gains.trim_elevator
+        self._throttle_i = 0.0
+        self._balance_i = 0.0
+        self._vdot = 0.0
+        self._hdot_dem = 0.0
+        # An air start (trim given) is already cruising; otherwise the aircraft is parked.
+        self._prev_phase = ControlPhase.CRUISE if trim is not None else ControlPhase.IDLE
+        if trim is not None:
+            self._pitch_i = trim.elevator
+            self._throttle_i = trim.throttle - self.gains.trim_throttle
+
+    # ------------------------------------------------------------------ entry point
+
+    def update(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
+        """One step of the control law of ``target.phase``."""
+        phase = target.phase
+        if phase is ControlPhase.IDLE:
+            self._prev_phase = phase
+            self._roll_i = 0.0
+            self._pitch_i = self.gains.trim_elevator
+            self._throttle_i = 0.0
+            self._balance_i = 0.0
+            self._vdot = 0.0
+            self._hdot_dem = 0.0
+            return ActuatorCommand(brake=1.0)
+        if phase is not self._prev_phase:
+            # Entering a phase: its pitch offset integrator means something else there, and
+            # the climb-rate demand starts from what the aircraft is doing.
+            self._balance_i = 0.0
+            self._hdot_dem = -state.vel_ned_m_s[2]
+        if phase is ControlPhase.GROUND_ROLL:
+            cmd = self._ground_roll(state, target)
+        elif phase is ControlPhase.CLIMB:
+            cmd = self._climb(state, target)
+        elif phase is ControlPhase.CRUISE:
+            cmd = self._cruise(state, target)
+        else:
+            cmd = self._land(state, target)
+        self._prev_phase = phase
+        return cmd
+
+    # ------------------------------------------------------------------ inner loops
+
+    def _schedule(self, airspeed_m_s: float) -> float:
+        """Surface-gain factor: (V_ref / V)^2, bounded for very slow and very fast flight."""
+        g = self.gains
+        v = airspeed_m_s if airspeed_m_s > 0.5 * g.min_airspeed_m_s else 0.5 * g.min_airspeed_m_s
+        return _clamp((g.ref_airspeed_m_s / v) ** 2, 0.3, 3.0)
+
+    def _aileron(self, state: VehicleState, bank_cmd_rad: float, scale: float) -> float:
+        g = self.gains
+        err = _clamp(bank_cmd_rad, -g.max_bank_rad, g.max_bank_rad) - state.roll_rad
+        raw = g.roll_kp * err + self._roll_i - g.roll_kd * state.rate_frd_rad_s[0]
+        out = _clamp(scale * raw, -1.0, 1.0)
+        # Anti-windup: integrate only while the output is not pushed further into its limit.
+        if not ((out >= 1.0 and err > 0.0) or (out <= -1.0 and err < 0.0)):
+            self._roll_i = _clamp(
+                self._roll_i + g.roll_ki * err * self.dt_s, -g.roll_i_limit, g.roll_i_limit
+            )
+        return out
+
+    def _elevator(self, state: VehicleState, pitch_cmd_rad: float, scale: float) -> float:
+        g = self.gains
+        pitch_cmd = _clamp(pitch_cmd_rad, g.min_pitch_rad, g.max_pitch_rad)
+        err = pitch_cmd - state.pitch_rad
+        # Steady pitch rate of a level turn: g/V * sin^2(phi) / cos(phi).
+        v = max(state.airspeed_m_s, g.min_airspeed_m_s)
+        phi = state.roll_rad
+        cos_phi = max(math.cos(phi), 0.3)
+        q_ff = GRAVITY_M_S2 / v * math.sin(phi) ** 2 / cos_phi
+        fb = -g.pitch_kp * err + g.pitch_kd * (state.rate_frd_rad_s[1] - q_ff)
+        out = _clamp(self._pitch_i + scale * fb, -1.0, 1.0)
+        # The integrator is the elevator trim; elevator + = nose down, hence the minus sign.
+        if not ((out <= -1.0 and err > 0.0) or (out >= 1.0 and err < 0.0)):
+            self._pitch_i = _clamp(
+                self._pitch_i - scale * g.pitch_ki * err * self.dt_s,
+                -g.pitch_i_limit,
+                g.pitch_i_limit,
+            )
+        return out
+
+    def _rudder_air(self, state: VehicleState) -> float:
+        g = self.gains
+        v = max(state.airspeed_m_s, g.min_airspeed_m_s)
+        r_turn = GRAVITY_M_S2 / v * math.sin(state.roll_rad) * math.cos(state.pitch_rad)
+        ay = state.specific_force_frd_m_s2[1]
+        out = -g.yaw_ky * ay - g.yaw_kr * (state.rate_frd_rad_s[2] - r_turn)
+        return _clamp(out * self._schedule(state.airspeed_m_s), -1.0, 1.0)
+
+    def _steer(self, state: VehicleState, heading_rad: float) -> float:
+        g = self.gains
+        err = _wrap_pi(heading_rad - state.yaw_rad)
+        # Nose-wheel yaw rate grows with ground speed: soften the gain as the roll speeds up.
+        v_n, v_e, _ = state.vel_ned_m_s
+        soften = _clamp(5.0 / max(math.hypot(v_n, v_e), 1e-3), 0.25, 1.0)
+        return _clamp((g.steer_k * err - g.steer_kr * state.rate_frd_rad_s[2]) * soften, -1.0, 1.0)
+
+    # ------------------------------------------------------------------ phases
+
+    def _ground_roll(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
+        g = self.gains
+        scale = self._schedule(state.airspeed_m_s)
+        aileron = self._aileron(state, 0.0, scale)
+        if state.airspeed_m_s >= g.rotate_airspeed_m_s or not state.on_ground:
+            elevator = self._elevator(state, g.rotate_pitch_rad, scale)
+        else:
+            self._pitch_i = g.trim_elevator
+            elevator = g.trim_elevator  # keep the nose wheel down until rotation speed
+        rudder = self._steer(state, target.heading_rad)
+        if not state.on_ground:
+            rudder = self._rudder_air(state)
+        return ActuatorCommand(
+            aileron=aileron, elevator=elevator, rudder=rudder, throttle=g.climb_throttle
+        )
+
+    def _climb(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
+        g = self.gains
+        scale = self._schedule(state.airspeed_m_s)
+        speed_dem = _clamp(target.airspeed_m_s, g.min_airspeed_m_s, g.max_airspeed_m_s)
+        # Pitch for airspeed: too fast -> pitch up. The balance integrator trims the attitude.
+        speed_err = state.airspeed_m_s - speed_dem
+        self._balance_i = _clamp(
+            self._balance_i + g.climb_speed_k * 0.2 * speed_err * self.dt_s,
+            -g.energy_i_limit,
+            g.energy_i_limit,
+        )
+        pitch_cmd = g.climb_pitch_rad + g.climb_speed_k * speed_err + self._balance_i
+        pitch_cmd = max(pitch_cmd, g.trim_pitch_rad)
+        elevator = self._elevator(state, pitch_cmd, scale)
+        aileron = self._aileron(state, target.roll_rad, scale)
+        rudder = self._rudder_air(state) if not state.on_ground else 0.0
+        # Do not climb faster than the target allows: take power off (pitch keeps the speed).
+        over = -state.vel_ned_m_s[2] - target.climb_rate_limit_m_s
+        throttle = g.climb_throttle
+        if over > 0.0:
+            throttle = max(
+                g.climb_throttle - 3.0 * g.throttle_ff * over / max(state.airspeed_m_s, 1.0),
+                g.trim_throttle,
+            )
+        self._throttle_i = 0.0
+        return ActuatorCommand(aileron=aileron, elevator=elevator, rudder=rudder, throttle=throttle)
+
+    def _tecs(
+        self, state: VehicleState, height_dem_m: float, speed_dem_m_s: float, climb_limit: float
+    ) -> tuple[float, float]:
+        """Pitch command (rad) and throttle from the total-energy laws."""
+        g = self.gains
+        v = max(state.airspeed_m_s, g.min_airspeed_m_s)
+        speed_dem = _clamp(speed_dem_m_s, g.min_airspeed_m_s, g.max_airspeed_m_s)
+        climb_max = max(climb_limit, 0.1)
+        h = state.alt_amsl_m
+        hdot = -state.vel_ned_m_s[2]
+        hdot_dem = _clamp(g.height_k * (height_dem_m - h), -climb_max, climb_max)
+        # Slew the demanded climb rate: a step in altitude gives a smooth pull-up.
+        slew = g.max_vert_accel_m_s2 * self.dt_s
+        hdot_dem = _clamp(hdot_dem, self._hdot_dem - slew, self._hdot_dem + slew)
+        self._hdot_dem = hdot_dem
+        vdot_dem = _clamp(
+            g.speed_k * (speed_dem - state.airspeed_m_s), -g.max_accel_m_s2, g.max_accel_m_s2
+        )
+        # Along-path acceleration from the accelerometer: u_dot = f_x - g sin(theta), low-pass
+        # filtered: thrust shows in f_x at once, and unfiltered it closes a fast loop through
+        # the throttle that rings at the step rate.
+        vdot_raw = state.specific_force_frd_m_s2[0] - GRAVITY_M_S2 * math.sin(state.pitch_rad)
+        self._vdot += (vdot_raw - self._vdot) * min(self.dt_s / g.accel_filter_s, 1.0)
+        vdot = self._vdot
+        gamma_dem = hdot_dem / v
+        gamma = hdot / v
+        acc_dem = vdot_dem / GRAVITY_M_S2
+        acc = vdot / GRAVITY_M_S2
+        # Total energy rate -> throttle.
+        ste_dem = gamma_dem + acc_dem
+        ste_err = ste_dem - (gamma + acc)
+        # Extra drag in a turn: the lift rises by 1/cos(phi), the induced drag with its square.
+        turn = 1.0 / max(math.cos(state.roll_rad), 0.5) ** 2 - 1.0
+        thr_ff = g.trim_throttle + g.throttle_ff * ste_dem + 0.25 * turn * g.trim_throttle
+        throttle = thr_ff + g.throttle_kp * ste_err + self._throttle_i
+        throttle_out = _clamp(throttle, 0.0, 1.0)
+        if not ((throttle >= 1.0 and ste_err > 0.0) or (throttle <= 0.0 and ste_err < 0.0)):
+            self._throttle_i = _clamp(
+                self._throttle_i + g.throttle_ki * ste_err * self.dt_s,
+                -g.energy_i_limit,
+                g.energy_i_limit,
+            )
+        # Energy balance -> pitch.
+        seb_err = (gamma_dem - acc_dem) - (gamma - acc)
+        pitch = g.trim_pitch_rad + gamma_dem + g.balance_kp * seb_err + self._balance_i
+        if not (
+            (pitch >= g.max_pitch_rad and seb_err > 0.0)
+            or (pitch <= g.min_pitch_rad and seb_err < 0.0)
+        ):
+            self._balance_i = _clamp(
+                self._balance_i + g.balance_ki * seb_err * self.dt_s,
+                -g.energy_i_limit,
+                g.energy_i_limit,
+            )
+        return pitch, throttle_out
+
+    def _cruise(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
+        scale = self._schedule(state.airspeed_m_s)
+        pitch_cmd, throttle = self._tecs(
+            state, target.altitude_amsl_m, target.airspeed_m_s, target.climb_rate_limit_m_s
+        )
+        return ActuatorCommand(
+            aileron=self._aileron(state, target.roll_rad, scale),
+            elevator=self._elevator(state, pitch_cmd, scale),
+            rudder=self._rudder_air(state),
+            throttle=throttle,
+        )
+
+    def _land(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
+        g = self.gains
+        scale = self._schedule(state.airspeed_m_s)
+        if state.on_ground:
+            # Roll-out: nose down onto the wheel, brakes, steer the heading, wings level.
+            self._pitch_i = g.trim_elevator
+            return ActuatorCommand(
+                aileron=self._aileron(state, 0.0, scale),
+                elevator=0.3,
+                rudder=self._steer(state, target.heading_rad),
+                throttle=0.0,
+                brake=1.0 if state.airspeed_m_s < g.rotate_airspeed_m_s else 0.3,
+            )
+        height = state.alt_agl_m
+        if height > g.flare_height_m:
+            # Glide: pitch for the approach airspeed, throttle idle.
+            speed_dem = _clamp(target.airspeed_m_s, g.min_airspeed_m_s, g.max_airspeed_m_s)
+            speed_err = state.airspeed_m_s - speed_dem
+            self._balance_i = _clamp(self._balance_i + 0.01 * speed_err * self.dt_s, -0.2, 0.2)
+            pitch_cmd = g.trim_pitch_rad - 0.06 + 0.05 * speed_err + self._balance_i
+            bank = target.roll_rad
+        else:
+            # Flare: sink rate proportional to height, pitch up to hold it; wings level.
+            sink_dem = max(g.flare_sink_m_s, g.flare_k * height)
+            sink = state.vel_ned_m_s[2]
+            pitch_cmd = state.pitch_rad + 0.1 * (sink - sink_dem)
+            pitch_cmd = _clamp(pitch_cmd, -0.05, g.max_pitch_rad * 0.6)
+            bank = 0.0
+        return ActuatorCommand(
+            aileron=self._aileron(state, bank, scale),
+            elevator=self._elevator(state, pitch_cmd, scale),
+            rudder=self._rudder_air(state),
+            throttle=0.0,
+        )

@@ -1,0 +1,247 @@
+"""The autopilot's parameters: a small PX4-named set with types, defaults and limits.
+
+The autopilot reads them at every guidance update, so a change (for example a PARAM_SET from
+QGroundControl) takes effect in flight. The order of :data:`PARAMS` is the MAVLink
+``param_index`` order and never changes at run time.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+from air_sitl.errors import AirSitlError
+
+
+class ParamError(AirSitlError):
+    """An unknown parameter name, or a value outside the parameter's range."""
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ParamSpec:
+    """One parameter: PX4 name, default, inclusive range, integer or float, unit."""
+
+    name: str
+    default: float
+    min_value: float
+    max_value: float
+    is_int: bool = False
+    unit: str = ""
+    description: str = ""
+
+
+PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec(
+        name="FW_AIRSPD_TRIM",
+        default=15.0,
+        min_value=8.0,
+        max_value=40.0,
+        unit="m/s",
+        description="cruise airspeed outside missions, and in missions without a plan speed",
+    ),
+    ParamSpec(
+        name="FW_AIRSPD_MIN",
+        default=12.0,
+        min_value=5.0,
+        max_value=40.0,
+        unit="m/s",
+        description="lowest airspeed the autopilot commands",
+    ),
+    ParamSpec(
+        name="FW_AIRSPD_MAX",
+        default=22.0,
+        min_value=8.0,
+        max_value=60.0,
+        unit="m/s",
+        description="highest airspeed the autopilot commands",
+    ),
+    ParamSpec(
+        name="FW_R_LIM",
+        default=35.0,
+        min_value=5.0,
+        max_value=65.0,
+        unit="deg",
+        description="bank angle limit",
+    ),
+    ParamSpec(
+        name="FW_P_LIM_MAX",
+        default=30.0,
+        min_value=0.0,
+        max_value=60.0,
+        unit="deg",
+        description="maximum pitch (nose up)",
+    ),
+    ParamSpec(
+        name="FW_P_LIM_MIN",
+        default=-30.0,
+        min_value=-60.0,
+        max_value=0.0,
+        unit="deg",
+        description="minimum pitch (nose down)",
+    ),
+    ParamSpec(
+        name="FW_T_CLMB_MAX",
+        default=3.0,
+        min_value=0.5,
+        max_value=15.0,
+        unit="m/s",
+        description="maximum climb rate the height loop demands",
+    ),
+    ParamSpec(
+        name="FW_T_SINK_MAX",
+        default=4.0,
+        min_value=0.5,
+        max_value=15.0,
+        unit="m/s",
+        description="maximum sink rate the height loop demands",
+    ),
+    ParamSpec(
+        name="FW_CLMBOUT_DIFF",
+        default=10.0,
+        min_value=0.0,
+        max_value=150.0,
+        unit="m",
+        description="take-off: climb wings level until this close to the take-off altitude",
+    ),
+    ParamSpec(
+        name="FW_LND_ANG",
+        default=6.0,
+        min_value=1.0,
+        max_value=15.0,
+        unit="deg",
+        description="landing glide slope",
+    ),
+    ParamSpec(
+        name="FW_LND_AIRSPD",
+        default=13.0,
+        min_value=6.0,
+        max_value=40.0,
+        unit="m/s",
+        description="landing approach airspeed",
+    ),
+    ParamSpec(
+        name="NAV_L1_PERIOD",
+        default=16.0,
+        min_value=5.0,
+        max_value=50.0,
+        unit="s",
+        description="L1 path-following period (smaller is tighter)",
+    ),
+    ParamSpec(
+        name="NAV_L1_DAMPING",
+        default=0.75,
+        min_value=0.6,
+        max_value=0.9,
+        description="L1 path-following damping ratio",
+    ),
+    ParamSpec(
+        name="NAV_ACC_RAD",
+        default=10.0,
+        min_value=0.05,
+        max_value=200.0,
+        unit="m",
+        description="waypoint acceptance radius when the item gives none",
+    ),
+    ParamSpec(
+        name="NAV_FW_ALT_RAD",
+        default=10.0,
+        min_value=0.05,
+        max_value=200.0,
+        unit="m",
+        description="altitude acceptance (take-off, loiter to altitude, capture start)",
+    ),
+    ParamSpec(
+        name="NAV_LOITER_RAD",
+        default=80.0,
+        min_value=25.0,
+        max_value=1000.0,
+        unit="m",
+        description="loiter radius when the item gives none (hold, RTL, end of mission)",
+    ),
+    ParamSpec(
+        name="MIS_TAKEOFF_ALT",
+        default=30.0,
+        min_value=5.0,
+        max_value=500.0,
+        unit="m",
+        description="take-off altitude above home for a take-off command without one",
+    ),
+    ParamSpec(
+        name="RTL_RETURN_ALT",
+        default=60.0,
+        min_value=10.0,
+        max_value=1500.0,
+        unit="m",
+        description="return altitude above home (RTL climbs to it, never descends to it)",
+    ),
+)
+
+_SPECS: dict[str, ParamSpec] = {spec.name: spec for spec in PARAMS}
+
+
+class ParamStore:
+    """Current values of :data:`PARAMS`, validated on every set.
+
+    ``version`` increases on every change so readers can cache values derived from them.
+    """
+
+    def __init__(self, overrides: Mapping[str, float] | None = None) -> None:
+        self._values: dict[str, float] = {spec.name: spec.default for spec in PARAMS}
+        self.version = 0
+        for name, value in (overrides or {}).items():
+            self.set(name, value)
+
+    @staticmethod
+    def names() -> tuple[str, ...]:
+        """All parameter names in MAVLink ``param_index`` order."""
+        return tuple(spec.name for spec in PARAMS)
+
+    @staticmethod
+    def count() -> int:
+        """Number of parameters (MAVLink ``param_count``)."""
+        return len(PARAMS)
+
+    @staticmethod
+    def spec(name: str) -> ParamSpec:
+        """The definition of ``name``; raises :class:`ParamError` for an unknown name."""
+        try:
+            return _SPECS[name]
+        except KeyError:
+            msg = f"parameter {name!r} does not exist, expected one of {', '.join(_SPECS)}"
+            raise ParamError(msg) from None
+
+    @staticmethod
+    def index(name: str) -> int:
+        """MAVLink ``param_index`` of ``name``."""
+        ParamStore.spec(name)
+        return next(i for i, spec in enumerate(PARAMS) if spec.name == name)
+
+    def get(self, name: str) -> float:
+        """Current value of ``name``."""
+        try:
+            return self._values[name]
+        except KeyError:
+            self.spec(name)  # raises with the list of names
+            raise
+
+    def set(self, name: str, value: float) -> float:
+        """Validate and store ``value``; return the stored value (integers are rounded)."""
+        spec = self.spec(name)
+        value = float(value)
+        if not math.isfinite(value) or not spec.min_value <= value <= spec.max_value:
+            msg = (
+                f"parameter {name}: value {value} is outside "
+                f"[{spec.min_value:g}, {spec.max_value:g}] {spec.unit}".rstrip()
+            )
+            raise ParamError(msg)
+        if spec.is_int:
+            value = float(round(value))
+        if self._values[name] != value:
+            self._values[name] = value
+            self.version += 1
+        return value
+
+    def items(self) -> Iterable[tuple[str, float]]:
+        """(name, value) pairs in index order."""
+        return ((spec.name, self._values[spec.name]) for spec in PARAMS)

@@ -1,0 +1,318 @@
+"""Message encoding of the bus (pure: no zenoh, no I/O).
+
+One encoding: every small message is a UTF-8 JSON object carrying ``"v"`` (the contract
+version) and ``"sim_time_ns"``; camera frames are the raw JPEG bytes with a JSON attachment
+(``FrameMeta``). Floats go through ``json`` (shortest round-trip repr), so a decoded
+``VehicleState`` is bit-identical to the one encoded: the remote camera renders the same image.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+from air_sitl.bus.keys import CONTRACT_VERSION
+from air_sitl.errors import BusError
+from air_sitl.state import AutopilotStatus, GeoPoint, GpsFix, ImuSample, Quat, Vec3, VehicleState
+
+JSON_ENCODING = "application/json"
+JPEG_ENCODING = "image/jpeg"
+
+_STATE_FIELDS = tuple(f.name for f in fields(VehicleState))
+
+
+def dumps(message: dict[str, Any]) -> bytes:
+    """Compact JSON bytes with the contract version first."""
+    return json.dumps({"v": CONTRACT_VERSION, **message}, separators=(",", ":")).encode()
+
+
+def loads(payload: bytes, what: str) -> dict[str, Any]:
+    """Parse one JSON object; BusError naming ``what`` when it is not one."""
+    try:
+        value = json.loads(payload)
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        msg = f"{what}: not a JSON object ({err})"
+        raise BusError(msg) from None
+    if not isinstance(value, dict):
+        msg = f"{what}: expected a JSON object, got {type(value).__name__}"
+        raise BusError(msg)
+    return value
+
+
+def encode_imu(imu: ImuSample) -> bytes:
+    """``imu``: gyro (rad/s), specific force (m/s^2), both FRD; AHRS quaternion body->NED."""
+    return dumps(
+        {
+            "sim_time_ns": imu.sim_time_ns,
+            "gyro_frd_rad_s": imu.gyro_frd_rad_s,
+            "accel_frd_m_s2": imu.accel_frd_m_s2,
+            "q_ahrs_body_to_ned_wxyz": imu.q_ahrs_body_to_ned_wxyz,
+        }
+    )
+
+
+def decode_imu(payload: bytes) -> ImuSample:
+    """Inverse of :func:`encode_imu`."""
+    m = loads(payload, "imu")
+    try:
+        return ImuSample(
+            sim_time_ns=int(m["sim_time_ns"]),
+            gyro_frd_rad_s=_vec3(m["gyro_frd_rad_s"]),
+            accel_frd_m_s2=_vec3(m["accel_frd_m_s2"]),
+            q_ahrs_body_to_ned_wxyz=_quat(m["q_ahrs_body_to_ned_wxyz"]),
+        )
+    except (KeyError, TypeError, ValueError) as err:
+        msg = f"imu: bad message ({err!r})"
+        raise BusError(msg) from None
+
+
+def encode_gps(fix: GpsFix) -> bytes:
+    """``gps``: WGS84 position, altitude AMSL, NED velocity, fix quality."""
+    return dumps(
+        {
+            "sim_time_ns": fix.sim_time_ns,
+            "lat_deg": fix.lat_deg,
+            "lon_deg": fix.lon_deg,
+            "alt_amsl_m": fix.alt_amsl_m,
+            "vel_ned_m_s": fix.vel_ned_m_s,
+            "fix_type": fix.fix_type,
+            "satellites": fix.satellites,
+            "eph_m": fix.eph_m,
+            "epv_m": fix.epv_m,
+        }
+    )
+
+
+def encode_state(state: VehicleState) -> dict[str, Any]:
+    """Every VehicleState field under its own name (tuples become lists)."""
+    return {name: getattr(state, name) for name in _STATE_FIELDS}
+
+
+def decode_state(m: dict[str, Any], what: str = "truth") -> VehicleState:
+    """A VehicleState from :func:`encode_state` output (exact float round trip)."""
+    try:
+        values = {name: m[name] for name in _STATE_FIELDS}
+    except KeyError as err:
+        msg = f"{what}: missing field {err.args[0]!r}"
+        raise BusError(msg) from None
+    for name, value in values.items():
+        if isinstance(value, list):
+            values[name] = tuple(float(x) for x in value)
+    values["sim_time_ns"] = int(values["sim_time_ns"])
+    values["on_ground"] = bool(values["on_ground"])
+    return VehicleState(**values)
+
+
+def encode_truth(state: VehicleState, frame: int | None) -> bytes:
+    """``truth``: the full VehicleState; ``frame`` is the capture index at camera ticks, else null."""
+    return dumps({**encode_state(state), "frame": frame})
+
+
+def encode_clock(sim_time_ns: int) -> bytes:
+    """``clock``: simulation time."""
+    return dumps({"sim_time_ns": sim_time_ns})
+
+
+def encode_status(sim_time_ns: int, status: AutopilotStatus, home: GeoPoint | None) -> bytes:
+    """``mission/status``: mode, armed, mission item, capture window, home."""
+    return dumps(
+        {
+            "sim_time_ns": sim_time_ns,
+            "mode": status.mode.value,
+            "armed": status.armed,
+            "current_seq": status.current_seq,
+            "capturing": status.capturing,
+            "mission_completed": status.mission_completed,
+            "home": None
+            if home is None
+            else {"lat_deg": home.lat_deg, "lon_deg": home.lon_deg, "alt_amsl_m": home.alt_amsl_m},
+        }
+    )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CameraInfo:
+    """What ``camera/info`` tells a client: pinhole intrinsics, size, rate, mounting."""
+
+    width_px: int
+    height_px: int
+    hfov_deg: float
+    rate_hz: float
+    q_cam_to_body_wxyz: Quat  # camera (x right, y down the image, z optical axis) -> body FRD
+
+    @property
+    def focal_px(self) -> float:
+        """fx = fy = (W/2) / tan(HFOV/2)."""
+        return (self.width_px / 2.0) / math.tan(math.radians(self.hfov_deg) / 2.0)
+
+
+def encode_camera_info(info: CameraInfo) -> bytes:
+    """``camera/info``: intrinsics (fx, fy, cx, cy in pixels), size, FOV, rate, mounting."""
+    f = info.focal_px
+    return dumps(
+        {
+            "width_px": info.width_px,
+            "height_px": info.height_px,
+            "hfov_deg": info.hfov_deg,
+            "fx_px": f,
+            "fy_px": f,
+            "cx_px": info.width_px / 2.0,
+            "cy_px": info.height_px / 2.0,
+            "rate_hz": info.rate_hz,
+            "q_cam_to_body_wxyz": info.q_cam_to_body_wxyz,
+            "distortion": None,
+        }
+    )
+
+
+def decode_camera_info(payload: bytes) -> CameraInfo:
+    """Inverse of :func:`encode_camera_info`."""
+    m = loads(payload, "camera/info")
+    try:
+        return CameraInfo(
+            width_px=int(m["width_px"]),
+            height_px=int(m["height_px"]),
+            hfov_deg=float(m["hfov_deg"]),
+            rate_hz=float(m["rate_hz"]),
+            q_cam_to_body_wxyz=_quat(m["q_cam_to_body_wxyz"]),
+        )
+    except (KeyError, TypeError, ValueError) as err:
+        msg = f"camera/info: bad message ({err!r})"
+        raise BusError(msg) from None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class FrameMeta:
+    """The attachment of a ``camera/image`` sample (the payload is the JPEG itself)."""
+
+    frame: int
+    sim_time_ns: int
+    width_px: int
+    height_px: int
+    map_xy_px: tuple[int, int] | None = None  # only in camera-bridge render replies
+
+
+def encode_frame_meta(meta: FrameMeta) -> bytes:
+    """Attachment JSON of a frame."""
+    m: dict[str, Any] = {
+        "frame": meta.frame,
+        "sim_time_ns": meta.sim_time_ns,
+        "width_px": meta.width_px,
+        "height_px": meta.height_px,
+    }
+    if meta.map_xy_px is not None:
+        m["map_xy_px"] = meta.map_xy_px
+    return dumps(m)
+
+
+def decode_frame_meta(attachment: bytes | None) -> FrameMeta:
+    """Inverse of :func:`encode_frame_meta`."""
+    if attachment is None:
+        msg = "camera/image: sample has no attachment (frame index and time)"
+        raise BusError(msg)
+    m = loads(attachment, "camera/image attachment")
+    try:
+        xy = m.get("map_xy_px")
+        return FrameMeta(
+            frame=int(m["frame"]),
+            sim_time_ns=int(m["sim_time_ns"]),
+            width_px=int(m["width_px"]),
+            height_px=int(m["height_px"]),
+            map_xy_px=None if xy is None else (int(xy[0]), int(xy[1])),
+        )
+    except (KeyError, TypeError, ValueError, IndexError) as err:
+        msg = f"camera/image attachment: bad value ({err!r})"
+        raise BusError(msg) from None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Estimate:
+    """One position estimate received from ``estimate/<name>``.
+
+    At least one of ``frame`` / ``sim_time_ns`` and one of ``enu_m`` / ``geo`` is set.
+    """
+
+    frame: int | None
+    sim_time_ns: int | None
+    enu_m: Vec3 | None  # east, north, up relative to home
+    geo: GeoPoint | None
+    q_body_to_ned_wxyz: Quat | None = None
+    cov_enu_m2: tuple[float, ...] | None = None  # 3x3 row-major
+
+
+def encode_estimate(
+    *,
+    frame: int | None = None,
+    sim_time_ns: int | None = None,
+    enu_m: Vec3 | None = None,
+    geo: GeoPoint | None = None,
+    q_body_to_ned_wxyz: Quat | None = None,
+    cov_enu_m2: tuple[float, ...] | None = None,
+) -> bytes:
+    """What an estimator publishes on ``estimate/<name>`` (clients may write the JSON by hand)."""
+    m: dict[str, Any] = {}
+    if frame is not None:
+        m["frame"] = frame
+    if sim_time_ns is not None:
+        m["sim_time_ns"] = sim_time_ns
+    if enu_m is not None:
+        m["enu_m"] = enu_m
+    if geo is not None:
+        m.update(lat_deg=geo.lat_deg, lon_deg=geo.lon_deg, alt_amsl_m=geo.alt_amsl_m)
+    if q_body_to_ned_wxyz is not None:
+        m["q_body_to_ned_wxyz"] = q_body_to_ned_wxyz
+    if cov_enu_m2 is not None:
+        m["cov_enu_m2"] = cov_enu_m2
+    return dumps(m)
+
+
+def decode_estimate(payload: bytes, what: str) -> Estimate:
+    """Parse and validate an estimate; BusError with a one-line reason when it is unusable."""
+    m = loads(payload, what)
+    try:
+        frame = None if m.get("frame") is None else int(m["frame"])
+        t = None if m.get("sim_time_ns") is None else int(m["sim_time_ns"])
+        if frame is None and t is None:
+            msg = f"{what}: needs 'frame' or 'sim_time_ns'"
+            raise BusError(msg)
+        enu = None if m.get("enu_m") is None else _vec3(m["enu_m"])
+        geo = None
+        if m.get("lat_deg") is not None:
+            geo = GeoPoint(
+                lat_deg=float(m["lat_deg"]),
+                lon_deg=float(m["lon_deg"]),
+                alt_amsl_m=float(m["alt_amsl_m"]),
+            )
+            if not (-90.0 <= geo.lat_deg <= 90.0 and -180.0 <= geo.lon_deg <= 180.0):
+                msg = f"{what}: lat/lon {geo.lat_deg}, {geo.lon_deg} out of range"
+                raise BusError(msg)
+        if enu is None and geo is None:
+            msg = f"{what}: needs 'enu_m' [e, n, u] or 'lat_deg'/'lon_deg'/'alt_amsl_m'"
+            raise BusError(msg)
+        q = None if m.get("q_body_to_ned_wxyz") is None else _quat(m["q_body_to_ned_wxyz"])
+        cov = None
+        if m.get("cov_enu_m2") is not None:
+            cov = tuple(float(x) for x in m["cov_enu_m2"])
+            if len(cov) != 9:
+                msg = f"{what}: 'cov_enu_m2' needs 9 numbers (3x3 row-major), got {len(cov)}"
+                raise BusError(msg)
+    except (KeyError, TypeError, ValueError) as err:
+        msg = f"{what}: bad estimate ({err!r})"
+        raise BusError(msg) from None
+    for x in (*(enu or ()), *(q or ())):
+        if not math.isfinite(x):
+            msg = f"{what}: non-finite number in the estimate"
+            raise BusError(msg)
+    return Estimate(frame=frame, sim_time_ns=t, enu_m=enu, geo=geo, q_body_to_ned_wxyz=q, cov_enu_m2=cov)
+
+
+def _vec3(value: Any) -> Vec3:
+    x, y, z = (float(v) for v in value)
+    return (x, y, z)
+
+
+def _quat(value: Any) -> Quat:
+    w, x, y, z = (float(v) for v in value)
+    return (w, x, y, z)

@@ -1,0 +1,99 @@
+"""Command-line options for maps and the camera, shared by fly, serve, dataset and render."""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+from air_sitl.camera.model import DEFAULT_JPEG_QUALITY, DEFAULT_NOISE_SIGMA, CameraModel
+from air_sitl.errors import CameraError
+from air_sitl.maps.base import MapSource
+from air_sitl.state import GeoPoint
+
+if TYPE_CHECKING:
+    from air_sitl.camera.bridge import CameraBridge
+
+
+def add_map_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--map``, ``--map-seed``, ``--map-date``."""
+    group = parser.add_argument_group("map")
+    group.add_argument(
+        "--map",
+        default=None,
+        metavar="MAP",
+        help="urban, forest (procedural) or a GeoTIFF path; several GeoTIFFs of one area as "
+        "dates: a.tif,b.tif. Default: urban for plans named U*, forest for F*, else urban",
+    )
+    group.add_argument(
+        "--map-seed", type=int, default=0, metavar="N", help="seed of a procedural map (default 0)"
+    )
+    group.add_argument(
+        "--map-date",
+        default=None,
+        metavar="D",
+        help="date of the map: 0, 1, 2 (procedural: 2009-06-20 summer, 2012-10-08 autumn, "
+        "2016-04-22 spring) or the index / path of a GeoTIFF date file (default 0)",
+    )
+
+
+def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
+    """Camera size, field of view, mounting, JPEG quality and noise."""
+    group = parser.add_argument_group("camera")
+    group.add_argument("--camera-width", type=int, default=640, metavar="PX")
+    group.add_argument("--camera-height", type=int, default=480, metavar="PX")
+    group.add_argument(
+        "--camera-hfov-deg", type=float, default=57.0, metavar="DEG", help="horizontal FOV"
+    )
+    group.add_argument("--jpeg-quality", type=int, default=DEFAULT_JPEG_QUALITY, metavar="Q")
+    group.add_argument(
+        "--noise-sigma",
+        type=float,
+        default=DEFAULT_NOISE_SIGMA,
+        metavar="DN",
+        help=f"Gaussian noise, grey levels of 255 (default {DEFAULT_NOISE_SIGMA}, 0 = off)",
+    )
+    group.add_argument(
+        "--camera-mount-rpy-deg",
+        default="0,0,0",
+        metavar="R,P,Y",
+        help="camera rotation from the default nadir mounting (nose at the image top), degrees",
+    )
+
+
+def map_from_args(args: argparse.Namespace, home: GeoPoint, plan_name: str = "") -> MapSource:
+    """The MapSource the options name (``--map`` default from the plan name)."""
+    from air_sitl.maps.open import default_map_for_plan, open_map
+
+    spec = args.map if args.map else default_map_for_plan(plan_name)
+    return open_map(spec, home, seed=args.map_seed, date=args.map_date)
+
+
+def camera_from_args(args: argparse.Namespace) -> CameraModel:
+    """The CameraModel the options describe (CameraError on bad values)."""
+    text = str(args.camera_mount_rpy_deg)
+    try:
+        parts = tuple(float(p) for p in text.split(","))
+    except ValueError:
+        parts = ()
+    if len(parts) != 3:
+        msg = f"--camera-mount-rpy-deg {text!r}: expected three numbers R,P,Y in degrees"
+        raise CameraError(msg)
+    return CameraModel(
+        width_px=args.camera_width,
+        height_px=args.camera_height,
+        hfov_deg=args.camera_hfov_deg,
+        mount_rpy_deg=(parts[0], parts[1], parts[2]),
+        noise_sigma=args.noise_sigma,
+        jpeg_quality=args.jpeg_quality,
+    )
+
+
+def camera_bridge_from_args(
+    args: argparse.Namespace, home: GeoPoint, plan_name: str = "", *, seed: int = 0
+) -> CameraBridge:
+    """A ready CameraBridge (FrameSource) for a flight: map + camera + renderer + threads."""
+    from air_sitl.camera.bridge import CameraBridge
+    from air_sitl.camera.render import Renderer
+
+    renderer = Renderer(map_from_args(args, home, plan_name), camera_from_args(args), seed=seed)
+    return CameraBridge(renderer)

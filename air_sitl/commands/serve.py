@@ -1,0 +1,170 @@
+"""``air-sitl serve``: a PX4-like vehicle on MAVLink links, flown by ground stations.
+
+The vehicle starts on the ground at home, disarmed; clients (QGroundControl, MAVSDK, MAVProxy,
+pymavlink) connect, upload a mission, arm and start it. It runs until SIGINT or SIGTERM.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import queue
+import signal
+import sys
+import threading
+from pathlib import Path
+from types import FrameType
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from air_sitl.runner import Flight, InboxItem
+    from air_sitl.state import GeoPoint
+
+HELP = "run a PX4-like MAVLink vehicle that ground stations connect to, upload missions to and fly"
+DEFAULT_HOME = (47.397742, 8.545594, 488.0)  # PX4 SITL's default home (Zurich)
+FOREVER_NS = 2**62
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``serve``."""
+    from air_sitl.options import add_flight_arguments
+
+    parser.add_argument(
+        "--mavlink",
+        action="append",
+        metavar="URL",
+        help="udpout:HOST:PORT, udpin:HOST:PORT or tcpin:HOST:PORT; repeatable "
+        "(default: udpout:127.0.0.1:14550 and udpout:127.0.0.1:14540, as PX4 SITL)",
+    )
+    parser.add_argument("--plan", default=None, help="preload this .plan as if uploaded")
+    parser.add_argument(
+        "--home", default=None, help="LAT,LON,ALT_AMSL (default: the plan's home, else PX4's)"
+    )
+    parser.add_argument("--map", default=None, help="map for the camera (recording)")
+    parser.add_argument(
+        "--out", default=None, help="record each capture window into OUT/<n>/ (needs --map)"
+    )
+    parser.add_argument(
+        "--signing-key", default=None, metavar="HEX|@FILE", help="MAVLink 2 signing key"
+    )
+    parser.add_argument("--quiet", action="store_true", help="print only errors")
+    add_flight_arguments(parser, default_speed=1.0)
+
+
+def parse_home(text: str) -> GeoPoint:
+    """``LAT,LON,ALT`` in degrees and metres AMSL."""
+    from air_sitl.errors import OptionError
+    from air_sitl.state import GeoPoint
+
+    parts = text.split(",")
+    try:
+        lat, lon, alt = (float(p) for p in parts)
+    except ValueError:
+        msg = f"--home {text!r}: expected LAT,LON,ALT_AMSL (for example 47.3977,8.5456,488)"
+        raise OptionError(msg) from None
+    if not (math.isfinite(lat + lon + alt) and -90 <= lat <= 90 and -180 <= lon <= 180):
+        msg = f"--home {text!r}: latitude must be in [-90, 90], longitude in [-180, 180]"
+        raise OptionError(msg)
+    return GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until interrupted; exit 0 on SIGINT/SIGTERM."""
+    from air_sitl.errors import OptionError
+    from air_sitl.mavlink.codec import load_signing_key
+    from air_sitl.mavlink.links import DEFAULT_LINKS, parse_link
+    from air_sitl.mavlink.vehicle import EndpointOptions, Job, VehicleEndpoint
+    from air_sitl.mission.items import Mission
+    from air_sitl.mission.plan_file import load_mission
+    from air_sitl.options import flight_options_from_args
+    from air_sitl.runner import assemble_flight, home_of
+    from air_sitl.state import GeoPoint
+
+    options = flight_options_from_args(args)
+    if options.air_start:
+        msg = "--air-start: serve starts on the ground; upload, arm and start from a client"
+        raise OptionError(msg)
+    specs = [parse_link(url) for url in (args.mavlink or DEFAULT_LINKS)]
+    for spec in specs:
+        if not spec.loopback:
+            print(
+                f"air-sitl serve: warning: {spec} is reachable from other machines",
+                file=sys.stderr,
+            )
+    key = load_signing_key(args.signing_key) if args.signing_key else None
+    if args.plan:
+        mission = load_mission(Path(args.plan))
+        home = parse_home(args.home) if args.home else home_of(mission)
+    else:
+        mission = Mission(items=(), source="serve")
+        lat, lon, alt = DEFAULT_HOME
+        home = (
+            parse_home(args.home)
+            if args.home
+            else GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
+        )
+    if args.out and not args.map:
+        print("air-sitl serve: warning: --out needs --map to record frames; not recording",
+              file=sys.stderr)  # fmt: skip
+
+    inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
+
+    def post(job: Job) -> None:
+        def on_flight(flight: Flight) -> None:
+            job(flight.autopilot)
+
+        inbox.put(on_flight)
+
+    endpoint = VehicleEndpoint(
+        specs, home=home, mission=mission, post=post, options=EndpointOptions(signing_key=key)
+    )
+    addresses = endpoint.open()
+    try:
+        flight, home, _initial = assemble_flight(
+            mission, options, sinks=[endpoint.sink], home=home, auto_start=False
+        )
+        endpoint.attach(flight.autopilot, flight.autopilot.params)
+        endpoint.start()
+        if not args.quiet:
+            links = ", ".join(
+                f"{spec} (local {host}:{port})"
+                for spec, (host, port) in zip(specs, addresses, strict=True)
+            )
+            print(
+                f"air-sitl serve: vehicle ready at {home.lat_deg:.7f},{home.lon_deg:.7f},"
+                f"{home.alt_amsl_m:.1f} speed {options.speed:g}; links: {links}",
+                flush=True,
+            )
+        stop = threading.Event()
+
+        def on_signal(signum: int, _frame: FrameType | None) -> None:
+            stop.set()
+
+        previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            flight.run(
+                stop=lambda _sample: stop.is_set(),
+                max_sim_time_ns=_max_sim_ns(args, options.max_sim_time_s),
+                inbox=inbox,
+            )
+        finally:
+            for s, handler in previous.items():
+                signal.signal(s, handler)
+    finally:
+        endpoint.close()
+    if not args.quiet:
+        c = endpoint.counters
+        print(
+            f"air-sitl serve: stopped; {c.messages} messages received, {c.dropped} frames "
+            f"dropped ({c.parse_errors} parse errors, {c.unknown_ids} unknown, "
+            f"{c.signature_rejected} signature rejected)",
+            flush=True,
+        )
+    return 0
+
+
+def _max_sim_ns(args: argparse.Namespace, max_sim_time_s: float) -> int:
+    """Serve runs forever unless --max-sim-time was given explicitly."""
+    if str(args.max_sim_time) == "14400":
+        return FOREVER_NS
+    return int(max_sim_time_s * 1e9)

@@ -1,0 +1,247 @@
+"""The AIR archive contract (SPEC section 1) and the one place where NED/FRD becomes ENU/FLU.
+
+Inside the code positions are NED relative to home and attitudes rotate body FRD to NED
+(Hamilton, scalar first). AIR's ``metadata.csv`` follows ROS REP-103 as Gazebo wrote it: ENU
+metres relative to home, body FLU to world ENU, quaternions in x, y, z, w order. The conversion
+is here, next to the row formatters, and nowhere else.
+
+Files of an archive folder (all names relative to the folder):
+
+- ``metadata.csv``: the 20 AIR columns, one row per frame (``AIR_COLUMNS``);
+- ``frames.csv``: per frame everything else worth having (``FRAMES_COLUMNS``);
+- ``imu.csv``: raw IMU at the physics rate, body FRD (``IMU_COLUMNS``);
+- ``frame_NNNNNN.jpg`` images, ``camera.yaml``, ``<scenario>.plan``, ``trajectory.csv``,
+  ``summary.json`` (the one file with wall-clock figures), ``manifest.json`` (written last).
+"""
+
+from __future__ import annotations
+
+import math
+
+from air_sitl.frames import quat2euler, quat_multiply
+from air_sitl.state import CameraFrame, GpsFix, ImuSample, Quat, SimSample, Vec3
+
+AIR_COLUMNS: tuple[str, ...] = (
+    "Filename",
+    "Latitude",
+    "Longitude",
+    "RelativeAltitude",
+    "ImuX",
+    "ImuY",
+    "ImuZ",
+    "ImuW",
+    "PoseX",
+    "PoseY",
+    "PoseZ",
+    "OrientationX",
+    "OrientationY",
+    "OrientationZ",
+    "OrientationW",
+    "MapX",
+    "MapY",
+    "SvoX",
+    "SvoY",
+    "SvoZ",
+)
+AIR_HEADER = ",".join(AIR_COLUMNS) + "\n"
+
+FRAMES_COLUMNS: tuple[str, ...] = (
+    "frame",
+    "sim_time_ns",
+    "filename",
+    "lat_deg",
+    "lon_deg",
+    "alt_amsl_m",
+    "alt_rel_m",
+    "east_m",
+    "north_m",
+    "up_m",
+    "ned_north_m",
+    "ned_east_m",
+    "ned_down_m",
+    "q_ned_w",
+    "q_ned_x",
+    "q_ned_y",
+    "q_ned_z",
+    "roll_deg",
+    "pitch_deg",
+    "yaw_deg",
+    "vn_m_s",
+    "ve_m_s",
+    "vd_m_s",
+    "airspeed_m_s",
+    "p_rad_s",
+    "q_rad_s",
+    "r_rad_s",
+    "fx_m_s2",
+    "fy_m_s2",
+    "fz_m_s2",
+    "gps_time_ns",
+    "gps_lat_deg",
+    "gps_lon_deg",
+    "gps_alt_amsl_m",
+    "gps_vn_m_s",
+    "gps_ve_m_s",
+    "gps_vd_m_s",
+    "gps_fix_type",
+    "gps_satellites",
+    "gps_eph_m",
+    "gps_epv_m",
+    "map_x_px",
+    "map_y_px",
+    "mission_seq",
+    "mode",
+)
+FRAMES_HEADER = ",".join(FRAMES_COLUMNS) + "\n"
+
+IMU_COLUMNS: tuple[str, ...] = (
+    "sim_time_ns",
+    "gyro_x_rad_s",
+    "gyro_y_rad_s",
+    "gyro_z_rad_s",
+    "accel_x_m_s2",
+    "accel_y_m_s2",
+    "accel_z_m_s2",
+    "ahrs_qw",
+    "ahrs_qx",
+    "ahrs_qy",
+    "ahrs_qz",
+)
+IMU_HEADER = ",".join(IMU_COLUMNS) + "\n"
+
+METADATA_CSV = "metadata.csv"
+FRAMES_CSV = "frames.csv"
+IMU_CSV = "imu.csv"
+CAMERA_YAML = "camera.yaml"
+SUMMARY_JSON = "summary.json"
+MANIFEST_JSON = "manifest.json"
+TRAJECTORY_CSV = "trajectory.csv"
+RECORDING_JSON = ".air-sitl-recording.json"  # present only while a recording is unfinished
+ESTIMATES_DIR = "estimates"
+FRAME_PREFIX = "frame_"
+FRAME_SUFFIX = ".jpg"
+TMP_SUFFIX = ".tmp"
+# A GPS fix older than this is reported as "no fix" in frames.csv (denied or lost).
+GPS_STALE_NS = 400_000_000
+
+_S = math.sqrt(0.5)
+# NED -> ENU is the 180 degree rotation about (1, 1, 0)/sqrt(2); FLU -> FRD is 180 about x.
+Q_NED_TO_ENU: Quat = (0.0, _S, _S, 0.0)
+Q_FLU_TO_FRD: Quat = (0.0, 1.0, 0.0, 0.0)
+
+
+def frame_filename(index: int) -> str:
+    """The image file name of frame ``index`` (relative to the archive folder)."""
+    return f"{FRAME_PREFIX}{index:06d}{FRAME_SUFFIX}"
+
+
+def frame_index_of(name: str) -> int | None:
+    """Inverse of :func:`frame_filename`; None for any other name."""
+    if not (name.startswith(FRAME_PREFIX) and name.endswith(FRAME_SUFFIX)):
+        return None
+    digits = name[len(FRAME_PREFIX) : -len(FRAME_SUFFIX)]
+    return int(digits) if digits.isdigit() else None
+
+
+def ned2enu(v: Vec3) -> Vec3:
+    """A NED vector (north, east, down) as ENU (east, north, up)."""
+    return (v[1], v[0], -v[2])
+
+
+def enu2ned(v: Vec3) -> Vec3:
+    """An ENU vector as NED."""
+    return (v[1], v[0], -v[2])
+
+
+def q_frd_ned_to_flu_enu(q_body_to_ned_wxyz: Quat) -> Quat:
+    """Body FRD->NED quaternion (w, x, y, z) as body FLU->ENU (w, x, y, z), scalar part >= 0."""
+    q = quat_multiply(quat_multiply(Q_NED_TO_ENU, q_body_to_ned_wxyz), Q_FLU_TO_FRD)
+    return q if q[0] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
+
+
+def q_flu_enu_to_frd_ned(q_flu_to_enu_wxyz: Quat) -> Quat:
+    """Inverse of :func:`q_frd_ned_to_flu_enu` (both fixed rotations are their own inverse)."""
+    q = quat_multiply(quat_multiply(Q_NED_TO_ENU, q_flu_to_enu_wxyz), Q_FLU_TO_FRD)
+    return q if q[0] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
+
+
+def wxyz2xyzw(q: Quat) -> Quat:
+    """Scalar-first to scalar-last order (the CSV and ROS order)."""
+    return (q[1], q[2], q[3], q[0])
+
+
+def xyzw2wxyz(q: Quat) -> Quat:
+    """Scalar-last to scalar-first order."""
+    return (q[3], q[0], q[1], q[2])
+
+
+def _svo_text(svo_enu_m: Vec3 | None) -> str:
+    if svo_enu_m is None:
+        return "nan,nan,nan"
+    return ",".join("nan" if math.isnan(c) else f"{c:.4f}" for c in svo_enu_m)
+
+
+def metadata_row(
+    filename: str,
+    sample: SimSample,
+    map_xy_px: tuple[int, int],
+    svo_enu_m: Vec3 | None = None,
+) -> str:
+    """One AIR ``metadata.csv`` line (with its newline) for a frame taken at ``sample``."""
+    s = sample.state
+    e, n, u = ned2enu(s.pos_ned_m)
+    ow, ox, oy, oz = q_frd_ned_to_flu_enu(s.q_body_to_ned_wxyz)
+    iw, ix, iy, iz = q_frd_ned_to_flu_enu(sample.imu.q_ahrs_body_to_ned_wxyz)
+    return (
+        f"{filename},{s.lat_deg:.9f},{s.lon_deg:.9f},{s.alt_agl_m:.4f},"
+        f"{ix:.9f},{iy:.9f},{iz:.9f},{iw:.9f},"
+        f"{e:.4f},{n:.4f},{u:.4f},"
+        f"{ox:.9f},{oy:.9f},{oz:.9f},{ow:.9f},"
+        f"{int(map_xy_px[0])},{int(map_xy_px[1])},{_svo_text(svo_enu_m)}\n"
+    )
+
+
+def _gps_text(gps: GpsFix | None, now_ns: int) -> str:
+    if gps is None or now_ns - gps.sim_time_ns > GPS_STALE_NS or gps.fix_type == 0:
+        return ",nan,nan,nan,nan,nan,nan,0,0,nan,nan"
+    vn, ve, vd = gps.vel_ned_m_s
+    return (
+        f"{gps.sim_time_ns},{gps.lat_deg:.9f},{gps.lon_deg:.9f},{gps.alt_amsl_m:.4f},"
+        f"{vn:.4f},{ve:.4f},{vd:.4f},{gps.fix_type},{gps.satellites},"
+        f"{gps.eph_m:.3f},{gps.epv_m:.3f}"
+    )
+
+
+def frames_row(frame: CameraFrame, filename: str, last_gps: GpsFix | None) -> str:
+    """One ``frames.csv`` line: timestamp, truth, GPS as last received, map pixel, mission."""
+    sample = frame.sample
+    s = sample.state
+    a = sample.autopilot
+    n, e, d = s.pos_ned_m
+    qw, qx, qy, qz = s.q_body_to_ned_wxyz
+    roll, pitch, yaw = quat2euler(s.q_body_to_ned_wxyz)
+    vn, ve, vd = s.vel_ned_m_s
+    p, q, r = s.rate_frd_rad_s
+    fx, fy, fz = s.specific_force_frd_m_s2
+    return (
+        f"{frame.index},{frame.sim_time_ns},{filename},"
+        f"{s.lat_deg:.9f},{s.lon_deg:.9f},{s.alt_amsl_m:.4f},{s.alt_agl_m:.4f},"
+        f"{e:.4f},{n:.4f},{-d:.4f},{n:.4f},{e:.4f},{d:.4f},"
+        f"{qw:.9f},{qx:.9f},{qy:.9f},{qz:.9f},"
+        f"{math.degrees(roll):.5f},{math.degrees(pitch):.5f},{math.degrees(yaw):.5f},"
+        f"{vn:.4f},{ve:.4f},{vd:.4f},{s.airspeed_m_s:.4f},"
+        f"{p:.6f},{q:.6f},{r:.6f},{fx:.5f},{fy:.5f},{fz:.5f},"
+        f"{_gps_text(last_gps, s.sim_time_ns)},"
+        f"{int(frame.map_xy_px[0])},{int(frame.map_xy_px[1])},{a.current_seq},{a.mode.value}\n"
+    )
+
+
+def imu_row(imu: ImuSample) -> str:
+    """One ``imu.csv`` line: gyro and accelerometer in body FRD, AHRS quaternion body->NED."""
+    gx, gy, gz = imu.gyro_frd_rad_s
+    ax, ay, az = imu.accel_frd_m_s2
+    qw, qx, qy, qz = imu.q_ahrs_body_to_ned_wxyz
+    return (
+        f"{imu.sim_time_ns},{gx:.7f},{gy:.7f},{gz:.7f},{ax:.6f},{ay:.6f},{az:.6f},"
+        f"{qw:.9f},{qx:.9f},{qy:.9f},{qz:.9f}\n"
+    )

@@ -1,0 +1,140 @@
+"""``manifest.json``: what an archive holds, a SHA-256 per file, and ``complete: true`` last.
+
+Every file of an archive is byte-identical across runs with the same inputs and seed, except
+``summary.json`` (it holds wall-clock figures); the manifest names it in ``wall_clock_files`` so
+that determinism comparisons can leave it out.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from air_sitl.dataset.air_schema import (
+    MANIFEST_JSON,
+    RECORDING_JSON,
+    SUMMARY_JSON,
+    TMP_SUFFIX,
+)
+from air_sitl.errors import DatasetError
+
+MANIFEST_FORMAT = "air-sitl-archive"
+MANIFEST_VERSION = 1
+WALL_CLOCK_FILES = (SUMMARY_JSON,)
+
+
+def sha256_bytes(data: bytes) -> str:
+    """Hex SHA-256 of ``data``."""
+    return hashlib.sha256(data).hexdigest()
+
+
+def sha256_file(path: Path) -> str:
+    """Hex SHA-256 of a file, read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        while block := f.read(1 << 20):
+            h.update(block)
+    return h.hexdigest()
+
+
+def write_json_atomic(path: Path, content: Mapping[str, Any]) -> None:
+    """Write JSON to a temporary name, fsync, rename into place (DatasetError on failure)."""
+    tmp = path.with_name(path.name + TMP_SUFFIX)
+    data = (json.dumps(content, indent=2) + "\n").encode("utf-8")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view) :]
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except OSError as err:
+        tmp.unlink(missing_ok=True)
+        msg = f"{path}: cannot write: {err.strerror}"
+        raise DatasetError(msg) from None
+
+
+def archive_files(folder: Path) -> list[str]:
+    """Every file of an archive that the manifest lists, as sorted POSIX relative paths.
+
+    Leaves out the manifest itself, hidden files (the in-progress marker) and temporary files.
+    """
+    names: list[str] = []
+    for path in folder.rglob("*"):
+        rel = path.relative_to(folder)
+        if any(part.startswith(".") for part in rel.parts):
+            continue
+        if not path.is_file() or path.name.endswith(TMP_SUFFIX):
+            continue
+        text = rel.as_posix()
+        if text in (MANIFEST_JSON, RECORDING_JSON):
+            continue
+        names.append(text)
+    return sorted(names)
+
+
+def hash_files(folder: Path, known: Mapping[str, str] | None = None) -> dict[str, str]:
+    """SHA-256 of every archive file; ``known`` supplies hashes computed while writing."""
+    known = known or {}
+    out: dict[str, str] = {}
+    for name in archive_files(folder):
+        digest = known.get(name)
+        out[name] = digest if digest is not None else sha256_file(folder / name)
+    return out
+
+
+def write_manifest(
+    folder: Path, info: Mapping[str, Any], files: Mapping[str, str]
+) -> dict[str, Any]:
+    """Write ``manifest.json`` atomically, with ``complete: true`` as its last key."""
+    content: dict[str, Any] = {"format": MANIFEST_FORMAT, "format_version": MANIFEST_VERSION}
+    content.update(info)
+    content["wall_clock_files"] = [f for f in WALL_CLOCK_FILES if f in files]
+    content["files"] = dict(sorted(files.items()))
+    content["complete"] = True
+    write_json_atomic(folder / MANIFEST_JSON, content)
+    return content
+
+
+def read_manifest(folder: Path) -> dict[str, Any] | None:
+    """The manifest of a folder archive, None when there is none (unfinished or original AIR)."""
+    path = folder / MANIFEST_JSON
+    if not path.exists():
+        return None
+    try:
+        content = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        msg = f"{path}: not a readable JSON manifest ({err})"
+        raise DatasetError(msg) from None
+    if not isinstance(content, dict):
+        msg = f"{path}: expected a JSON object, found {type(content).__name__}"
+        raise DatasetError(msg)
+    return content
+
+
+def refresh_manifest(folder: Path, changed: Mapping[str, str] | None = None) -> None:
+    """Re-hash files added or changed after the manifest was written (estimates, SvoX..Z).
+
+    Files whose hash is in ``changed`` are taken from there; files already listed keep their
+    hash unless changed; new files are hashed from disk. Does nothing without a manifest.
+    """
+    manifest = read_manifest(folder)
+    if manifest is None:
+        return
+    old = manifest.get("files", {})
+    known = {k: v for k, v in old.items() if isinstance(v, str)}
+    known.update(changed or {})
+    files = hash_files(folder, known)
+    info = {
+        k: v
+        for k, v in manifest.items()
+        if k not in ("format", "format_version", "wall_clock_files", "files", "complete")
+    }
+    write_manifest(folder, info, files)

@@ -1,0 +1,218 @@
+"""GeoTIFF / Cloud-Optimized GeoTIFF maps read by window with rasterio (its only importer).
+
+The file's overviews serve as the pyramid where their factor is 2**L; missing levels are built
+in memory from the finer level, tile by tile, so any file flies with bounded memory (a large
+file without overviews is slow at high altitude, not big). Any CRS GDAL knows works: UTM
+fast (pure maths), others through GDAL's transform, geographic CRSs included.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rasterio
+from rasterio.errors import RasterioError
+from rasterio.warp import transform as warp_transform
+from rasterio.windows import Window
+
+from air_sitl.maps.array import num_levels_for, utm_zone_of_crs
+from air_sitl.maps.base import (
+    DEFAULT_CACHE_BYTES,
+    FILL_BGRX,
+    TILE_PX,
+    Georeference,
+    Image,
+    TiledMap,
+    map_error,
+)
+from air_sitl.maps.utm import latlon2utm
+
+_METRES_PER_DEGREE = 111_319.49
+
+
+class GeoTiffMap(TiledMap):
+    """One georeferenced RGB/gray uint8 TIFF; windowed reads only."""
+
+    def __init__(
+        self,
+        path: Path,
+        *,
+        ground_elevation_m: float,
+        cache_bytes: int = DEFAULT_CACHE_BYTES,
+    ) -> None:
+        super().__init__(cache_bytes)
+        self.path = path
+        self.name = path.name
+        if not path.is_file():
+            raise map_error(str(path), "no such GeoTIFF file")
+        try:
+            src = rasterio.open(path)
+        except RasterioError as err:
+            raise map_error(str(path), f"not a readable GeoTIFF ({err})") from None
+        self._src = src
+        self._lock = threading.Lock()
+        self._overviews: dict[int, Any] = {}
+        if src.crs is None or src.transform.is_identity:
+            src.close()
+            raise map_error(str(path), "not georeferenced (no CRS or no geotransform)")
+        if src.count not in (1, 3, 4) or any(dt != "uint8" for dt in src.dtypes):
+            src.close()
+            msg = f"{src.count} band(s) of {src.dtypes[0]}: expected 1, 3 or 4 bands of uint8"
+            raise map_error(str(path), msg)
+        t = src.transform
+        affine = (t.c, t.a, t.b, t.f, t.d, t.e)
+        det = abs(t.a * t.e - t.b * t.d)
+        self._geographic = bool(src.crs.is_geographic)
+        crs_text = src.crs.to_string()
+        self._zone = utm_zone_of_crs(crs_text)
+        if self._geographic:
+            lat_mid = t.f + t.e * src.height / 2.0
+            gsd = math.sqrt(det * math.cos(math.radians(lat_mid))) * _METRES_PER_DEGREE
+        else:
+            gsd = math.sqrt(det) * float(src.crs.linear_units_factor[1])
+        self.georef = Georeference(
+            crs=crs_text, transform=affine, width_px=src.width, height_px=src.height, gsd_m=gsd
+        )
+        self.ground_elevation_m = ground_elevation_m
+        self.num_levels = num_levels_for(src.width, src.height)
+        self._overview_index = {
+            int(round(math.log2(f))): i for i, f in enumerate(src.overviews(1)) if f & (f - 1) == 0
+        }
+        self._crs_text = crs_text
+        self._sha256: str | None = None
+
+    def _latlon_to_crs(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
+        if self._zone is not None:
+            return latlon2utm(lat_deg, lon_deg, self._zone)
+        if self._geographic:
+            return (lon_deg, lat_deg)
+        xs, ys = warp_transform("EPSG:4326", self._crs_text, [lon_deg], [lat_deg])
+        return (float(xs[0]), float(ys[0]))
+
+    def _read(self, src: Any, x0: int, y0: int) -> Image:
+        """A TILE_PX square at (x0, y0) of ``src`` as BGRx, filled outside the raster."""
+        tile = np.empty((TILE_PX, TILE_PX, 4), dtype=np.uint8)
+        tile[:] = FILL_BGRX
+        w = min(TILE_PX, src.width - x0)
+        h = min(TILE_PX, src.height - y0)
+        if w <= 0 or h <= 0:
+            return tile
+        with self._lock:
+            data = src.read(window=Window(x0, y0, w, h))
+        if data.shape[0] == 1:
+            tile[:h, :w, 0] = tile[:h, :w, 1] = tile[:h, :w, 2] = data[0]
+        else:
+            tile[:h, :w, 0] = data[2]
+            tile[:h, :w, 1] = data[1]
+            tile[:h, :w, 2] = data[0]
+        tile[:h, :w, 3] = 255
+        return tile
+
+    def _make_tile(self, tx: int, ty: int) -> Image:
+        return self._read(self._src, tx * TILE_PX, ty * TILE_PX)
+
+    def _native_tile(self, level: int, tx: int, ty: int) -> Image | None:
+        index = self._overview_index.get(level)
+        if index is None:
+            return None
+        with self._lock:
+            ovr = self._overviews.get(level)
+            if ovr is None:
+                ovr = rasterio.open(self.path, overview_level=index)
+                self._overviews[level] = ovr
+        return self._read(ovr, tx * TILE_PX, ty * TILE_PX)
+
+    def describe(self) -> dict[str, Any]:
+        """Provenance: file name, SHA-256 (computed once), CRS and size."""
+        if self._sha256 is None:
+            digest = hashlib.sha256()
+            with self.path.open("rb") as f:
+                for chunk in iter(lambda: f.read(1 << 20), b""):
+                    digest.update(chunk)
+            self._sha256 = digest.hexdigest()
+        return {
+            "source": "geotiff",
+            "path": str(self.path),
+            "sha256": self._sha256,
+            "crs": self._crs_text,
+            "size_px": [self.georef.width_px, self.georef.height_px],
+            "gsd_m": self.georef.gsd_m,
+        }
+
+    def close(self) -> None:
+        """Close the file and its overview handles."""
+        with self._lock:
+            for ovr in self._overviews.values():
+                ovr.close()
+            self._overviews.clear()
+            self._src.close()
+
+
+def write_geotiff(
+    path: Path,
+    tiles: Any,
+    *,
+    width_px: int,
+    height_px: int,
+    crs: str,
+    transform: tuple[float, float, float, float, float, float],
+    jpeg_quality: int = 90,
+) -> None:
+    """Write a Cloud-Optimized GeoTIFF (tiled, JPEG-YCbCr, overviews) from an RGB block source.
+
+    ``tiles`` is a callable ``(x0, y0, w, h) -> (h, w, 3) BGR uint8`` giving level-0 pixels;
+    the file is assembled block by block in a temporary tiled GeoTIFF (bounded memory), then
+    copied by GDAL's COG driver, which builds the overviews.
+    """
+    from rasterio.shutil import copy as rio_copy
+    from rasterio.transform import Affine
+
+    tmp = path.with_name(path.name + ".tmp.tif")
+    t0, t1, t2, t3, t4, t5 = transform
+    profile = {
+        "driver": "GTiff",
+        "width": width_px,
+        "height": height_px,
+        "count": 3,
+        "dtype": "uint8",
+        "crs": crs,
+        "transform": Affine(t1, t2, t0, t4, t5, t3),
+        "tiled": True,
+        "blockxsize": 512,
+        "blockysize": 512,
+        "compress": "DEFLATE",
+        "predictor": 2,
+        "zlevel": 1,
+        "photometric": "RGB",
+        "BIGTIFF": "IF_SAFER",
+    }
+    block = 2048
+    try:
+        with rasterio.open(tmp, "w", **profile) as dst:
+            for y0 in range(0, height_px, block):
+                for x0 in range(0, width_px, block):
+                    w = min(block, width_px - x0)
+                    h = min(block, height_px - y0)
+                    bgr = tiles(x0, y0, w, h)
+                    rgb = np.ascontiguousarray(bgr[:, :, 2::-1].transpose(2, 0, 1))
+                    dst.write(rgb, window=Window(x0, y0, w, h))
+        rio_copy(
+            tmp,
+            path,
+            driver="COG",
+            COMPRESS="JPEG",
+            QUALITY=str(jpeg_quality),
+            BLOCKSIZE="512",
+            OVERVIEW_RESAMPLING="AVERAGE",
+            BIGTIFF="IF_SAFER",
+            NUM_THREADS="2",
+        )
+    except RasterioError as err:
+        raise map_error(str(path), f"cannot write the GeoTIFF ({err})") from None
+    finally:
+        tmp.unlink(missing_ok=True)

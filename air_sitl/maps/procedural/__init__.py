@@ -1,0 +1,130 @@
+"""Built-in procedural maps (``urban``, ``forest``): unbounded, deterministic, several dates.
+
+The world is a function of absolute UTM coordinates (zone of home), seed and date, so two
+flights with different homes in one area see the same ground, and ``map make`` writes the same
+pixels. Nominal level-0 pixel grid (what MapX/MapY count): ``gsd_m`` metres per pixel (default
+0.6), pixel edges on multiples of ``gsd_m`` in UTM, origin ``NOMINAL_HALF_PX`` pixels west and
+north of the 256-pixel lattice cell that holds home; so home lies at pixel
+(5120 + a, 5120 + b) with 0 <= a, b < 256, and ``air-sitl map make`` with its default size and
+``--origin`` = home writes exactly that grid (10240 x 10240 pixels).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from air_sitl.maps.base import DEFAULT_CACHE_BYTES, TILE_PX, Georeference, Image, TiledMap, map_error
+from air_sitl.maps.procedural.canvas import DATES, DateLook
+from air_sitl.maps.procedural.forest import ForestWorld
+from air_sitl.maps.procedural.urban import UrbanWorld
+from air_sitl.maps.utm import latlon2utm, utm_zone_of
+from air_sitl.state import GeoPoint
+
+KINDS = ("urban", "forest")
+DEFAULT_GSD_M = 0.6
+NOMINAL_HALF_PX = 5120
+NUM_LEVELS = 9  # level 8 is 256 x gsd per pixel (154 m at 0.6 m)
+
+
+def parse_date(value: str | int | None) -> DateLook:
+    """A date of a procedural map from an index ("0", "1", ...) or a label ("2012-10-08")."""
+    if value is None:
+        return DATES[0]
+    text = str(value).strip()
+    for look in DATES:
+        if text in (str(look.index), look.label, look.season):
+            return look
+    names = ", ".join(f"{d.index}={d.label} ({d.season})" for d in DATES)
+    raise map_error("--map-date", f"{text!r} is not a date of the procedural maps ({names})")
+
+
+class ProceduralMap(TiledMap):
+    """One date of the ``urban`` or ``forest`` world around ``home``."""
+
+    def __init__(
+        self,
+        kind: str,
+        home: GeoPoint,
+        *,
+        seed: int = 0,
+        date: str | int | None = None,
+        gsd_m: float = DEFAULT_GSD_M,
+        cache_bytes: int = DEFAULT_CACHE_BYTES,
+    ) -> None:
+        super().__init__(cache_bytes)
+        if kind not in KINDS:
+            raise map_error("--map", f"{kind!r} is not a procedural map ({', '.join(KINDS)})")
+        if not (gsd_m > 0.05 and math.isfinite(gsd_m)):
+            raise map_error("--gsd-m", f"{gsd_m!r} is not a ground sample distance >= 0.05 m")
+        self.kind = kind
+        self.seed = int(seed)
+        self.date = parse_date(date)
+        self._world: UrbanWorld | ForestWorld = UrbanWorld(self.seed) if kind == "urban" else ForestWorld(self.seed)
+        self.zone = utm_zone_of(home.lat_deg, home.lon_deg)
+        e, n = latlon2utm(home.lat_deg, home.lon_deg, self.zone)
+        # Absolute lattice: pixel k spans [k, k+1) * gsd in easting and [-k-1, -k) * gsd in northing.
+        cell_x = math.floor(e / gsd_m / TILE_PX) * TILE_PX
+        cell_y = math.floor(-n / gsd_m / TILE_PX) * TILE_PX
+        self.origin_abs_px = (cell_x - NOMINAL_HALF_PX, cell_y - NOMINAL_HALF_PX)
+        ox, oy = self.origin_abs_px
+        self.name = f"{kind}-seed{self.seed}-{self.date.label}"
+        self.georef = Georeference(
+            crs=f"EPSG:{self.zone.epsg}",
+            transform=(ox * gsd_m, gsd_m, 0.0, -oy * gsd_m, 0.0, -gsd_m),
+            width_px=None,
+            height_px=None,
+            gsd_m=gsd_m,
+        )
+        self.ground_elevation_m = home.alt_amsl_m
+        self.num_levels = NUM_LEVELS
+        self._gsd = gsd_m
+
+    def _latlon_to_crs(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
+        return latlon2utm(lat_deg, lon_deg, self.zone)
+
+    def _make_tile(self, tx: int, ty: int) -> Image:
+        # Draw the 2x2 group holding this tile at once: the margin every tile must draw
+        # around itself (shadows, crowns crossing the edge) is then paid once for four.
+        gx, gy = tx - tx % 2, ty - ty % 2
+        ox, oy = self.origin_abs_px
+        bgr = self.render_abs(ox + gx * TILE_PX, oy + gy * TILE_PX, 2 * TILE_PX)
+        mine: Image | None = None
+        for dy in (0, 1):
+            for dx in (0, 1):
+                tile = np.empty((TILE_PX, TILE_PX, 4), dtype=np.uint8)
+                tile[:, :, :3] = bgr[dy * TILE_PX : (dy + 1) * TILE_PX, dx * TILE_PX : (dx + 1) * TILE_PX]
+                tile[:, :, 3] = 255
+                if (gx + dx, gy + dy) == (tx, ty):
+                    mine = tile
+                else:
+                    tile.setflags(write=False)
+                    self._cache.put((0, gx + dx, gy + dy), tile)
+        assert mine is not None
+        return mine
+
+    def render_abs(self, x0_abs: int, y0_abs: int, size: int) -> Image:
+        """Level-0 BGR pixels of a square at absolute lattice position (used by ``map make``)."""
+        return self._world.draw(x0_abs, y0_abs, size, self._gsd, self.date)
+
+    def read_bgr(self, x0: int, y0: int, width: int, height: int) -> Image:
+        """Level-0 BGR pixels of a window of the nominal grid (tiles cached as usual)."""
+        return np.ascontiguousarray(self.read_level(0, x0, y0, width, height)[:, :, :3])
+
+    def describe(self) -> dict[str, Any]:
+        """Provenance: kind, seed, date, grid."""
+        return {
+            "source": "procedural",
+            "kind": self.kind,
+            "seed": self.seed,
+            "date": self.date.label,
+            "date_index": self.date.index,
+            "season": self.date.season,
+            "sun_azimuth_deg": self.date.sun_azimuth_deg,
+            "sun_elevation_deg": self.date.sun_elevation_deg,
+            "crs": self.georef.crs,
+            "transform": list(self.georef.transform),
+            "gsd_m": self._gsd,
+        }

@@ -1,0 +1,471 @@
+"""The ``urban`` map: a street grid of varied blocks (houses, commercial, parks, parking).
+
+Layout lives in a frame rotated by a seed-chosen angle from UTM; streets sit at jittered
+multiples of the block pitch, so every block is found from its indices alone and any tile is
+drawn without its neighbours. Per-block random choices never depend on the date: dates only
+switch buildings on or off, change colours, sun and tree size.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from air_sitl.maps.procedural.canvas import DATES, Canvas, Color, DateLook, Point, finish, rect, shade
+from air_sitl.maps.procedural.noise import fractal_noise, key_of, rng_for, unit2, value_noise, white_noise
+
+PITCH_M = 105.0
+_ASPHALT: Color = (86, 85, 84)
+_ASPHALT_NEW: Color = (52, 51, 50)
+_SIDEWALK: Color = (158, 166, 172)
+_DRIVEWAY: Color = (140, 146, 150)
+_DIRT: Color = (92, 118, 142)
+_POOL: Color = (205, 175, 90)
+_LAWN = {"summer": (64, 116, 92), "autumn": (80, 126, 134), "spring": (78, 108, 114)}
+_TREE = {
+    "summer": ((34, 74, 44), (40, 86, 58), (30, 64, 38)),
+    "autumn": ((40, 92, 164), (48, 140, 176), (40, 96, 96)),
+    "spring": ((78, 92, 104), (70, 84, 92), (60, 104, 84)),
+}
+_ROOFS: tuple[Color, ...] = (
+    (120, 122, 128),
+    (72, 74, 78),
+    (58, 80, 166),
+    (60, 82, 112),
+    (46, 52, 140),
+    (168, 188, 202),
+    (118, 104, 92),
+    (80, 100, 72),
+    (150, 150, 150),
+)
+_FLAT_ROOFS: tuple[Color, ...] = ((202, 204, 200), (150, 152, 150), (176, 178, 170), (110, 112, 112))
+_CARS: tuple[Color, ...] = (
+    (235, 235, 235),
+    (30, 30, 30),
+    (160, 160, 160),
+    (40, 40, 170),
+    (150, 80, 30),
+    (200, 200, 205),
+    (60, 60, 60),
+)
+
+
+@dataclass(frozen=True, slots=True)
+class Building:
+    """A building footprint (layout frame) with height, roof look and life span in dates."""
+
+    corners: tuple[Point, ...]
+    height_m: float
+    roof: Color
+    gabled: bool
+    ridge_along_x: bool
+    born: int  # first date index where it exists
+    gone: int  # first date index where it no longer exists
+
+
+@dataclass(frozen=True, slots=True)
+class Block:
+    """Everything in one block, in the layout frame."""
+
+    grounds: tuple[tuple[tuple[Point, ...], str], ...]  # polygon, kind
+    buildings: tuple[Building, ...]
+    trees: tuple[tuple[Point, float, int, int], ...]  # centre, radius, colour index, born
+    cars: tuple[tuple[tuple[Point, ...], Color], ...]
+    paint: tuple[tuple[tuple[Point, ...], float], ...]  # white lines, width
+    bounds: tuple[float, float, float, float]  # u0, v0, u1, v1
+
+
+class UrbanWorld:
+    """The urban generator for one seed and gsd."""
+
+    def __init__(self, seed: int) -> None:
+        self.seed = seed
+        self.angle_rad = math.radians(35.0 * float(unit2(np.array([seed]), np.array([1]), 77)[0]))
+        self.c = math.cos(self.angle_rad)
+        self.s = math.sin(self.angle_rad)
+
+    # Layout frame (u, v) <-> world (E, N): a rotation about the UTM origin.
+    def to_world(self, pts: list[Point] | tuple[Point, ...]) -> list[Point]:
+        """Layout points to world metres."""
+        c, s = self.c, self.s
+        return [(c * u - s * v, s * u + c * v) for u, v in pts]
+
+    def street(self, axis: int, k: int) -> tuple[float, float, bool]:
+        """Centre position, half width and 'main road' flag of street ``k`` along an axis."""
+        u = unit2(np.array([k]), np.array([axis]), key_of(self.seed, 11))[0]
+        main = k % 5 == 0
+        return (k * PITCH_M + (float(u) - 0.5) * 0.45 * PITCH_M, 10.0 if main else 6.0, main)
+
+    def resurfaced_at(self, axis: int, k: int) -> int:
+        """Date index from which street k has fresh asphalt (3 = never)."""
+        u = float(unit2(np.array([k]), np.array([axis]), key_of(self.seed, 12))[0])
+        return 1 if u < 0.15 else 2 if u < 0.3 else 3
+
+    @functools.lru_cache(maxsize=4096)  # noqa: B019 - one world per map, bounded cache
+    def block(self, kx: int, ky: int) -> Block:
+        """The content of block (kx, ky), independent of the date."""
+        ux0, wx0, _ = self.street(0, kx)
+        ux1, wx1, _ = self.street(0, kx + 1)
+        vy0, wy0, _ = self.street(1, ky)
+        vy1, wy1, _ = self.street(1, ky + 1)
+        u0, u1 = ux0 + wx0, ux1 - wx1
+        v0, v1 = vy0 + wy0, vy1 - wy1
+        rng = rng_for(self.seed, 21, kx, ky)
+        # Districts: a smooth field (1.5 km) shifts blocks between homes, shops and parks.
+        zone = float(value_noise(key_of(self.seed, 22), (u0 + u1) / 2 / 1500.0, (v0 + v1) / 2 / 1500.0, 1, 1.0)[0, 0])
+        kind = float(np.clip(rng.random() + 0.18 * zone, 0.0, 0.999))
+        grounds: list[tuple[tuple[Point, ...], str]] = [
+            (tuple(_box(u0, v0, u1, v1)), "sidewalk")
+        ]
+        b0, b1, c0, c1 = u0 + 2.5, u1 - 2.5, v0 + 2.5, v1 - 2.5
+        buildings: list[Building] = []
+        trees: list[tuple[Point, float, int, int]] = []
+        cars: list[tuple[tuple[Point, ...], Color]] = []
+        paint: list[tuple[tuple[Point, ...], float]] = []
+        if kind < 0.55:
+            grounds.append((tuple(_box(b0, c0, b1, c1)), "lawn"))
+            _residential(rng, b0, c0, b1, c1, grounds, buildings, trees, cars)
+        elif kind < 0.78:
+            grounds.append((tuple(_box(b0, c0, b1, c1)), "parking"))
+            _commercial(rng, b0, c0, b1, c1, buildings, trees, cars, paint)
+        elif kind < 0.9:
+            grounds.append((tuple(_box(b0, c0, b1, c1)), "lawn"))
+            _park(rng, b0, c0, b1, c1, grounds, trees)
+        else:
+            grounds.append((tuple(_box(b0, c0, b1, c1)), "parking"))
+            _parking(rng, b0, c0, b1, c1, cars, paint, trees)
+        return Block(
+            grounds=tuple(grounds),
+            buildings=tuple(buildings),
+            trees=tuple(trees),
+            cars=tuple(cars),
+            paint=tuple(paint),
+            bounds=(u0, v0, u1, v1),
+        )
+
+    def draw(self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook) -> np.ndarray:
+        """One BGR tile of ``size`` pixels at absolute lattice (x0, y0)."""
+        cv = Canvas(x0, y0, size, gsd_m, _ASPHALT)
+        # Layout-frame range of the tile (its rotated bounding box) plus shadow margin.
+        corners = [(cv.e_min, cv.n_min), (cv.e_max, cv.n_min), (cv.e_min, cv.n_max), (cv.e_max, cv.n_max)]
+        us = [self.c * e + self.s * n for e, n in corners]
+        vs = [-self.s * e + self.c * n for e, n in corners]
+        margin = 45.0
+        kx0 = math.floor((min(us) - margin) / PITCH_M) - 1
+        kx1 = math.floor((max(us) + margin) / PITCH_M) + 1
+        ky0 = math.floor((min(vs) - margin) / PITCH_M) - 1
+        ky1 = math.floor((max(vs) + margin) / PITCH_M) + 1
+        u_lo, u_hi = min(us) - margin, max(us) + margin
+        v_lo, v_hi = min(vs) - margin, max(vs) + margin
+        self._draw_roads(cv, date, kx0, kx1, ky0, ky1, u_lo, u_hi, v_lo, v_hi)
+        blocks = [
+            self.block(kx, ky)
+            for ky in range(ky0, ky1 + 1)
+            for kx in range(kx0, kx1 + 1)
+            if _box_overlaps(self.block(kx, ky).bounds, u_lo, v_lo, u_hi, v_hi)
+        ]
+        lawn = _LAWN[date.season]
+        tree_cols = _TREE[date.season]
+        d = date.index
+        for blk in blocks:
+            for poly, kind in blk.grounds:
+                col = {
+                    "sidewalk": _SIDEWALK,
+                    "lawn": lawn,
+                    "parking": (92, 93, 95),
+                    "driveway": _DRIVEWAY,
+                    "pool": _POOL,
+                    "dirt": _DIRT,
+                    "path": (150, 162, 170),
+                }[kind]
+                cv.poly(self.to_world(poly), col)
+                if kind == "lawn":
+                    cv.poly(self.to_world(poly), (70,), "veg")
+            for b in blk.buildings:
+                if b.born > d:
+                    # A construction site the date before it is finished.
+                    if b.born == d + 1:
+                        cv.poly(self.to_world(_grow(b.corners, 2.0)), _DIRT)
+                    continue
+                if b.gone <= d:
+                    cv.poly(self.to_world(b.corners), _DIRT if b.gone == d else lawn)
+            paint = [self.to_world(line) for line, _w in blk.paint]
+            cv.segments([(w[0], w[1]) for w in paint], (225, 228, 230), 0.15)
+            for poly, col in blk.cars:
+                cv.poly(self.to_world(poly), col)
+        sun_e, sun_n = date.sun_dir()
+        # Shadows of buildings and trees.
+        for blk in blocks:
+            for b in blk.buildings:
+                if b.born <= d < b.gone:
+                    dx, dy = date.shadow_vector(b.height_m)
+                    world = self.to_world(b.corners)
+                    moved = [(e + dx, n + dy) for e, n in world]
+                    hull = _hull(world + moved)
+                    cv.poly(hull, (255,), "shadow")
+            for c, r, _ci, born in blk.trees:
+                if born <= d:
+                    rr = r * (1.0 + 0.12 * (d - born))
+                    dx, dy = date.shadow_vector(rr * 1.6)
+                    (e, n) = self.to_world([c])[0]
+                    cv.circle((e + dx, n + dy), rr * 0.95, (255,), "shadow")
+        cv.shadow = np.ascontiguousarray(cv.shadow)
+        # Roofs and tree crowns above the shadows.
+        roof_shadow = np.zeros_like(cv.shadow)
+        for blk in blocks:
+            for b in blk.buildings:
+                if not b.born <= d < b.gone:
+                    continue
+                world = self.to_world(b.corners)
+                _erase_shadow(cv, world, roof_shadow)
+                _roof(cv, self, b, world, sun_e, sun_n)
+            for c, r, ci, born in blk.trees:
+                if born <= d:
+                    rr = r * (1.0 + 0.12 * (d - born))
+                    (e, n) = self.to_world([c])[0]
+                    col = tree_cols[ci % len(tree_cols)]
+                    cv.circle((e, n), rr, shade(col, 0.8))
+                    cv.circle((e + sun_e * rr * 0.25, n + sun_n * rr * 0.25), rr * 0.7, col)
+                    cv.circle((e, n), rr, (255,), "veg")
+                    _erase_circle(cv, (e, n), rr * 0.9)
+        key = key_of(self.seed, 31)
+        px_m = 1.0 / gsd_m
+        texture = 0.07 * fractal_noise(key, x0, y0, size, 8.0 * px_m, 3)
+        veg_tex = 0.22 * fractal_noise(key + 5, x0, y0, size, 1.6 * px_m, 2)
+        grain = 7.0 * white_noise(key + 9, x0, y0, size)
+        return finish(cv, texture, grain, 0.5, veg_tex)
+
+    def _draw_roads(
+        self,
+        cv: Canvas,
+        date: DateLook,
+        kx0: int,
+        kx1: int,
+        ky0: int,
+        ky1: int,
+        u_lo: float,
+        u_hi: float,
+        v_lo: float,
+        v_hi: float,
+    ) -> None:
+        """Resurfaced stretches and lane markings of every street crossing the tile."""
+        d = date.index
+        for axis, k0, k1 in ((0, kx0, kx1), (1, ky0, ky1)):
+            for k in range(k0, k1 + 2):
+                pos, half, main = self.street(axis, k)
+                new = self.resurfaced_at(axis, k) <= d
+                lo, hi = (v_lo, v_hi) if axis == 0 else (u_lo, u_hi)
+                if new:
+                    poly = _box(pos - half, lo, pos + half, hi) if axis == 0 else _box(lo, pos - half, hi, pos + half)
+                    cv.poly(self.to_world(poly), _ASPHALT_NEW)
+                color = (60, 180, 210) if main else (220, 222, 224)
+                width = 0.3 if new else 0.25
+                dash = 3.0 if main else 6.0
+                offsets = (-0.2, 0.2) if main else (0.0,)
+                segs: list[tuple[Point, Point]] = []
+                t = math.floor(lo / 9.0) * 9.0
+                while t < hi:
+                    for off in offsets:
+                        seg = ((pos + off, t), (pos + off, t + dash)) if axis == 0 else ((t, pos + off), (t + dash, pos + off))
+                        w = self.to_world(seg)
+                        segs.append((w[0], w[1]))
+                    t += 9.0
+                if main:
+                    for off in (-half + 1.0, half - 1.0):
+                        line = ((pos + off, lo), (pos + off, hi)) if axis == 0 else ((lo, pos + off), (hi, pos + off))
+                        w = self.to_world(line)
+                        segs.append((w[0], w[1]))
+                cv.segments(segs, color, width)
+
+
+def _box(u0: float, v0: float, u1: float, v1: float) -> list[Point]:
+    return [(u0, v0), (u1, v0), (u1, v1), (u0, v1)]
+
+
+def _box_overlaps(b: tuple[float, float, float, float], u0: float, v0: float, u1: float, v1: float) -> bool:
+    return not (b[2] < u0 or b[0] > u1 or b[3] < v0 or b[1] > v1)
+
+
+def _grow(pts: tuple[Point, ...], m: float) -> list[Point]:
+    cu = sum(p[0] for p in pts) / len(pts)
+    cv_ = sum(p[1] for p in pts) / len(pts)
+    out = []
+    for u, v in pts:
+        du, dv = u - cu, v - cv_
+        n = math.hypot(du, dv) or 1.0
+        out.append((u + du / n * m, v + dv / n * m))
+    return out
+
+
+def _hull(pts: list[Point]) -> list[Point]:
+    import cv2
+
+    a = np.asarray(pts, dtype=np.float32)
+    h = cv2.convexHull(a)
+    return [(float(p[0][0]), float(p[0][1])) for p in h]
+
+
+def _erase_shadow(cv: Canvas, world: list[Point], _scratch: np.ndarray) -> None:
+    import cv2
+
+    cv2.fillPoly(cv.shadow, [cv.px(world)], (0,), cv2.LINE_8, 4)
+    cv2.fillPoly(cv.veg, [cv.px(world)], (0,), cv2.LINE_8, 4)
+
+
+def _erase_circle(cv: Canvas, c: Point, r: float) -> None:
+    import cv2
+
+    p = cv.px([c])[0]
+    cv2.circle(cv.shadow, (int(p[0]), int(p[1])), max(1, round(r / cv.gsd_m * 16)), (0,), -1, cv2.LINE_8, 4)
+
+
+def _roof(cv: Canvas, world_: UrbanWorld, b: Building, world: list[Point], sun_e: float, sun_n: float) -> None:
+    """A gabled roof in two shaded halves with a ridge, or a flat roof with a parapet."""
+    p = b.corners
+    if b.gabled:
+        if b.ridge_along_x:
+            m0 = ((p[0][0] + p[3][0]) / 2, (p[0][1] + p[3][1]) / 2)
+            m1 = ((p[1][0] + p[2][0]) / 2, (p[1][1] + p[2][1]) / 2)
+            half_a = [p[0], p[1], m1, m0]
+            half_b = [m0, m1, p[2], p[3]]
+        else:
+            m0 = ((p[0][0] + p[1][0]) / 2, (p[0][1] + p[1][1]) / 2)
+            m1 = ((p[3][0] + p[2][0]) / 2, (p[3][1] + p[2][1]) / 2)
+            half_a = [p[0], m0, m1, p[3]]
+            half_b = [m0, p[1], p[2], m1]
+        for half in (half_a, half_b):
+            w = world_.to_world(half)
+            ce = sum(q[0] for q in w) / 4 - sum(q[0] for q in world) / 4
+            cn = sum(q[1] for q in w) / 4 - sum(q[1] for q in world) / 4
+            n = math.hypot(ce, cn) or 1.0
+            lit = (ce * sun_e + cn * sun_n) / n
+            cv.poly(w, shade(b.roof, 1.0 + 0.22 * lit))
+        cv.line(world_.to_world([m0, m1]), shade(b.roof, 1.3), 0.35)
+    else:
+        cv.poly(world, shade(b.roof, 0.78))
+        cv.poly(world_.to_world(_grow(b.corners, -0.7)), b.roof)
+
+
+def _residential(rng, b0, c0, b1, c1, grounds, buildings, trees, cars) -> None:  # type: ignore[no-untyped-def]
+    """Two rows of lots back to back along the longer side of the block."""
+    along_u = (b1 - b0) >= (c1 - c0)
+    length = (b1 - b0) if along_u else (c1 - c0)
+    depth = (c1 - c0) if along_u else (b1 - b0)
+    n_lots = max(1, int(length // rng.uniform(16.0, 24.0)))
+    lot_w = length / n_lots
+    rows = 2 if depth > 34 else 1
+    lot_d = depth / rows
+    for row in range(rows):
+        for i in range(n_lots):
+            a0 = i * lot_w
+            # lot-local: x along the row, y from the street inward
+            hw = rng.uniform(0.28, 0.4) * lot_w
+            hd = rng.uniform(0.22, 0.34) * min(lot_d, 40.0)
+            setback = rng.uniform(5.0, 9.0)
+            cx = a0 + lot_w / 2 + rng.uniform(-0.08, 0.08) * lot_w
+            cy = setback + hd
+            height = rng.uniform(5.0, 9.5)
+            roof = _ROOFS[int(rng.integers(len(_ROOFS)))]
+            gabled = rng.random() < 0.75
+            ridge = rng.random() < 0.6
+            life = rng.random()
+            born, gone = (1, 3) if life < 0.07 else (2, 3) if life < 0.14 else (0, 2) if life < 0.19 else (0, 3)
+            recolor = rng.random() < 0.12
+            pool = rng.random() < 0.12
+            n_trees = int(rng.integers(0, 4))
+            tree_xy = [(rng.uniform(0.1, 0.9) * lot_w + a0, rng.uniform(0.55, 0.95) * lot_d) for _ in range(n_trees)]
+            tree_r = [rng.uniform(2.0, 4.5) for _ in range(n_trees)]
+            tree_c = [int(rng.integers(3)) for _ in range(n_trees)]
+            car = rng.random() < 0.5
+            car_col = _CARS[int(rng.integers(len(_CARS)))]
+
+            def to_block(x: float, y: float, row: int = row) -> Point:
+                yy = y if row == 0 else depth - y
+                return (b0 + x, c0 + yy) if along_u else (b0 + yy, c0 + x)
+
+            def poly(x0: float, y0: float, x1: float, y1: float) -> tuple[Point, ...]:
+                return tuple(to_block(x, y) for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1)))
+
+            house = poly(cx - hw, cy - hd, cx + hw, cy + hd)
+            # Driveway from the street to the house side.
+            dx0 = cx + hw + 0.5 if cx + hw + 4.0 < a0 + lot_w else cx - hw - 3.8
+            grounds.append((poly(dx0, 0.0, dx0 + 3.2, cy + hd * 0.6), "driveway"))
+            if pool:
+                grounds.append((poly(cx - 2.5, cy + hd + 3.0, cx + 2.5, cy + hd + 7.0), "pool"))
+            if car:
+                cars.append((poly(dx0 + 0.7, 1.0, dx0 + 2.5, 5.4), car_col))
+            if recolor:
+                # Re-roofed later: a second building record covering later dates.
+                buildings.append(Building(house, height, roof, gabled, ridge ^ (not along_u), born, min(gone, 2)))
+                roof2 = _ROOFS[(_ROOFS.index(roof) + 3) % len(_ROOFS)]
+                if gone > 2:
+                    buildings.append(Building(house, height, roof2, gabled, ridge ^ (not along_u), 2, gone))
+            else:
+                buildings.append(Building(house, height, roof, gabled, ridge ^ (not along_u), born, gone))
+            for (tx, ty), tr, tc in zip(tree_xy, tree_r, tree_c, strict=True):
+                p = to_block(tx, ty)
+                trees.append((p, tr, tc, 0))
+
+
+def _commercial(rng, b0, c0, b1, c1, buildings, trees, cars, paint) -> None:  # type: ignore[no-untyped-def]
+    """One or two large flat-roofed buildings with rooftop units, cars and stall lines."""
+    w, h = b1 - b0, c1 - c0
+    n = 1 if rng.random() < 0.6 else 2
+    for i in range(n):
+        span = w / n
+        bw = span * rng.uniform(0.45, 0.7)
+        bh = h * rng.uniform(0.4, 0.65)
+        cx = b0 + span * (i + 0.5)
+        cy = c0 + h * rng.uniform(0.3, 0.7)
+        roof = _FLAT_ROOFS[int(rng.integers(len(_FLAT_ROOFS)))]
+        height = rng.uniform(8.0, 30.0)
+        life = rng.random()
+        born, gone = (1, 3) if life < 0.1 else (2, 3) if life < 0.18 else (0, 3)
+        buildings.append(Building(tuple(rect(cx, cy, bw / 2, bh / 2, 1.0, 0.0)), height, roof, False, True, born, gone))
+        for _ in range(int(rng.integers(2, 7))):
+            ux = cx + rng.uniform(-0.35, 0.35) * bw
+            uy = cy + rng.uniform(-0.35, 0.35) * bh
+            s = rng.uniform(1.0, 2.5)
+            buildings.append(Building(tuple(rect(ux, uy, s, s * 0.7, 1.0, 0.0)), height + 1.5, (190, 190, 192), False, True, born, gone))
+    _stalls(rng, b0 + 2, c0 + 2, b1 - 2, c0 + 0.18 * h, cars, paint)
+    _stalls(rng, b0 + 2, c1 - 0.18 * h, b1 - 2, c1 - 2, cars, paint)
+    for _ in range(int(rng.integers(2, 8))):
+        trees.append(((rng.uniform(b0, b1), rng.choice([c0 + 1.0, c1 - 1.0])), rng.uniform(2.0, 3.5), int(rng.integers(3)), 0))
+
+
+def _stalls(rng, u0, v0, u1, v1, cars, paint) -> None:  # type: ignore[no-untyped-def]
+    """A row of parking stalls 2.6 m wide, some occupied."""
+    u = u0
+    while u + 2.6 <= u1:
+        paint.append((((u, v0), (u, v1)), 0.15))
+        if rng.random() < 0.55:
+            col = _CARS[int(rng.integers(len(_CARS)))]
+            cm = (v0 + v1) / 2
+            cars.append(((( u + 0.45, cm - 2.2), (u + 2.15, cm - 2.2), (u + 2.15, cm + 2.2), (u + 0.45, cm + 2.2)), col))
+        u += 2.6
+
+
+def _park(rng, b0, c0, b1, c1, grounds, trees) -> None:  # type: ignore[no-untyped-def]
+    """Lawn, a path across, clusters of trees and sometimes a pond."""
+    grounds.append((((b0, c0), (b0 + 2.4, c0), (b1, c1), (b1 - 2.4, c1)), "path"))
+    grounds.append((((b0 + (b1 - b0) / 2 - 1.2, c0), (b0 + (b1 - b0) / 2 + 1.2, c0), (b0 + (b1 - b0) / 2 + 1.2, c1), (b0 + (b1 - b0) / 2 - 1.2, c1)), "path"))
+    for _ in range(int(rng.integers(4, 9))):
+        cu, cv_ = rng.uniform(b0, b1), rng.uniform(c0, c1)
+        for _ in range(int(rng.integers(3, 12))):
+            trees.append(((cu + rng.normal(0, 7), cv_ + rng.normal(0, 7)), rng.uniform(2.5, 5.5), int(rng.integers(3)), int(rng.random() < 0.15)))
+
+
+def _parking(rng, b0, c0, b1, c1, cars, paint, trees) -> None:  # type: ignore[no-untyped-def]
+    """Rows of stalls with aisles between."""
+    v = c0 + 1.0
+    while v + 11.0 <= c1:
+        _stalls(rng, b0 + 1.0, v, b1 - 1.0, v + 5.0, cars, paint)
+        v += 12.0
+    for _ in range(int(rng.integers(0, 5))):
+        trees.append(((rng.uniform(b0, b1), c1 - 1.0), rng.uniform(2.0, 3.0), int(rng.integers(3)), 0))
+
+
+ALL_DATES = DATES

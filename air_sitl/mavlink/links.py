@@ -1,0 +1,317 @@
+"""Sockets of the MAVLink endpoint: ``udpout``, ``udpin`` and ``tcpin`` links, never blocking.
+
+All sockets are non-blocking and served by one I/O thread through a selector. A TCP client
+that stops reading gets its outgoing frames dropped once its buffer is full: a slow client can
+never stall the endpoint, let alone the simulation.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ipaddress
+import re
+import selectors
+import socket
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from air_sitl.errors import MavlinkError
+
+Address = tuple[str, int]
+DEFAULT_LINKS = ("udpout:127.0.0.1:14550", "udpout:127.0.0.1:14540")
+UDP_PEER_TIMEOUT_S = 10.0  # a udpin peer silent this long stops receiving telemetry
+TCP_MAX_BUFFER_BYTES = 256 * 1024  # per client; beyond this, frames to it are dropped
+_URL = re.compile(r"^(udpout|udpin|tcpin)(?::|://)(\[[0-9a-fA-F:.]+\]|[^:\[\]]*):(\d{1,5})$")
+
+
+@dataclass(frozen=True, slots=True)
+class LinkSpec:
+    """A parsed ``--mavlink`` URL."""
+
+    kind: str  # "udpout", "udpin" or "tcpin"
+    host: str
+    port: int
+
+    def __str__(self) -> str:
+        return f"{self.kind}:{self.host}:{self.port}"
+
+    @property
+    def loopback(self) -> bool:
+        """True when the link only talks to this machine."""
+        if self.host == "localhost":
+            return True
+        try:
+            return ipaddress.ip_address(self.host).is_loopback
+        except ValueError:
+            return False
+
+
+def parse_link(text: str) -> LinkSpec:
+    """``udpout:HOST:PORT``, ``udpin:HOST:PORT`` or ``tcpin:HOST:PORT`` (``://`` also accepted)."""
+    m = _URL.match(text.strip())
+    if m is None:
+        msg = (
+            f"--mavlink {text!r}: expected udpout:HOST:PORT, udpin:HOST:PORT or tcpin:HOST:PORT "
+            "(for example udpin:127.0.0.1:14550)"
+        )
+        raise MavlinkError(msg)
+    kind, host, port = m.group(1), m.group(2).strip("[]"), int(m.group(3))
+    if not host:
+        msg = f"--mavlink {text!r}: give the address explicitly (127.0.0.1 for this machine only)"
+        raise MavlinkError(msg)
+    if not 0 <= port <= 65535 or (kind == "udpout" and port == 0):
+        msg = f"--mavlink {text!r}: port {port} is not usable (expected 1..65535)"
+        raise MavlinkError(msg)
+    return LinkSpec(kind, host, port)
+
+
+def _family(host: str) -> socket.AddressFamily:
+    return socket.AF_INET6 if ":" in host else socket.AF_INET
+
+
+@dataclass(slots=True, eq=False)
+class Channel:
+    """One peer of a link (a UDP address or a TCP connection): its parser state lives here."""
+
+    link: Link
+    address: Address
+    parser: object  # codec.Parser, kept opaque so this module stays free of MAVLink
+    last_seen_s: float = 0.0
+    sock: socket.socket | None = None  # TCP only
+    outbuf: bytearray = field(default_factory=bytearray)
+    dropped_frames: int = 0
+
+
+ReceiveFn = Callable[[Channel, bytes, bool], None]  # (channel, data, is_datagram)
+NewParser = Callable[[], object]
+
+
+class Link:
+    """Base of the three link kinds."""
+
+    spec: LinkSpec
+    encoder: object  # codec.Encoder of this link (its own sequence numbers)
+    channels: dict[Address, Channel]
+
+    def register(self, sel: selectors.BaseSelector) -> None:
+        """Add this link's sockets to the selector."""
+        raise NotImplementedError
+
+    def on_ready(self, sel: selectors.BaseSelector, key: selectors.SelectorKey, mask: int) -> None:
+        """A registered socket is readable or writable."""
+        raise NotImplementedError
+
+    def send(self, data: bytes, channel: Channel | None = None) -> None:
+        """Send to one channel, or to every current peer of the link."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Close every socket."""
+        raise NotImplementedError
+
+    @property
+    def local_address(self) -> Address:
+        """Where the link's socket is bound (the real port when the URL said 0)."""
+        raise NotImplementedError
+
+
+class UdpLink(Link):
+    """``udpout`` (send first to HOST:PORT, answer whoever replies) or ``udpin`` (bind)."""
+
+    def __init__(self, spec: LinkSpec, encoder: object, receive: ReceiveFn, new_parser: NewParser):
+        self.spec = spec
+        self.encoder = encoder
+        self.channels = {}
+        self._receive = receive
+        self._new_parser = new_parser
+        self._sock = socket.socket(_family(spec.host), socket.SOCK_DGRAM)
+        self._sock.setblocking(False)
+        try:
+            if spec.kind == "udpin":
+                self._sock.bind((spec.host, spec.port))
+                self._target: Address | None = None
+            else:
+                local = (
+                    "127.0.0.1" if spec.loopback and _family(spec.host) is socket.AF_INET else ""
+                )
+                self._sock.bind((local, 0))
+                self._target = (spec.host, spec.port)
+                self._channel(self._target)
+        except OSError as err:
+            self._sock.close()
+            msg = f"--mavlink {spec}: cannot open the UDP socket: {err.strerror}"
+            raise MavlinkError(msg) from None
+
+    @property
+    def local_address(self) -> Address:
+        """Bound address."""
+        host, port = self._sock.getsockname()[:2]
+        return str(host), int(port)
+
+    def _channel(self, address: Address) -> Channel:
+        ch = self.channels.get(address)
+        if ch is None:
+            ch = Channel(self, address, self._new_parser(), time.monotonic())
+            self.channels[address] = ch
+        return ch
+
+    def register(self, sel: selectors.BaseSelector) -> None:
+        """Watch the socket for datagrams."""
+        sel.register(self._sock, selectors.EVENT_READ, self)
+
+    def on_ready(self, sel: selectors.BaseSelector, key: selectors.SelectorKey, mask: int) -> None:
+        """Read every waiting datagram."""
+        for _ in range(256):  # bounded so one busy link cannot starve the others
+            try:
+                data, addr = self._sock.recvfrom(65536)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:  # ICMP port unreachable from an absent udpout target
+                continue
+            address = (str(addr[0]), int(addr[1]))
+            ch = self._channel(address)
+            ch.last_seen_s = time.monotonic()
+            self._receive(ch, data, True)
+
+    def send(self, data: bytes, channel: Channel | None = None) -> None:
+        """Best effort: UDP drops what the kernel cannot take."""
+        if channel is not None:
+            self._sendto(data, channel.address)
+            return
+        now = time.monotonic()
+        for address, ch in list(self.channels.items()):
+            if address != self._target and now - ch.last_seen_s > UDP_PEER_TIMEOUT_S:
+                del self.channels[address]
+                continue
+            self._sendto(data, address)
+
+    def _sendto(self, data: bytes, address: Address) -> None:
+        # A full buffer or an unreachable peer: telemetry is best effort.
+        with contextlib.suppress(OSError):
+            self._sock.sendto(data, address)
+
+    def close(self) -> None:
+        """Close the socket."""
+        self._sock.close()
+
+
+class TcpServerLink(Link):
+    """``tcpin``: accept any number of clients; each gets every frame while it keeps up."""
+
+    def __init__(self, spec: LinkSpec, encoder: object, receive: ReceiveFn, new_parser: NewParser):
+        self.spec = spec
+        self.encoder = encoder
+        self.channels = {}
+        self._receive = receive
+        self._new_parser = new_parser
+        self._sel: selectors.BaseSelector | None = None
+        self._sock = socket.socket(_family(spec.host), socket.SOCK_STREAM)
+        self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self._sock.setblocking(False)
+        try:
+            self._sock.bind((spec.host, spec.port))
+            self._sock.listen(16)
+        except OSError as err:
+            self._sock.close()
+            msg = f"--mavlink {spec}: cannot listen: {err.strerror}"
+            raise MavlinkError(msg) from None
+
+    @property
+    def local_address(self) -> Address:
+        """Listening address."""
+        host, port = self._sock.getsockname()[:2]
+        return str(host), int(port)
+
+    def register(self, sel: selectors.BaseSelector) -> None:
+        """Watch the listening socket."""
+        self._sel = sel
+        sel.register(self._sock, selectors.EVENT_READ, self)
+
+    def on_ready(self, sel: selectors.BaseSelector, key: selectors.SelectorKey, mask: int) -> None:
+        """Accept a client, read from one, or flush its buffer."""
+        if key.fileobj is self._sock:
+            self._accept(sel)
+            return
+        ch: Channel = key.data[1]
+        if mask & selectors.EVENT_READ:
+            self._read(sel, ch)
+        if mask & selectors.EVENT_WRITE and ch.sock is not None:
+            self._flush(sel, ch)
+
+    def _accept(self, sel: selectors.BaseSelector) -> None:
+        try:
+            conn, addr = self._sock.accept()
+        except (BlockingIOError, InterruptedError, OSError):
+            return
+        conn.setblocking(False)
+        conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        address = (str(addr[0]), int(addr[1]))
+        ch = Channel(self, address, self._new_parser(), time.monotonic(), sock=conn)
+        self.channels[address] = ch
+        sel.register(conn, selectors.EVENT_READ, (self, ch))
+
+    def _read(self, sel: selectors.BaseSelector, ch: Channel) -> None:
+        assert ch.sock is not None
+        try:
+            data = ch.sock.recv(65536)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._drop(sel, ch)
+            return
+        ch.last_seen_s = time.monotonic()
+        self._receive(ch, data, False)
+
+    def _drop(self, sel: selectors.BaseSelector, ch: Channel) -> None:
+        if ch.sock is not None:
+            with contextlib.suppress(KeyError, ValueError):
+                sel.unregister(ch.sock)
+            ch.sock.close()
+            ch.sock = None
+        self.channels.pop(ch.address, None)
+
+    def _flush(self, sel: selectors.BaseSelector, ch: Channel) -> None:
+        assert ch.sock is not None
+        try:
+            sent = ch.sock.send(ch.outbuf)
+        except (BlockingIOError, InterruptedError):
+            sent = 0
+        except OSError:
+            self._drop(sel, ch)
+            return
+        del ch.outbuf[:sent]
+        events = selectors.EVENT_READ | (selectors.EVENT_WRITE if ch.outbuf else 0)
+        with contextlib.suppress(KeyError, ValueError):
+            sel.modify(ch.sock, events, (self, ch))
+
+    def send(self, data: bytes, channel: Channel | None = None) -> None:
+        """Queue ``data`` for one client or all; drop it for a client whose buffer is full."""
+        targets = [channel] if channel is not None else list(self.channels.values())
+        for ch in targets:
+            if ch.sock is None:
+                continue
+            if len(ch.outbuf) + len(data) > TCP_MAX_BUFFER_BYTES:
+                ch.dropped_frames += 1
+                continue
+            was_empty = not ch.outbuf
+            ch.outbuf += data
+            if was_empty and self._sel is not None:
+                self._flush(self._sel, ch)
+
+    def close(self) -> None:
+        """Close the listening socket and every client."""
+        for ch in list(self.channels.values()):
+            if ch.sock is not None:
+                ch.sock.close()
+        self.channels.clear()
+        self._sock.close()
+
+
+def open_link(spec: LinkSpec, encoder: object, receive: ReceiveFn, new_parser: NewParser) -> Link:
+    """Open the socket(s) of ``spec``."""
+    if spec.kind == "tcpin":
+        return TcpServerLink(spec, encoder, receive, new_parser)
+    return UdpLink(spec, encoder, receive, new_parser)

@@ -1,0 +1,105 @@
+"""Mission-protocol messages as plain typed values, independent of any MAVLink library.
+
+The codec turns MISSION_* frames into these and back; the sans-IO state machine in
+:mod:`air_sitl.mavlink.mission_protocol` consumes and produces only these.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+from air_sitl.mission.items import MissionItem, MissionType
+
+MISSION_TYPE_ALL = 255  # MAV_MISSION_TYPE_ALL: only valid in MISSION_CLEAR_ALL
+
+
+class MissionResult(enum.IntEnum):
+    """MAV_MISSION_RESULT."""
+
+    ACCEPTED = 0
+    ERROR = 1
+    UNSUPPORTED_FRAME = 2
+    UNSUPPORTED = 3
+    NO_SPACE = 4
+    INVALID = 5
+    INVALID_PARAM1 = 6
+    INVALID_PARAM2 = 7
+    INVALID_PARAM3 = 8
+    INVALID_PARAM4 = 9
+    INVALID_PARAM5_X = 10
+    INVALID_PARAM6_Y = 11
+    INVALID_PARAM7 = 12
+    INVALID_SEQUENCE = 13
+    DENIED = 14
+    OPERATION_CANCELLED = 15
+
+
+@dataclass(frozen=True, slots=True)
+class Peer:
+    """The MAVLink system and component on the other side of a transfer."""
+
+    system_id: int
+    component_id: int
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MissionCount:
+    """MISSION_COUNT: starts an upload (GCS -> vehicle) or answers a list request."""
+
+    count: int
+    mission_type: int = MissionType.MISSION
+    opaque_id: int = 0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MissionRequestList:
+    """MISSION_REQUEST_LIST: starts a download."""
+
+    mission_type: int = MissionType.MISSION
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MissionRequest:
+    """MISSION_REQUEST_INT (``int_form``) or the deprecated float MISSION_REQUEST."""
+
+    seq: int
+    mission_type: int = MissionType.MISSION
+    int_form: bool = True
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MissionItemMessage:
+    """MISSION_ITEM_INT (``int_form``) or the deprecated float MISSION_ITEM."""
+
+    seq: int
+    item: MissionItem
+    mission_type: int = MissionType.MISSION
+    current: bool = False
+    int_form: bool = True
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MissionAck:
+    """MISSION_ACK: ends a transfer with a result."""
+
+    result: int
+    mission_type: int = MissionType.MISSION
+    opaque_id: int = 0
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MissionClearAll:
+    """MISSION_CLEAR_ALL of one list, or of all three (``MISSION_TYPE_ALL``)."""
+
+    mission_type: int = MissionType.MISSION
+
+
+MissionMessage = (
+    MissionCount
+    | MissionRequestList
+    | MissionRequest
+    | MissionItemMessage
+    | MissionAck
+    | MissionClearAll
+)

@@ -1,0 +1,286 @@
+"""Telemetry messages of a PX4 fixed-wing built from the vehicle's truth (a SimSample).
+
+Scaled integers (degE7, mm, cm/s, cdeg) appear here and in the codec only. Position and
+attitude come from ``sample.state``; GPS_RAW_INT uses the last GNSS fix when there is one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from air_sitl.mavlink.codec import Message, mav
+from air_sitl.state import FlightMode, GeoPoint, GpsFix, SimSample
+
+# PX4 custom modes: custom_mode = main << 16 | sub << 24.
+PX4_MAIN_AUTO = 4
+PX4_AUTO_READY, PX4_AUTO_TAKEOFF, PX4_AUTO_LOITER, PX4_AUTO_MISSION = 1, 2, 3, 4
+PX4_AUTO_RTL, PX4_AUTO_LAND = 5, 6
+MODE_TO_PX4: dict[FlightMode, tuple[int, int]] = {
+    FlightMode.IDLE: (PX4_MAIN_AUTO, PX4_AUTO_LOITER),  # PX4 shows "Hold" on the ground
+    FlightMode.TAKEOFF: (PX4_MAIN_AUTO, PX4_AUTO_TAKEOFF),
+    FlightMode.MISSION: (PX4_MAIN_AUTO, PX4_AUTO_MISSION),
+    FlightMode.LOITER: (PX4_MAIN_AUTO, PX4_AUTO_LOITER),
+    FlightMode.RTL: (PX4_MAIN_AUTO, PX4_AUTO_RTL),
+    FlightMode.LAND: (PX4_MAIN_AUTO, PX4_AUTO_LAND),
+}
+PX4_TO_MODE: dict[tuple[int, int], FlightMode] = {
+    (PX4_MAIN_AUTO, PX4_AUTO_TAKEOFF): FlightMode.TAKEOFF,
+    (PX4_MAIN_AUTO, PX4_AUTO_MISSION): FlightMode.MISSION,
+    (PX4_MAIN_AUTO, PX4_AUTO_LOITER): FlightMode.LOITER,
+    (PX4_MAIN_AUTO, PX4_AUTO_RTL): FlightMode.RTL,
+    (PX4_MAIN_AUTO, PX4_AUTO_LAND): FlightMode.LAND,
+}
+
+# PX4's version 1.14.0, released: what clients use to pick PX4 behaviour.
+FLIGHT_SW_VERSION = (1 << 24) | (14 << 16) | (0 << 8) | 255
+CAPABILITIES = (
+    mav.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT
+    | mav.MAV_PROTOCOL_CAPABILITY_PARAM_FLOAT
+    | mav.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | mav.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | mav.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+    | mav.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+    | mav.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    | mav.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
+)
+SENSORS = (
+    mav.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    | mav.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+    | mav.MAV_SYS_STATUS_SENSOR_3D_MAG
+    | mav.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+    | mav.MAV_SYS_STATUS_SENSOR_DIFFERENTIAL_PRESSURE
+    | mav.MAV_SYS_STATUS_SENSOR_GPS
+    | mav.MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+    | mav.MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+    | mav.MAV_SYS_STATUS_SENSOR_YAW_POSITION
+    | mav.MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
+    | mav.MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
+    | mav.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+    | mav.MAV_SYS_STATUS_AHRS
+    | mav.MAV_SYS_STATUS_PREARM_CHECK
+)
+# Default stream rates in simulated Hz (PX4's normal-mode rates, roughly).
+DEFAULT_RATES_HZ: dict[int, float] = {
+    mav.MAVLINK_MSG_ID_SYS_STATUS: 1.0,
+    mav.MAVLINK_MSG_ID_GPS_RAW_INT: 5.0,
+    mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: 10.0,
+    mav.MAVLINK_MSG_ID_LOCAL_POSITION_NED: 10.0,
+    mav.MAVLINK_MSG_ID_ATTITUDE: 20.0,
+    mav.MAVLINK_MSG_ID_ATTITUDE_QUATERNION: 20.0,
+    mav.MAVLINK_MSG_ID_VFR_HUD: 4.0,
+    mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0,
+    mav.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
+    mav.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,
+}
+
+# MISSION_CURRENT.mission_state
+MISSION_STATE_NO_MISSION, MISSION_STATE_NOT_STARTED, MISSION_STATE_ACTIVE = 1, 2, 3
+MISSION_STATE_PAUSED, MISSION_STATE_COMPLETE = 4, 5
+# Modes a mission passes through (its take-off, its RTL and landing items).
+_MISSION_MODES = frozenset(
+    {FlightMode.MISSION, FlightMode.TAKEOFF, FlightMode.RTL, FlightMode.LAND}
+)
+
+
+def _clamp_int(value: float, lo: int, hi: int) -> int:
+    if not math.isfinite(value):
+        return 0
+    return max(lo, min(hi, round(value)))
+
+
+def _cdeg(angle_rad: float) -> int:
+    return round(math.degrees(angle_rad) % 360.0 * 100) % 36000
+
+
+def custom_mode(mode: FlightMode) -> int:
+    """PX4 custom_mode of a flight mode."""
+    main, sub = MODE_TO_PX4[mode]
+    return (main << 16) | (sub << 24)
+
+
+def heartbeat(mode: FlightMode, armed: bool) -> Message:
+    """HEARTBEAT of a PX4 fixed-wing in ``mode``."""
+    base = (
+        mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        | mav.MAV_MODE_FLAG_AUTO_ENABLED
+        | mav.MAV_MODE_FLAG_GUIDED_ENABLED
+        | mav.MAV_MODE_FLAG_STABILIZE_ENABLED
+    )
+    if armed:
+        base |= mav.MAV_MODE_FLAG_SAFETY_ARMED
+    state = mav.MAV_STATE_ACTIVE if armed else mav.MAV_STATE_STANDBY
+    return mav.MAVLink_heartbeat_message(
+        mav.MAV_TYPE_FIXED_WING, mav.MAV_AUTOPILOT_PX4, base, custom_mode(mode), state, 3
+    )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Health:
+    """What SYS_STATUS reports besides sensors."""
+
+    prearm_ok: bool = True
+    errors_comm: int = 0  # frames dropped by the parsers
+
+
+def boot_ms(sample: SimSample) -> int:
+    """``time_boot_ms``: simulated milliseconds since the vehicle started."""
+    return (sample.state.sim_time_ns // 1_000_000) & 0xFFFFFFFF
+
+
+def sys_status(health: Health) -> Message:
+    """SYS_STATUS with every simulated sensor present, enabled and healthy."""
+    healthy = SENSORS if health.prearm_ok else SENSORS & ~mav.MAV_SYS_STATUS_PREARM_CHECK
+    return mav.MAVLink_sys_status_message(
+        SENSORS, SENSORS, healthy, 100, 12600, -1, -1, 0, min(health.errors_comm, 65535),
+        0, 0, 0, 0,
+    )  # fmt: skip
+
+
+def global_position_int(sample: SimSample, home: GeoPoint) -> Message:
+    """GLOBAL_POSITION_INT from the truth state."""
+    s = sample.state
+    vn, ve, vd = s.vel_ned_m_s
+    return mav.MAVLink_global_position_int_message(
+        boot_ms(sample),
+        _clamp_int(s.lat_deg * 1e7, -(2**31), 2**31 - 1),
+        _clamp_int(s.lon_deg * 1e7, -(2**31), 2**31 - 1),
+        _clamp_int(s.alt_amsl_m * 1000, -(2**31), 2**31 - 1),
+        _clamp_int((s.alt_amsl_m - home.alt_amsl_m) * 1000, -(2**31), 2**31 - 1),
+        _clamp_int(vn * 100, -32768, 32767),
+        _clamp_int(ve * 100, -32768, 32767),
+        _clamp_int(vd * 100, -32768, 32767),
+        _cdeg(s.yaw_rad),
+    )
+
+
+def local_position_ned(sample: SimSample) -> Message:
+    """LOCAL_POSITION_NED relative to home."""
+    s = sample.state
+    return mav.MAVLink_local_position_ned_message(boot_ms(sample), *s.pos_ned_m, *s.vel_ned_m_s)
+
+
+def attitude(sample: SimSample) -> Message:
+    """ATTITUDE (Euler angles and body rates) from the truth state."""
+    s = sample.state
+    p, q, r = s.rate_frd_rad_s
+    return mav.MAVLink_attitude_message(
+        boot_ms(sample), s.roll_rad, s.pitch_rad, s.yaw_rad, p, q, r
+    )
+
+
+def attitude_quaternion(sample: SimSample) -> Message:
+    """ATTITUDE_QUATERNION (w, x, y, z body to NED) from the truth state."""
+    s = sample.state
+    p, q, r = s.rate_frd_rad_s
+    return mav.MAVLink_attitude_quaternion_message(
+        boot_ms(sample), *s.q_body_to_ned_wxyz, p, q, r, [0.0, 0.0, 0.0, 0.0]
+    )
+
+
+def gps_raw_int(sample: SimSample, fix: GpsFix | None) -> Message:
+    """GPS_RAW_INT from the receiver's last fix (the truth until the first fix)."""
+    s = sample.state
+    if fix is None:
+        lat, lon, alt, vel = s.lat_deg, s.lon_deg, s.alt_amsl_m, s.vel_ned_m_s
+        t_us, fix_type, sats, eph, epv = s.sim_time_ns // 1000, 3, 12, 0.8, 1.2
+    else:
+        lat, lon, alt, vel = fix.lat_deg, fix.lon_deg, fix.alt_amsl_m, fix.vel_ned_m_s
+        t_us, fix_type, sats = fix.sim_time_ns // 1000, fix.fix_type, fix.satellites
+        eph, epv = fix.eph_m, fix.epv_m
+    ground = math.hypot(vel[0], vel[1])
+    return mav.MAVLink_gps_raw_int_message(
+        t_us,
+        fix_type,
+        _clamp_int(lat * 1e7, -(2**31), 2**31 - 1),
+        _clamp_int(lon * 1e7, -(2**31), 2**31 - 1),
+        _clamp_int(alt * 1000, -(2**31), 2**31 - 1),
+        _clamp_int(eph * 100, 0, 65534),
+        _clamp_int(epv * 100, 0, 65534),
+        _clamp_int(ground * 100, 0, 65534),
+        _cdeg(math.atan2(vel[1], vel[0])) if ground > 0.5 else 65535,
+        sats,
+    )
+
+
+def vfr_hud(sample: SimSample) -> Message:
+    """VFR_HUD: airspeed, ground speed, heading, AMSL altitude, climb rate."""
+    s = sample.state
+    vn, ve, vd = s.vel_ned_m_s
+    heading = round(math.degrees(s.yaw_rad)) % 360
+    return mav.MAVLink_vfr_hud_message(
+        s.airspeed_m_s, math.hypot(vn, ve), heading, 0, s.alt_amsl_m, -vd
+    )
+
+
+def extended_sys_state(sample: SimSample) -> Message:
+    """EXTENDED_SYS_STATE: landed state."""
+    st, ap = sample.state, sample.autopilot
+    if st.on_ground:
+        landed = mav.MAV_LANDED_STATE_TAKEOFF if ap.mode is FlightMode.TAKEOFF and ap.armed else (
+            mav.MAV_LANDED_STATE_ON_GROUND
+        )  # fmt: skip
+    elif ap.mode is FlightMode.TAKEOFF:
+        landed = mav.MAV_LANDED_STATE_TAKEOFF
+    elif ap.mode is FlightMode.LAND:
+        landed = mav.MAV_LANDED_STATE_LANDING
+    else:
+        landed = mav.MAV_LANDED_STATE_IN_AIR
+    return mav.MAVLink_extended_sys_state_message(mav.MAV_VTOL_STATE_UNDEFINED, landed)
+
+
+def home_position(home: GeoPoint, sim_time_ns: int) -> Message:
+    """HOME_POSITION at the local origin."""
+    return mav.MAVLink_home_position_message(
+        round(home.lat_deg * 1e7), round(home.lon_deg * 1e7), round(home.alt_amsl_m * 1000),
+        0.0, 0.0, 0.0, [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, sim_time_ns // 1000,
+    )  # fmt: skip
+
+
+def mission_current(sample: SimSample | None, total: int) -> Message:
+    """MISSION_CURRENT with the mission state PX4 reports."""
+    if sample is None:
+        seq, state = 0, MISSION_STATE_NO_MISSION if total == 0 else MISSION_STATE_NOT_STARTED
+    else:
+        ap = sample.autopilot
+        seq = max(ap.current_seq, 0)
+        if total == 0:
+            state = MISSION_STATE_NO_MISSION
+        elif ap.mission_completed:
+            state = MISSION_STATE_COMPLETE
+        elif ap.armed and ap.mode in _MISSION_MODES:
+            state = MISSION_STATE_ACTIVE
+        elif ap.current_seq > 0:
+            state = MISSION_STATE_PAUSED
+        else:
+            state = MISSION_STATE_NOT_STARTED
+    return mav.MAVLink_mission_current_message(min(seq, 65535), min(total, 65535), state, 0)
+
+
+def autopilot_version() -> Message:
+    """AUTOPILOT_VERSION with the MISSION_INT capability MAVSDK requires."""
+    return mav.MAVLink_autopilot_version_message(
+        CAPABILITIES, FLIGHT_SW_VERSION, 0, 0, 0,
+        [0] * 8, [0] * 8, [0] * 8, 0, 0, 0x41495253, [0] * 18,
+    )  # fmt: skip
+
+
+def _padded(text: bytes, size: int = 32) -> list[int]:
+    return list(text[:size].ljust(size, b"\0"))
+
+
+def camera_information(sim_time_ns: int) -> Message:
+    """CAMERA_INFORMATION of the nadir camera (640x480, 57 degree horizontal FOV)."""
+    width_px, height_px, hfov_deg = 640, 480, 57.0
+    sensor_w_mm = 6.4  # 10 um pixels
+    focal_mm = (sensor_w_mm / 2) / math.tan(math.radians(hfov_deg) / 2)
+    return mav.MAVLink_camera_information_message(
+        sim_time_ns // 1_000_000, _padded(b"air-sitl"), _padded(b"nadir camera"), 0, focal_mm,
+        sensor_w_mm, sensor_w_mm * height_px / width_px, width_px, height_px, 0,
+        mav.CAMERA_CAP_FLAGS_CAPTURE_IMAGE, 0, b"", 0, 0,
+    )  # fmt: skip
+
+
+def statustext(severity: int, text: str) -> Message:
+    """STATUSTEXT (truncated to the 50 characters of one chunk)."""
+    return mav.MAVLink_statustext_message(severity, text.encode("utf-8")[:50], 0, 0)

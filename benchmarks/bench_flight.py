@@ -1,0 +1,56 @@
+"""Speed of the flight core: flight model + autopilot + sensors, against bare JSBSim.
+
+Usage: python benchmarks/bench_flight.py [SCENARIO] [--seconds 600]
+
+Flies SCENARIO (default FR-300) with --air-start and no camera for --seconds of simulated time
+and prints simulated seconds per wall second, beside the floor measured in the same run: the
+bare flight model stepping the same number of times with a fixed command.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def main() -> None:
+    from air_sitl.mission.plan_file import load_mission
+
+    from air_sitl.clock import NS_PER_S
+    from air_sitl.options import FlightOptions
+    from air_sitl.runner import assemble_flight
+    from air_sitl.state import ActuatorCommand
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenario", nargs="?", default="FR-300")
+    parser.add_argument("--seconds", type=float, default=600.0)
+    args = parser.parse_args()
+    mission = load_mission(REPO / "missions" / f"{args.scenario}.plan")
+    limit_ns = int(args.seconds * NS_PER_S)
+
+    flight, _, _ = assemble_flight(mission, FlightOptions(air_start=True))
+    t0 = time.perf_counter()
+    result = flight.run(stop=lambda s: False, max_sim_time_ns=limit_ns)
+    full = time.perf_counter() - t0
+    steps = flight.counters.steps
+
+    bare, _, _ = assemble_flight(mission, FlightOptions(air_start=True))
+    command = ActuatorCommand(throttle=0.5)
+    t0 = time.perf_counter()
+    for _ in range(steps):
+        bare.fdm.step(command)
+    floor = time.perf_counter() - t0
+
+    sim_s = result.sim_time_ns / NS_PER_S
+    print(f"scenario {args.scenario}, {sim_s:.0f} s simulated, {steps} physics steps at 200 Hz")
+    print(f"bare flight model step   {floor / steps * 1e6:7.1f} us/step  {sim_s / floor:7.0f} x rt")
+    print(f"model+autopilot+sensors  {full / steps * 1e6:7.1f} us/step  {sim_s / full:7.0f} x rt")
+    print(f"ratio full / bare model  {full / floor:7.2f}")
+    print(f"target: >= 100 x real time -> {'met' if sim_s / full >= 100 else 'NOT met'}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,87 @@
+"""Export round trips: rosbag2 (MCAP) and rosbag1 read back with rosbags; TUM files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rosbags.rosbag1 import Reader as Reader1
+from rosbags.rosbag2 import Reader as Reader2
+from rosbags.typesys import Stores, get_typestore
+
+import air_sitl.dataset
+from air_sitl.cli import main
+from air_sitl.dataset.export import TOPIC_GT_POSE, TOPIC_IMAGE, TOPIC_IMU
+from air_sitl.dataset.writer import DatasetWriter
+
+from .synth import fly
+from .test_writer import _info
+
+FRAMES = 30
+
+
+@pytest.fixture(scope="module")
+def archive_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("export") / "a"
+    writer = DatasetWriter(folder, _info())
+    fly(writer, FRAMES)
+    writer.finish({"capture_distance_m": 1.0})
+    return folder
+
+
+def _read_back(bag: Path, ros1: bool) -> dict[str, list[tuple[int, object]]]:
+    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    out: dict[str, list[tuple[int, object]]] = {}
+    reader = Reader1(bag) if ros1 else Reader2(bag)
+    with reader:
+        for conn, t, raw in reader.messages():
+            msg = (
+                store.deserialize_ros1(raw, conn.msgtype)
+                if ros1
+                else store.deserialize_cdr(raw, conn.msgtype)
+            )
+            out.setdefault(conn.topic, []).append((t, msg))
+    return out
+
+
+@pytest.mark.parametrize("ros1", [False, True], ids=["rosbag2", "rosbag1"])
+def test_bag_round_trip_has_the_same_frames_and_poses(
+    archive_dir: Path, tmp_path: Path, ros1: bool
+) -> None:
+    out = tmp_path / ("out.bag" if ros1 else "out_bag2")
+    flag = "--rosbag1" if ros1 else "--rosbag2"
+    assert main(["export", str(archive_dir), flag, str(out)]) == 0
+    topics = _read_back(out, ros1)
+    with air_sitl.dataset.open(archive_dir) as archive:
+        images = topics[TOPIC_IMAGE]
+        poses = topics[TOPIC_GT_POSE]
+        assert len(images) == len(poses) == len(archive) == FRAMES
+        for k, ((t_img, img), (t_pose, pose)) in enumerate(zip(images, poses, strict=True)):
+            assert t_img == t_pose == archive.timestamp_ns(k)
+            assert bytes(np.asarray(img.data)) == archive.jpeg(k)  # type: ignore[attr-defined]
+            row = archive.rows[k]
+            p = pose.pose.position  # type: ignore[attr-defined]
+            q = pose.pose.orientation  # type: ignore[attr-defined]
+            assert (p.x, p.y, p.z) == row.pose_enu_m
+            assert (q.x, q.y, q.z, q.w) == row.orientation_xyzw
+            assert img.header.stamp.sec * 10**9 + img.header.stamp.nanosec == t_img  # type: ignore[attr-defined]
+        imu_lines = (archive_dir / "imu.csv").read_text().splitlines()[1:]
+        assert len(topics[TOPIC_IMU]) == len(imu_lines)
+        gyro = topics[TOPIC_IMU][0][1].angular_velocity  # type: ignore[attr-defined]
+        first = [float(x) for x in imu_lines[0].split(",")[1:4]]
+        assert (gyro.x, gyro.y, gyro.z) == (first[0], -first[1], -first[2])  # FRD -> FLU
+    assert {"/camera/camera_info", "/gps", "/map_location"} <= set(topics)
+
+
+def test_tum_ground_truth_and_refusing_to_overwrite(archive_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "gt.txt"
+    assert main(["export", str(archive_dir), "--tum", str(out)]) == 0
+    lines = out.read_text().splitlines()
+    assert len(lines) == FRAMES
+    t, x, y, z, qx, qy, qz, qw = (float(v) for v in lines[3].split())
+    with air_sitl.dataset.open(archive_dir) as archive:
+        assert abs(t - archive.timestamp_ns(3) / 1e9) < 1e-9
+        assert (x, y, z) == archive.rows[3].pose_enu_m
+    assert main(["export", str(archive_dir), "--rosbag1", str(out)]) == 2
+    assert main(["export", str(archive_dir), "--tum", str(out), "--estimate", "nope"]) == 2

@@ -1,0 +1,190 @@
+"""A plain pymavlink ground station and a ``serve`` process launcher for the endpoint tests."""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from pymavlink import mavutil
+
+from air_sitl.mavlink.codec import from_mission_message, to_mission_message
+from air_sitl.mavlink.messages import MissionItemMessage
+from air_sitl.mission.items import MissionItem
+
+PX4_MISSION = (1, 4, 4)  # DO_SET_MODE params QGroundControl sends for "Mission"
+
+
+def free_udp_port() -> int:
+    """A UDP port nobody uses right now on 127.0.0.1."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@dataclass
+class Served:
+    """A running ``air-sitl serve`` process and the local addresses of its links."""
+
+    proc: subprocess.Popen[str]
+    ports: list[int]
+    banner: str
+
+    def stop(self) -> tuple[int, str]:
+        """SIGTERM, then the exit code and the rest of stdout."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+        try:
+            out, _ = self.proc.communicate(timeout=15)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            out, _ = self.proc.communicate()
+        return self.proc.returncode, out
+
+
+@contextlib.contextmanager
+def serve(*args: str, timeout_s: float = 30.0) -> Iterator[Served]:
+    """Start ``air-sitl serve ARGS``, wait for its banner, stop it at the end."""
+    cmd = [sys.executable, "-m", "air_sitl", "serve", *args]
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=None, text=True, env=env, bufsize=1
+    )
+    served = None
+    try:
+        assert proc.stdout is not None
+        deadline = time.monotonic() + timeout_s
+        banner = ""
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            if not line:
+                break
+            if "vehicle ready" in line:
+                banner = line
+                break
+        assert banner, f"serve did not start (exit {proc.poll()})"
+        ports = [int(p) for p in re.findall(r"\(local [^:]+:(\d+)\)", banner)]
+        served = Served(proc, ports, banner)
+        yield served
+    finally:
+        if served is not None:
+            served.stop()
+        elif proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+
+class Gcs:
+    """A ground station built from pymavlink alone, doing what QGroundControl does by hand."""
+
+    def __init__(self, url: str, *, system_id: int = 255, component_id: int = 190) -> None:
+        self.conn: Any = mavutil.mavlink_connection(
+            url, source_system=system_id, source_component=component_id, dialect="common"
+        )
+        self.texts: list[str] = []
+
+    def close(self) -> None:
+        """Close the socket."""
+        self.conn.close()
+
+    def recv(self, types: Sequence[str], timeout_s: float = 3.0) -> Any:
+        """The next message of one of ``types`` (STATUSTEXTs seen on the way are kept)."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            msg = self.conn.recv_match(blocking=True, timeout=0.05)
+            if msg is None:
+                continue
+            if msg.get_type() == "STATUSTEXT":
+                self.texts.append(msg.text)
+            if msg.get_type() in types:
+                return msg
+        return None
+
+    def connect(self, timeout_s: float = 10.0) -> Any:
+        """Send heartbeats until the vehicle's heartbeat arrives."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            self.conn.mav.heartbeat_send(
+                mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0
+            )
+            hb = self.recv(["HEARTBEAT"], timeout_s=0.5)
+            if hb is not None and hb.get_srcSystem() == 1:
+                self.conn.target_system, self.conn.target_component = 1, 1
+                return hb
+        raise AssertionError("no heartbeat from the vehicle")
+
+    def upload(self, items: Sequence[MissionItem], mission_type: int = 0) -> int:
+        """Upload by MISSION_COUNT / MISSION_REQUEST_INT / MISSION_ITEM_INT; the ACK result."""
+        self.conn.mav.mission_count_send(1, 1, len(items), mission_type)
+        while True:
+            msg = self.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], 5.0)
+            assert msg is not None, "upload: the vehicle stopped answering"
+            if msg.get_type() == "MISSION_ACK":
+                return int(msg.type)
+            item = MissionItemMessage(
+                seq=msg.seq, item=items[msg.seq], mission_type=mission_type, current=msg.seq == 0
+            )
+            self.conn.mav.send(from_mission_message(item, 1, 1))
+
+    def download(self, mission_type: int = 0) -> list[MissionItem]:
+        """Download with MISSION_REQUEST_LIST / MISSION_REQUEST_INT."""
+        self.conn.mav.mission_request_list_send(1, 1, mission_type)
+        count = self.recv(["MISSION_COUNT"], 5.0)
+        assert count is not None, "download: no MISSION_COUNT"
+        items: list[MissionItem] = []
+        for seq in range(count.count):
+            for _attempt in range(5):
+                self.conn.mav.mission_request_int_send(1, 1, seq, mission_type)
+                msg = self.recv(["MISSION_ITEM_INT"], 1.0)
+                if msg is not None and msg.seq == seq:
+                    break
+            assert msg is not None, f"download: no item {seq}"
+            converted = to_mission_message(msg)
+            assert isinstance(converted, MissionItemMessage)
+            items.append(converted.item)
+        self.conn.mav.mission_ack_send(1, 1, 0, mission_type)
+        return items
+
+    def command(self, command: int, *params: float, timeout_s: float = 5.0) -> int:
+        """COMMAND_LONG, the result of its COMMAND_ACK."""
+        p = [*params, *([0.0] * (7 - len(params)))]
+        self.conn.mav.command_long_send(1, 1, command, 0, *p)
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            ack = self.recv(["COMMAND_ACK"], timeout_s=deadline - time.monotonic())
+            if ack is not None and ack.command == command:
+                return int(ack.result)
+        raise AssertionError(f"no COMMAND_ACK for command {command}")
+
+    def params(self) -> dict[str, float]:
+        """PARAM_REQUEST_LIST: every parameter by name."""
+        self.conn.mav.param_request_list_send(1, 1)
+        values: dict[str, float] = {}
+        total = math.inf
+        while len(values) < total:
+            msg = self.recv(["PARAM_VALUE"], 3.0)
+            assert msg is not None, f"param list stopped after {len(values)}"
+            total = msg.param_count
+            values[msg.param_id] = msg.param_value
+        return values
+
+    def set_param(self, name: str, value: float) -> float:
+        """PARAM_SET; the value of the PARAM_VALUE that answers it."""
+        self.conn.mav.param_set_send(
+            1, 1, name.encode("ascii"), value, mavutil.mavlink.MAV_PARAM_TYPE_REAL32
+        )
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
+            msg = self.recv(["PARAM_VALUE"], 1.0)
+            if msg is not None and msg.param_id == name:
+                return float(msg.param_value)
+        raise AssertionError(f"no PARAM_VALUE for {name}")

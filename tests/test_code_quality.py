@@ -1,0 +1,26 @@
+"""The house rules CI enforces: ruff lint, ruff format and mypy --strict are clean."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+PATHS = ["air_sitl", "bridges", "benchmarks", "tests"]
+
+
+def _run(*cmd: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, check=False, timeout=600)
+
+
+def test_ruff_lint_and_format_are_clean() -> None:
+    lint = _run(sys.executable, "-m", "ruff", "check", *PATHS)
+    assert lint.returncode == 0, lint.stdout + lint.stderr
+    fmt = _run(sys.executable, "-m", "ruff", "format", "--check", *PATHS)
+    assert fmt.returncode == 0, fmt.stdout + fmt.stderr
+
+
+def test_mypy_strict_is_clean() -> None:
+    result = _run(sys.executable, "-m", "mypy")
+    assert result.returncode == 0, result.stdout + result.stderr
