@@ -31,6 +31,7 @@ from air_sitl.options import FlightOptions
 
 if TYPE_CHECKING:
     from air_sitl.camera.model import CameraModel
+    from air_sitl.dataset.writer import ArchiveInfo
     from air_sitl.maps.base import MapSource
     from air_sitl.mission.items import Mission
     from air_sitl.runner import Flight
@@ -141,9 +142,9 @@ def camera_yaml_for(camera: CameraModel) -> str:
     """``camera.yaml`` of a camera model (ROS camera_info layout + FOV, mounting, noise)."""
     from air_sitl.dataset.camera_info import (
         DEFAULT_MOUNTING,
-        matrix_to_quat,
         camera_yaml_dict,
         camera_yaml_text,
+        matrix_to_quat,
     )
 
     r = camera.r_cam_to_body()
@@ -211,6 +212,70 @@ def _write_json(path: Path, content: Mapping[str, Any]) -> None:
     write_json_atomic(path, content)
 
 
+def archive_info_for(
+    *,
+    mission: Mission,
+    scenario: str,
+    home: GeoPoint,
+    options: FlightOptions,
+    camera: CameraModel,
+    map_source: MapSource,
+    plan_sha256: str,
+) -> ArchiveInfo:
+    """What a DatasetWriter needs besides the data: camera.yaml, the plan, manifest fields.
+
+    ``run_key`` (the inputs that decide every byte) is what ``--resume`` compares.
+    """
+    from air_sitl.dataset.writer import ArchiveInfo
+    from air_sitl.mission.plan_file import plan_text
+
+    map_info = _jsonable(map_source.describe())
+    run_key = _jsonable(
+        {
+            "plan_sha256": plan_sha256,
+            "flight": _options_dict(options),
+            "map": map_info,
+            "camera": _camera_dict(camera),
+            "software_version": __version__,
+        }
+    )
+    manifest = {
+        "software": {"name": "air-sitl", "version": __version__},
+        "plan_sha256": plan_sha256,
+        "home": _home_dict(home),
+        "flight": _options_dict(options),
+        "sensor_noise": _sensor_noise_dict(options.sensor_noise),
+        "map": map_info,
+        "camera": _camera_dict(camera),
+    }
+    return ArchiveInfo(
+        scenario=scenario,
+        camera_yaml=camera_yaml_for(camera),
+        plan_name=f"{scenario}.plan",
+        plan_text=plan_text(mission),
+        manifest=_jsonable(manifest),
+        run_key=run_key,
+    )
+
+
+def _trim_for_resume(out: Path, run_key: Mapping[str, Any]) -> int:
+    """Check that ``out`` is an unfinished recording of the same inputs; trim it; frames kept."""
+    from air_sitl.dataset.writer import read_run_key, recover_partial
+
+    found = read_run_key(out)
+    if found is None:
+        msg = f"{out}: not an unfinished recording (no {RECORDING_JSON}); cannot --resume it"
+        raise DatasetError(msg)
+    if found != run_key:
+        diff = sorted(k for k in set(run_key) | set(found) if run_key.get(k) != found.get(k))
+        msg = (
+            f"{out}: --resume with different inputs than the recording "
+            f"({', '.join(diff)} differ); use the same plan and options"
+        )
+        raise DatasetError(msg)
+    return recover_partial(out).frames_kept
+
+
 def record_flight(
     request: RecordingRequest,
     *,
@@ -221,9 +286,9 @@ def record_flight(
 
     ``on_start(mission, first_frame)`` is called once the flight is assembled (progress bars).
     """
-    from air_sitl.dataset.writer import ArchiveInfo, DatasetWriter, recover_partial
+    from air_sitl.dataset.writer import DatasetWriter
     from air_sitl.flightlog import TrajectoryWriter
-    from air_sitl.mission.plan_file import load_mission, plan_text
+    from air_sitl.mission.plan_file import load_mission
     from air_sitl.runner import assemble_flight, home_of
     from air_sitl.sinks import Sink
 
@@ -250,54 +315,24 @@ def record_flight(
 
         spec = request.map.spec or default_map_for_plan(scenario)
         map_source = open_map(spec, home, seed=request.map.seed, date=request.map.date)
-        map_info = _jsonable(map_source.describe())
-        run_key = _jsonable(
-            {
-                "plan_sha256": _sha256_file(request.plan),
-                "flight": _options_dict(options),
-                "map": map_info,
-                "camera": _camera_dict(request.camera),
-                "software_version": __version__,
-            }
-        )
-        if resuming:
-            found = recover_partial(out)
-            if found.run_key is None:
-                msg = (
-                    f"{out}: not an unfinished recording (no {RECORDING_JSON}); "
-                    "cannot --resume it"
-                )
-                raise DatasetError(msg)
-            if found.run_key != run_key:
-                diff = sorted(
-                    k for k in set(run_key) | set(found.run_key)
-                    if run_key.get(k) != found.run_key.get(k)
-                )
-                msg = (
-                    f"{out}: --resume with different inputs than the recording "
-                    f"({', '.join(diff)} differ); use the same plan and options"
-                )
-                raise DatasetError(msg)
-            first_frame = found.frames_kept
-        info = ArchiveInfo(
-            scenario=scenario,
-            camera_yaml=camera_yaml_for(request.camera),
-            plan_name=f"{scenario}.plan",
-            plan_text=plan_text(mission),
-            manifest=_jsonable(
-                {
-                    "software": {"name": "air-sitl", "version": __version__},
-                    "plan_sha256": run_key["plan_sha256"],
-                    "home": _home_dict(home),
-                    "flight": _options_dict(options),
-                    "sensor_noise": _sensor_noise_dict(options.sensor_noise),
-                    "map": map_info,
-                    "camera": _camera_dict(request.camera),
-                }
-            ),
-            run_key=run_key,
-        )
-        writer = DatasetWriter(out, info, first_frame=first_frame)
+        try:
+            info = archive_info_for(
+                mission=mission,
+                scenario=scenario,
+                home=home,
+                options=options,
+                camera=request.camera,
+                map_source=map_source,
+                plan_sha256=_sha256_file(request.plan),
+            )
+            if resuming:
+                first_frame = _trim_for_resume(out, info.run_key)
+            writer = DatasetWriter(out, info, first_frame=first_frame)
+        except BaseException:
+            close_map = getattr(map_source, "close", None)
+            if callable(close_map):
+                close_map()
+            raise
         camera_source = open_frame_source(
             map_source, request.camera, seed=options.seed, workers=request.render_workers
         )

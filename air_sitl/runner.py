@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S, PHYSICS_STEP_NS, Pacer, SimClock
 from air_sitl.errors import PlanError
-from air_sitl.fdm.base import FlightModel, InitialCondition, Wind
+from air_sitl.fdm.base import FlightModel, InitialCondition
 from air_sitl.flightlog import FlightStats
 from air_sitl.frames import geodetic2ned
 from air_sitl.mission.items import MavCmd, Mission
@@ -60,16 +60,10 @@ class Flight:
     state: VehicleState | None = None
     last_sample: SimSample | None = None
 
-    def start(self, ground: GeoPoint, initial: InitialCondition, wind: Wind) -> VehicleState:
-        """Place the aircraft; simulation time restarts at 0."""
-        self.clock = SimClock(self.fdm.step_ns)
-        self.state = self.fdm.reset(ground, initial, wind)
-        return self.state
-
     def step(self) -> SimSample:
         """Run one physics step: autopilot, sensors, sinks, camera, then the flight model."""
         state = self.state
-        assert state is not None, "Flight.start() first"
+        assert state is not None, "a Flight needs its initial state (see assemble_flight)"
         command, status = self.autopilot.update(state)
         imu, gps = self.sensors.sample(state)
         sample = SimSample(state=state, autopilot=status, imu=imu, gps=gps)
@@ -191,15 +185,6 @@ def assemble_flight(
     from air_sitl.fdm.jsbsim_model import JSBSimModel
 
     home = home or home_of(mission)
-    fdm = JSBSimModel(aircraft=options.aircraft)
-    autopilot = Autopilot(
-        mission,
-        home,
-        ParamStore(),
-        Controller(gains_for(options.aircraft)),
-        air_start=options.air_start,
-        auto_start=auto_start,
-    )
     if options.air_start:
         lat, lon, alt, heading, airspeed = air_start_pose(mission, home)
         initial = InitialCondition(
@@ -217,6 +202,19 @@ def assemble_flight(
             alt_amsl_m=home.alt_amsl_m,
             heading_rad=ground_start_heading_rad(mission, home),
         )
+    fdm = JSBSimModel(aircraft=options.aircraft, seed=options.seed)
+    state0 = fdm.reset(home, initial, options.wind)
+    # Airborne: start the controller's integrators at the trimmed controls, so any aircraft
+    # (not only ours, whose default gains hold its trim) begins steady.
+    trim = fdm.trim_command if options.air_start else None
+    autopilot = Autopilot(
+        mission,
+        home,
+        ParamStore(),
+        Controller(gains_for(options.aircraft), trim=trim),
+        air_start=options.air_start,
+        auto_start=auto_start,
+    )
     noise = SensorNoise().scaled(options.sensor_noise)
     sensors = SensorSuite(home, seed=options.seed, step_ns=fdm.step_ns, noise=noise)
     flight = Flight(
@@ -227,6 +225,7 @@ def assemble_flight(
         camera=camera,
         pacer=Pacer(options.speed),
         stats=FlightStats(sum(1 for item in mission.items if item.is_nav)),
+        clock=SimClock(fdm.step_ns),
+        state=state0,
     )
-    flight.start(home, initial, options.wind)
     return flight, home, initial

@@ -4,7 +4,7 @@ Prints steps per second, microseconds per step and the real-time ratio at the 20
 rate for: a bare ``FGFDMExec.run()`` loop (the floor: JSBSim itself), ``JSBSimModel.step``
 (plus building the VehicleState), and ``JSBSimModel.step`` + ``Controller.update`` in CRUISE.
 
-    python benchmarks/bench_fdm.py [--seconds 60] [--aircraft airsitl_uav]
+    python benchmarks/bench_fdm.py [--seconds 60] [--aircraft airsitl_uav] [--repeats 3]
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ def bench_model_and_controller(model: JSBSimModel, aircraft: str, steps: int, v:
     return time.perf_counter() - start
 
 
-def main(seconds: float, aircraft: str) -> None:
+def main(seconds: float, aircraft: str, repeats: int) -> None:
     steps = int(seconds * NS_PER_S // PHYSICS_STEP_NS)
     airspeed = gains_for(aircraft).ref_airspeed_m_s
     model = JSBSimModel(aircraft)
@@ -82,10 +82,17 @@ def main(seconds: float, aircraft: str) -> None:
             lambda: bench_model_and_controller(model, aircraft, steps, airspeed),
         ),
     ):
-        _air_start(model, airspeed)
-        rows.append((name, fn()))
+        # Best of a few runs: the machine is shared, the minimum is the cost of the code.
+        best = float("inf")
+        for _ in range(repeats):
+            _air_start(model, airspeed)
+            best = min(best, fn())
+        rows.append((name, best))
     floor = rows[0][1]
-    print(f"aircraft {aircraft}, {steps} steps of {PHYSICS_STEP_NS / 1e6:g} ms ({seconds:g} s)")
+    print(
+        f"aircraft {aircraft}, {steps} steps of {PHYSICS_STEP_NS / 1e6:g} ms ({seconds:g} s), "
+        f"best of {repeats}"
+    )
     print(f"{'loop':40s} {'steps/s':>10s} {'us/step':>8s} {'x real time':>12s} {'x floor':>8s}")
     for name, elapsed in rows:
         per_step_us = elapsed / steps * 1e6
@@ -100,5 +107,6 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=60.0, help="simulated seconds per loop")
     parser.add_argument("--aircraft", default="airsitl_uav")
+    parser.add_argument("--repeats", type=int, default=3, help="runs per loop; the best counts")
     args = parser.parse_args()
-    main(args.seconds, args.aircraft)
+    main(args.seconds, args.aircraft, args.repeats)

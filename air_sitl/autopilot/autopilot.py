@@ -13,7 +13,6 @@ from typing import Protocol
 
 from air_sitl.autopilot.executor import (
     MissionExecutor,
-    NavOutput,
     first_flown_item,
     item_point,
     loiter_geometry,
@@ -65,7 +64,6 @@ class Autopilot:
             raise PlanError(msg)
         self._next_nav_ns = -1
         self._target = ControlTarget(phase=ControlPhase.IDLE)
-        self._nav = NavOutput(self._target)
         self._status = AutopilotStatus(
             mode=FlightMode.IDLE, armed=False, current_seq=-1, capturing=False,
             mission_completed=False,
@@ -95,7 +93,6 @@ class Autopilot:
                 ex.set_mode(FlightMode.MISSION)
                 ex.arm()
         nav = ex.update(state)
-        self._nav = nav
         self._target = nav.target
         self._status = AutopilotStatus(
             mode=ex.mode,

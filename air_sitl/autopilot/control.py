@@ -15,6 +15,12 @@ Loops (all gains in :class:`ControlGains`):
   acceleration / g), pitch the energy balance (flight-path angle minus acceleration / g),
   both with anti-windup integrators, climb/sink rate and pitch limits.
 
+Phases: IDLE (brakes, nothing else), GROUND_ROLL (full throttle, nose wheel and rudder hold
+the heading, nose-down elevator until the rotation speed, then the rotation attitude),
+CLIMB (climb throttle, pitch for airspeed, throttle trimmed back above the climb-rate limit),
+CRUISE (TECS + bank tracking), LAND (idle, pitch for the approach speed, flare below
+``flare_height_m`` on a sink rate proportional to height; on the ground: brakes, steer).
+
 Surface gains are scheduled with dynamic pressure: effectiveness goes as airspeed squared.
 """
 
@@ -62,6 +68,7 @@ class ControlGains:
     speed_k: float = 0.3  # demanded acceleration per m/s of speed error, 1/s
     max_accel_m_s2: float = 1.5
     max_vert_accel_m_s2: float = 1.0  # slew limit of the demanded climb rate
+    demand_filter_s: float = 1.0  # time constant of the altitude-demand rate feed-forward
     accel_filter_s: float = 0.5  # time constant of the along-path acceleration estimate
     throttle_ff: float = 1.0  # throttle per rad of demanded energy rate
     throttle_kp: float = 1.2
@@ -71,12 +78,13 @@ class ControlGains:
     energy_i_limit: float = 0.5
     # Take-off and climb-out
     rotate_airspeed_m_s: float = 11.0
+    roll_elevator: float = 0.3  # elevator held during the take-off run, before rotation
     rotate_pitch_rad: float = math.radians(8.0)
     climb_throttle: float = 1.0
     climb_pitch_rad: float = math.radians(12.0)  # nominal climb attitude, trimmed for speed
     climb_speed_k: float = 0.05  # rad of pitch per m/s of speed excess
-    steer_k: float = 1.0  # rudder / nose wheel per rad of heading error on the ground
-    steer_kr: float = 0.3
+    steer_k: float = 3.0  # rudder / nose wheel per rad of heading error on the ground
+    steer_kr: float = 0.5
     # Landing
     flare_height_m: float = 3.0
     flare_sink_m_s: float = 0.3
@@ -165,6 +173,8 @@ class Controller:
         self._balance_i = 0.0
         self._vdot = 0.0
         self._hdot_dem = 0.0
+        self._h_dem_prev = math.nan
+        self._h_dem_rate = 0.0
         self._prev_phase = ControlPhase.IDLE
         self.reset(trim)
 
@@ -176,6 +186,8 @@ class Controller:
         self._balance_i = 0.0
         self._vdot = 0.0
         self._hdot_dem = 0.0
+        self._h_dem_prev = math.nan
+        self._h_dem_rate = 0.0
         # An air start (trim given) is already cruising; otherwise the aircraft is parked.
         self._prev_phase = ControlPhase.CRUISE if trim is not None else ControlPhase.IDLE
         if trim is not None:
@@ -188,19 +200,14 @@ class Controller:
         """One step of the control law of ``target.phase``."""
         phase = target.phase
         if phase is ControlPhase.IDLE:
-            self._prev_phase = phase
-            self._roll_i = 0.0
-            self._pitch_i = self.gains.trim_elevator
-            self._throttle_i = 0.0
-            self._balance_i = 0.0
-            self._vdot = 0.0
-            self._hdot_dem = 0.0
+            self.reset()  # parked: nothing to remember
             return ActuatorCommand(brake=1.0)
         if phase is not self._prev_phase:
             # Entering a phase: its pitch offset integrator means something else there, and
             # the climb-rate demand starts from what the aircraft is doing.
             self._balance_i = 0.0
             self._hdot_dem = -state.vel_ned_m_s[2]
+            self._h_dem_prev = math.nan
         if phase is ControlPhase.GROUND_ROLL:
             cmd = self._ground_roll(state, target)
         elif phase is ControlPhase.CLIMB:
@@ -225,8 +232,9 @@ class Controller:
         err = _clamp(bank_cmd_rad, -g.max_bank_rad, g.max_bank_rad) - state.roll_rad
         raw = g.roll_kp * err + self._roll_i - g.roll_kd * state.rate_frd_rad_s[0]
         out = _clamp(scale * raw, -1.0, 1.0)
-        # Anti-windup: integrate only while the output is not pushed further into its limit.
-        if not ((out >= 1.0 and err > 0.0) or (out <= -1.0 and err < 0.0)):
+        # Anti-windup: integrate only in the air and while the output is not pushed further
+        # into its limit.
+        if not (state.on_ground or (out >= 1.0 and err > 0.0) or (out <= -1.0 and err < 0.0)):
             self._roll_i = _clamp(
                 self._roll_i + g.roll_ki * err * self.dt_s, -g.roll_i_limit, g.roll_i_limit
             )
@@ -265,7 +273,7 @@ class Controller:
         err = _wrap_pi(heading_rad - state.yaw_rad)
         # Nose-wheel yaw rate grows with ground speed: soften the gain as the roll speeds up.
         v_n, v_e, _ = state.vel_ned_m_s
-        soften = _clamp(5.0 / max(math.hypot(v_n, v_e), 1e-3), 0.25, 1.0)
+        soften = _clamp(8.0 / max(math.hypot(v_n, v_e), 1e-3), 0.3, 1.0)
         return _clamp((g.steer_k * err - g.steer_kr * state.rate_frd_rad_s[2]) * soften, -1.0, 1.0)
 
     # ------------------------------------------------------------------ phases
@@ -278,7 +286,8 @@ class Controller:
             elevator = self._elevator(state, g.rotate_pitch_rad, scale)
         else:
             self._pitch_i = g.trim_elevator
-            elevator = g.trim_elevator  # keep the nose wheel down until rotation speed
+            # Nose-down elevator keeps weight on the steerable nose wheel until rotation speed.
+            elevator = g.roll_elevator
         rudder = self._steer(state, target.heading_rad)
         if not state.on_ground:
             rudder = self._rudder_air(state)
@@ -323,7 +332,14 @@ class Controller:
         climb_max = max(climb_limit, 0.1)
         h = state.alt_amsl_m
         hdot = -state.vel_ned_m_s[2]
-        hdot_dem = _clamp(g.height_k * (height_dem_m - h), -climb_max, climb_max)
+        # Feed forward how fast the demanded altitude moves (a glide slope, a ramped climb),
+        # low-pass filtered: guidance updates its target only every few steps.
+        if self._h_dem_prev == self._h_dem_prev:  # not NaN: a previous demand exists
+            rate = (height_dem_m - self._h_dem_prev) / self.dt_s
+            rate = _clamp(rate, -climb_max, climb_max)
+            self._h_dem_rate += (rate - self._h_dem_rate) * min(self.dt_s / g.demand_filter_s, 1.0)
+        self._h_dem_prev = height_dem_m
+        hdot_dem = _clamp(self._h_dem_rate + g.height_k * (height_dem_m - h), -climb_max, climb_max)
         # Slew the demanded climb rate: a step in altitude gives a smooth pull-up.
         slew = g.max_vert_accel_m_s2 * self.dt_s
         hdot_dem = _clamp(hdot_dem, self._hdot_dem - slew, self._hdot_dem + slew)

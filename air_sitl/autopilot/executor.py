@@ -7,12 +7,22 @@ time (take-off, leg, loiter, landing, idle on the ground); tasks use the pure ma
 DO_JUMP's counter is on the jump item (taken while ``count < repeat``), the aircraft loiters at
 the last waypoint when a mission ends, RTL climbs (never descends) to RTL_RETURN_ALT and loiters
 at home.
+
+- ``mission_completed``: the last navigation item is done (a final RTL or LOITER_UNLIM once the
+  aircraft is established on its circle; a final NAV_LAND once stopped on the ground).
+- Capture window: IMAGE_START_CAPTURE .. IMAGE_STOP_CAPTURE when the plan has either; otherwise
+  (AIR's rule) from reaching the first positioned item after take-off, at its altitude, to
+  ``mission_completed``.
+- Airspeed: DO_CHANGE_SPEED (an airspeed, or a ground speed flown with the estimated wind),
+  else the plan's cruise speed in MISSION mode, else FW_AIRSPD_TRIM; always within
+  FW_AIRSPD_MIN..MAX.
 """
 
 from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from air_sitl.autopilot import guidance
@@ -30,7 +40,9 @@ LIFTOFF_AGL_M = 3.0  # ground roll ends (climb-out begins) above this height
 CLIMBOUT_BANK_RAD = math.radians(10.0)
 LANDED_SPEED_M_S = 1.0
 ALIGN_RAD = math.radians(15.0)  # a leg from "here" is fixed once the course points at its end
+ESTABLISHED_COURSE_RAD = math.radians(30.0)  # on a circle: course within this of its tangent
 FLARE_PHASE_AGL_M = 8.0  # below this height a landing hands over to the controller's LAND law
+WIND_FILTER_GAIN = 0.02  # per 50 Hz guidance update: about a 1 s time constant
 _NAN = math.nan
 _LOITERS = frozenset(
     {
@@ -108,7 +120,7 @@ class NavOutput:
 
 
 class Tick:
-    """The inputs of one guidance update (one object, refilled, to keep updates cheap)."""
+    """The inputs of one guidance update, unpacked from the state once."""
 
     __slots__ = ("alt", "course", "gs", "now_ns", "p", "pe", "pn", "speed", "state", "ve", "vn")
 
@@ -323,7 +335,7 @@ class LoiterKind:
 
 class LoiterTask(Task):
     """Fly to a circle and around it. Turns and time count from the moment the aircraft is
-    on the circle (within max(NAV_ACC_RAD, 5% of the radius) of it)."""
+    on the circle (within max(NAV_ACC_RAD, 5% of the radius) of it, flying along it)."""
 
     def __init__(
         self,
@@ -367,7 +379,8 @@ class LoiterTask(Task):
         )  # fmt: skip
         if not self.established:
             tolerance = max(p.acc_radius_m, 0.05 * self.radius)
-            if not c.capturing and abs(c.radial_error_m) <= tolerance:
+            along = abs(guidance.wrap_pi(t.course - c.course_rad)) < ESTABLISHED_COURSE_RAD
+            if not c.capturing and along and abs(c.radial_error_m) <= tolerance:
                 self.established = True
                 self.established_ns = t.now_ns
                 self.track.start_ns = t.now_ns
@@ -535,8 +548,11 @@ class MissionExecutor:
         # Reached items not yet shown in an AutopilotStatus (the facade shows one per step).
         self.reached_queue: deque[int] = deque()
         self._speed_override: float | None = None
+        self._ground_speed_mode = False  # DO_CHANGE_SPEED asked for a ground speed
+        self._wind_ne = (0.0, 0.0)  # wind estimate (ground minus air velocity), low-passed
         self._after_takeoff_seq = -1  # mission item to enter after an implicit take-off
         self._in_mission = False  # flying mission items (as opposed to waiting on the ground)
+        self._deferred: Callable[[], None] | None = None  # a command that needs a state first
         self._set_mission_fields(mission)
 
     # ----------------------------------------------------------------------------- mission
@@ -566,6 +582,8 @@ class MissionExecutor:
         In MISSION mode in the air the new mission is flown from its first item.
         """
         self._set_mission_fields(mission)
+        self._speed_override = None  # the new plan's speeds apply
+        self._ground_speed_mode = False
         self._emit(f"Mission replaced: {len(mission.items)} items")
         if self.mode is FlightMode.MISSION and self._in_mission and self._state is not None:
             if mission.items:
@@ -604,27 +622,52 @@ class MissionExecutor:
             self._np_version = self.params.version
         return self._np
 
-    def _speed(self, p: NavParams) -> float:
+    def _speed(self, p: NavParams, course_rad: float = 0.0) -> float:
         if self._speed_override is not None:
-            return p.clamp_speed(self._speed_override)
+            if not self._ground_speed_mode:
+                return p.clamp_speed(self._speed_override)
+            # Airspeed that makes the ground speed along the current course the one asked for.
+            wn, we = self._wind_ne
+            c, s = math.cos(course_rad), math.sin(course_rad)
+            along = wn * c + we * s
+            across = we * c - wn * s
+            return p.clamp_speed(math.hypot(self._speed_override - along, across))
         plan = self.mission.cruise_speed_m_s
         if self.mode is FlightMode.MISSION and math.isfinite(plan) and plan > 0.0:
             return p.clamp_speed(plan)
         return p.clamp_speed(p.trim_m_s)
 
+    def _estimate_wind(self, state: VehicleState) -> None:
+        """Wind = ground velocity - air velocity (truth airspeed along the heading), low-passed."""
+        if state.on_ground:
+            return
+        v_air = state.airspeed_m_s * math.cos(state.pitch_rad)
+        wn = state.vel_ned_m_s[0] - v_air * math.cos(state.yaw_rad)
+        we = state.vel_ned_m_s[1] - v_air * math.sin(state.yaw_rad)
+        k = WIND_FILTER_GAIN
+        self._wind_ne = (
+            self._wind_ne[0] + k * (wn - self._wind_ne[0]),
+            self._wind_ne[1] + k * (we - self._wind_ne[1]),
+        )
+
     def update(self, state: VehicleState) -> NavOutput:
         """Advance the state machine and return guidance for ``state``."""
         self._state = state
         p = self.nav_params
-        self._tick = Tick(state, p, self._speed(p))
-        out = self._task.update(self._tick)
+        if self._deferred is not None:
+            deferred, self._deferred = self._deferred, None
+            deferred()
+        if self._ground_speed_mode:
+            self._estimate_wind(state)
+        tick = self._tick = self._tick_now()
+        out = self._task.update(tick)
         # Tasks may finish several in a row (a waypoint, then DO items): bounded by the items.
         for _ in range(len(self._items) + 4):
             if not self._task.done:
                 break
             self._task_done()
-            self._tick.speed = self._speed(p)
-            out = self._task.update(self._tick)
+            tick.speed = self._speed(p, tick.course)
+            out = self._task.update(tick)
         task = self._task
         if isinstance(task, LoiterTask) and task.established and not task.announced:
             self._on_established(task)
@@ -639,7 +682,9 @@ class MissionExecutor:
         """A tick for the last state (commands create tasks between updates)."""
         assert self._state is not None
         p = self.nav_params
-        return Tick(self._state, p, self._speed(p))
+        tick = Tick(self._state, p, 0.0)
+        tick.speed = self._speed(p, tick.course)
+        return tick
 
     # ------------------------------------------------------------------------- sequencing
     def _enter_item(self, seq: int) -> None:
@@ -677,7 +722,9 @@ class MissionExecutor:
         if cmd == MavCmd.DO_CHANGE_SPEED:
             if item.param1 in (0.0, 1.0) and item.param2 > 0.0:
                 self._speed_override = item.param2
-                self._emit(f"Speed set to {item.param2:g} m/s")
+                self._ground_speed_mode = item.param1 == 1.0
+                kind = "ground" if self._ground_speed_mode else "air"
+                self._emit(f"Speed set to {item.param2:g} m/s ({kind})")
         elif cmd == MavCmd.IMAGE_START_CAPTURE:
             self._set_capture(True)
         elif cmd == MavCmd.IMAGE_STOP_CAPTURE:
@@ -982,6 +1029,9 @@ class MissionExecutor:
         return True, ""
 
     def _begin_mission(self) -> None:
+        if self._state is None:  # a command before the first update: start at the first one
+            self._deferred = self._begin_mission
+            return
         self._prev_point = None
         self._emit("Mission started")
         self._enter_item(max(0, self.current_seq))
@@ -1007,6 +1057,9 @@ class MissionExecutor:
         return True, ""
 
     def _begin_takeoff(self, alt_m: float) -> None:
+        if self._state is None:
+            self._deferred = lambda: self._begin_takeoff(alt_m)
+            return
         t = self._tick_now()
         rel = alt_m if math.isfinite(alt_m) and alt_m > 0 else t.p.takeoff_alt_m
         self._in_mission = False
@@ -1041,6 +1094,7 @@ class MissionExecutor:
         if not math.isfinite(speed_m_s):
             return False, f"speed must be a number ({speed_m_s})"
         self._speed_override = speed_m_s if speed_m_s > 0 else None
+        self._ground_speed_mode = False
         return True, ""
 
     def start_capture(self) -> tuple[bool, str]:

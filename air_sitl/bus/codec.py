@@ -158,8 +158,8 @@ def encode_camera_info(info: CameraInfo) -> bytes:
             "hfov_deg": info.hfov_deg,
             "fx_px": f,
             "fy_px": f,
-            "cx_px": info.width_px / 2.0,
-            "cy_px": info.height_px / 2.0,
+            "cx_px": (info.width_px - 1) / 2.0,  # pixel centres at integer coordinates
+            "cy_px": (info.height_px - 1) / 2.0,
             "rate_hz": info.rate_hz,
             "q_cam_to_body_wxyz": info.q_cam_to_body_wxyz,
             "distortion": None,

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import cv2
 import numpy as np
@@ -133,7 +134,7 @@ class Renderer:
             borderMode=cv2.BORDER_CONSTANT,
             borderValue=FILL_BGRX,
         )
-        img = cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR)
+        img = cast(Image, cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR))
         if g.sees_horizon:
             r_b2n = _quat_matrix(state.q_body_to_ned_wxyz)
             down_row = (r_b2n @ self._r_c2b @ self._k_inv)[2]
@@ -191,7 +192,7 @@ class Renderer:
         oy = int(rng.integers(0, self._noise_bank.shape[0] - cam.height_px + 1))
         ox = int(rng.integers(0, self._noise_bank.shape[1] - cam.width_px + 1))
         patch = self._noise_bank[oy : oy + cam.height_px, ox : ox + cam.width_px]
-        out: Image = cv2.add(img, patch, dtype=cv2.CV_8U)
+        out = cast(Image, cv2.add(img, patch, dtype=cv2.CV_8U))
         return out
 
     def encode(self, img: Image) -> bytes:

@@ -14,7 +14,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-HELP = "fly a QGC mission plan (.plan or QGC WPL) to its end and record trajectory, summary and frames"
+HELP = (
+    "fly a QGC mission plan (.plan or QGC WPL) to its end and record trajectory, summary and frames"
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -22,9 +24,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from air_sitl.camera.options import add_camera_arguments, add_map_arguments
     from air_sitl.options import add_flight_arguments
 
-    parser.add_argument("plan", metavar="PLAN", help="QGroundControl .plan file or QGC WPL 110 text")
     parser.add_argument(
-        "--out", default=None, help="output folder (created; refused if not empty). Default: out/<plan>"
+        "plan", metavar="PLAN", help="QGroundControl .plan file or QGC WPL 110 text"
+    )
+    parser.add_argument(
+        "--out",
+        default=None,
+        help="output folder (created; refused if not empty). Default: out/<plan>",
     )
     parser.add_argument("--no-camera", action="store_true", help="do not render camera frames")
     parser.add_argument(
@@ -120,5 +126,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         print_summary(result.summary, out, sys.stdout)
         if result.manifest is not None:
-            print(f"  archive          {result.manifest.get('frame_count')} frames, manifest written")
+            print(
+                f"  archive          {result.manifest.get('frame_count')} frames, manifest written"
+            )
     return 0 if result.mission_completed else 1

@@ -7,18 +7,26 @@ pymavlink) connect, upload a mission, arm and start it. It runs until SIGINT or 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
 import math
 import queue
 import signal
 import sys
 import threading
+from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from air_sitl.autopilot.autopilot import Autopilot
+    from air_sitl.camera.model import CameraModel
+    from air_sitl.dataset.writer import DatasetWriter
+    from air_sitl.options import FlightOptions
     from air_sitl.runner import Flight, InboxItem
-    from air_sitl.state import GeoPoint
+    from air_sitl.sinks import FlightResult, Sink
+    from air_sitl.state import CameraFrame, GeoPoint, SimSample
 
 HELP = "run a PX4-like MAVLink vehicle that ground stations connect to, upload missions to and fly"
 DEFAULT_HOME = (47.397742, 8.545594, 488.0)  # PX4 SITL's default home (Zurich)
@@ -27,6 +35,7 @@ FOREVER_NS = 2**62
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``serve``."""
+    from air_sitl.camera.options import add_camera_arguments, add_map_arguments
     from air_sitl.options import add_flight_arguments
 
     parser.add_argument(
@@ -40,15 +49,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--home", default=None, help="LAT,LON,ALT_AMSL (default: the plan's home, else PX4's)"
     )
-    parser.add_argument("--map", default=None, help="map for the camera (recording)")
     parser.add_argument(
-        "--out", default=None, help="record each capture window into OUT/<n>/ (needs --map)"
+        "--out",
+        default=None,
+        help="record each capture window (camera frames, AIR archive) into OUT/<n>/",
     )
     parser.add_argument(
         "--signing-key", default=None, metavar="HEX|@FILE", help="MAVLink 2 signing key"
     )
     parser.add_argument("--quiet", action="store_true", help="print only errors")
     add_flight_arguments(parser, default_speed=1.0)
+    add_map_arguments(parser)
+    add_camera_arguments(parser)
 
 
 def parse_home(text: str) -> GeoPoint:
@@ -103,9 +115,6 @@ def run(args: argparse.Namespace) -> int:
             if args.home
             else GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
         )
-    if args.out and not args.map:
-        print("air-sitl serve: warning: --out needs --map to record frames; not recording",
-              file=sys.stderr)  # fmt: skip
 
     inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
 
@@ -120,10 +129,23 @@ def run(args: argparse.Namespace) -> int:
     )
     addresses = endpoint.open()
     try:
+        sinks: list[Sink] = [endpoint.sink]
+        camera = None
+        recorder = None
+        if args.out:
+            from air_sitl.camera.options import camera_bridge_from_args, camera_from_args
+
+            camera = camera_bridge_from_args(args, home, mission.name, seed=options.seed)
+            recorder = CaptureRecorder(
+                Path(args.out), camera_from_args(args), home, _manifest(args, options, home)
+            )
+            sinks.append(recorder)
         flight, home, _initial = assemble_flight(
-            mission, options, sinks=[endpoint.sink], home=home, auto_start=False
+            mission, options, sinks=sinks, camera=camera, home=home, auto_start=False
         )
         endpoint.attach(flight.autopilot, flight.autopilot.params)
+        if recorder is not None:
+            recorder.autopilot = flight.autopilot
         endpoint.start()
         if not args.quiet:
             links = ", ".join(
@@ -168,3 +190,180 @@ def _max_sim_ns(args: argparse.Namespace, max_sim_time_s: float) -> int:
     if str(args.max_sim_time) == "14400":
         return FOREVER_NS
     return int(max_sim_time_s * 1e9)
+
+
+def _manifest(args: argparse.Namespace, options: FlightOptions, home: GeoPoint) -> dict[str, Any]:
+    """What every archive of this serve run records about its inputs."""
+    return {
+        "home": {"lat_deg": home.lat_deg, "lon_deg": home.lon_deg, "alt_amsl_m": home.alt_amsl_m},
+        "map": args.map or "default",
+        "aircraft": options.aircraft,
+        "seed": options.seed,
+        "recorded_by": "air-sitl serve",
+    }
+
+
+def _camera_yaml(camera: CameraModel) -> str:
+    from air_sitl.dataset.camera_info import camera_yaml_dict, camera_yaml_text, matrix_to_quat
+
+    return camera_yaml_text(
+        camera_yaml_dict(
+            width_px=camera.width_px,
+            height_px=camera.height_px,
+            fx_px=camera.fx_px,
+            fy_px=camera.fy_px,
+            cx_px=camera.cx_px,
+            cy_px=camera.cy_px,
+            q_camera_to_body_wxyz=matrix_to_quat(camera.r_cam_to_body().tolist()),
+        )
+    )
+
+
+@dataclass(slots=True)
+class _Window:
+    """One capture window being recorded."""
+
+    folder: Path
+    writer: DatasetWriter
+    first_tick: int
+    end_tick: int | None = None  # set when capture stops
+    next_frame: int = 0
+    distance_m: float = 0.0
+    last_ne: tuple[float, float] | None = None
+    start_ns: int = 0
+
+
+class CaptureRecorder:
+    """A Sink that opens a new AIR archive ``ROOT/<n>/`` for each capture window.
+
+    Frames keep their flight-wide tick index in the runner; each archive renumbers them from 0.
+    A window's archive is sealed once its last frame arrived (frames lag behind the samples).
+    A write error abandons that archive with a warning: the vehicle keeps flying.
+    """
+
+    def __init__(
+        self, root: Path, camera: CameraModel, home: GeoPoint, manifest: dict[str, Any]
+    ) -> None:
+        self.root = root
+        self.camera_yaml = _camera_yaml(camera)
+        self.home = home
+        self.manifest = manifest
+        self.autopilot: Autopilot | None = None
+        self.archives: list[Path] = []
+        self._ticks = 0
+        self._window: _Window | None = None
+        self._last_sample: SimSample | None = None
+        self._failed = False
+
+    def _next_folder(self) -> Path:
+        used = [int(p.name) for p in self.root.glob("*") if p.name.isdigit()]
+        return self.root / str(max(used, default=0) + 1)
+
+    def _open(self, sample: SimSample) -> None:
+        from air_sitl.dataset.writer import ArchiveInfo, DatasetWriter
+        from air_sitl.mission.plan_file import plan_text
+
+        mission = self.autopilot.mission if self.autopilot is not None else None
+        name = (mission.name if mission is not None else "") or "serve"
+        text = plan_text(mission) if mission is not None and mission.items else "{}\n"
+        folder = self._next_folder()
+        info = ArchiveInfo(
+            scenario=name,
+            camera_yaml=self.camera_yaml,
+            plan_name=f"{name}.plan",
+            plan_text=text,
+            manifest=self.manifest,
+        )
+        writer = DatasetWriter(folder, info)
+        self._window = _Window(folder, writer, self._ticks, start_ns=sample.state.sim_time_ns)
+        print(f"air-sitl serve: recording into {folder}", flush=True)
+
+    def on_sample(self, sample: SimSample) -> None:
+        """Open, feed and close windows following ``capturing``."""
+        from air_sitl.clock import CAMERA_PERIOD_NS
+        from air_sitl.errors import AirSitlError
+
+        self._last_sample = sample
+        capturing = sample.autopilot.capturing
+        try:
+            if not capturing:
+                self._failed = False
+            if (
+                capturing
+                and not self._failed
+                and (self._window is None or self._window.end_tick is not None)
+            ):
+                if self._window is not None:
+                    self._seal()  # frames of the previous window never came: seal it as is
+                self._open(sample)
+            w = self._window
+            if w is not None and w.end_tick is None:
+                if capturing:
+                    w.writer.on_sample(sample)
+                    n, e = sample.state.pos_ned_m[0], sample.state.pos_ned_m[1]
+                    if w.last_ne is not None:
+                        w.distance_m += math.hypot(n - w.last_ne[0], e - w.last_ne[1])
+                    w.last_ne = (n, e)
+                else:
+                    w.end_tick = self._ticks
+                    if w.next_frame >= w.end_tick - w.first_tick:
+                        self._seal()
+        except AirSitlError as err:
+            self._abandon(err)
+        if capturing and sample.state.sim_time_ns % CAMERA_PERIOD_NS == 0:
+            self._ticks += 1
+
+    def on_frame(self, frame: CameraFrame) -> None:
+        """Renumber the frame within its window and hand it to that window's writer."""
+        from air_sitl.errors import AirSitlError
+
+        w = self._window
+        if w is None or frame.index < w.first_tick:
+            return
+        try:
+            w.writer.on_frame(dataclasses.replace(frame, index=frame.index - w.first_tick))
+            w.next_frame = frame.index - w.first_tick + 1
+            if w.end_tick is not None and w.next_frame >= w.end_tick - w.first_tick:
+                self._seal()
+        except AirSitlError as err:
+            self._abandon(err)
+
+    def _seal(self) -> None:
+        from air_sitl.sinks import FlightResult
+
+        w = self._window
+        self._window = None
+        if w is None:
+            return
+        last = self._last_sample
+        t = last.state.sim_time_ns if last is not None else 0
+        completed = bool(last.autopilot.mission_completed) if last is not None else False
+        w.writer.close(FlightResult(mission_completed=completed, sim_time_ns=t, wall_time_s=0.0))
+        summary = {
+            "capture_distance_m": round(w.distance_m, 2),
+            "capture_frames": w.next_frame,
+            "capture_start_s": w.start_ns / 1e9,
+            "mission_completed": completed,
+            "sim_time_s": t / 1e9,
+        }
+        w.writer.finish(summary)
+        self.archives.append(w.folder)
+        print(f"air-sitl serve: recorded {w.next_frame} frames into {w.folder}", flush=True)
+
+    def _abandon(self, err: Exception) -> None:
+        w = self._window
+        self._window = None
+        self._failed = True  # no new archive before this capture window ends
+        print(f"air-sitl serve: warning: recording stopped: {err}", file=sys.stderr, flush=True)
+        if w is not None:
+            with contextlib.suppress(Exception):
+                w.writer.close(FlightResult(mission_completed=False, sim_time_ns=0, wall_time_s=0))
+
+    def close(self, result: FlightResult) -> None:
+        """The flight ended: seal the window in progress with what arrived."""
+        from air_sitl.errors import AirSitlError
+
+        try:
+            self._seal()
+        except AirSitlError as err:
+            self._abandon(err)

@@ -132,7 +132,8 @@ def _check_rows(archive: Archive, report: CheckReport, problems: _Problems) -> N
             norm = math.sqrt(sum(c * c for c in q))
             if math.isfinite(norm) and abs(norm - 1.0) > QUAT_NORM_TOLERANCE:
                 problems.add("quat", f"{where}: {label}X..W has norm {norm:.4f}, expected 1")
-        n, e, _d = geodetic2ned(r.lat_deg, r.lon_deg, home.alt_amsl_m, *_home_tuple(home))
+        alt = home.alt_amsl_m + r.rel_alt_m
+        n, e, _d = geodetic2ned(r.lat_deg, r.lon_deg, alt, *_home_tuple(home))
         err = math.hypot(e - r.pose_enu_m[0], n - r.pose_enu_m[1])
         worst = max(worst, err)
         if err > POSITION_TOLERANCE_M:

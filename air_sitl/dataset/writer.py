@@ -22,6 +22,7 @@ import json
 import os
 import queue
 import threading
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -57,6 +58,7 @@ from air_sitl.state import CameraFrame, GpsFix, SimSample
 
 QUEUE_FRAMES = 64  # frames (about 100 kB each) the I/O thread may lag behind
 FLUSH_PERIOD_NS = NS_PER_S
+GPS_HISTORY = 256  # fixes kept (51 s at 5 Hz): far more than frames can lag behind
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -126,7 +128,9 @@ class DatasetWriter(NullSink):
         self.jpeg_hashes: dict[str, str] = {}
         self.first_time_ns: int | None = None
         self.last_time_ns: int | None = None
-        self._last_gps: GpsFix | None = None
+        # Recent GPS fixes: frames arrive after the simulation ran ahead (rendering threads),
+        # so each frame takes the last fix at or before its own exposure time.
+        self._gps_history: deque[GpsFix] = deque(maxlen=GPS_HISTORY)
         self._imu_lines: list[str] = []
         self._next_flush_ns = 0
         self._meta_buf: list[str] = []
@@ -156,7 +160,7 @@ class DatasetWriter(NullSink):
         """Queue the IMU line; hand everything to the disk once per simulated second."""
         self._raise_if_failed()
         if sample.gps is not None:
-            self._last_gps = sample.gps
+            self._gps_history.append(sample.gps)
         self._imu_lines.append(imu_row(sample.imu))
         if sample.state.sim_time_ns >= self._next_flush_ns:
             self._next_flush_ns = sample.state.sim_time_ns + FLUSH_PERIOD_NS
@@ -181,7 +185,7 @@ class DatasetWriter(NullSink):
         self.last_time_ns = frame.sim_time_ns
         name = frame_filename(frame.index)
         meta = metadata_row(name, frame.sample, frame.map_xy_px)
-        extra = frames_row(frame, name, self._last_gps)
+        extra = frames_row(frame, name, self._gps_at(frame.sim_time_ns))
         self._post(("frame", name, frame.jpeg, meta, extra))
 
     def close(self, result: FlightResult) -> None:
@@ -238,6 +242,12 @@ class DatasetWriter(NullSink):
         self._raise_if_failed()
 
     # -- internals -----------------------------------------------------------------------------
+
+    def _gps_at(self, t_ns: int) -> GpsFix | None:
+        for fix in reversed(self._gps_history):
+            if fix.sim_time_ns <= t_ns:
+                return fix
+        return None
 
     def _raise_if_failed(self) -> None:
         if self.error is not None:
@@ -345,6 +355,15 @@ def _complete_lines(path: Path, header: str) -> tuple[list[bytes], int] | None:
     return (body[:end].splitlines(keepends=True), len(head))
 
 
+def read_run_key(folder: Path) -> dict[str, Any] | None:
+    """The run key of an unfinished recording (its in-progress marker), None without one."""
+    try:
+        marker = json.loads((folder / RECORDING_JSON).read_text(encoding="utf-8"))
+        return dict(marker["run_key"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
 def recover_partial(folder: Path) -> PartialArchive:
     """Trim an unfinished archive to its last whole frame so a re-run can continue it.
 
@@ -352,14 +371,7 @@ def recover_partial(folder: Path) -> PartialArchive:
     ``frames.csv`` lines are complete. Later lines, torn lines, later images and temporary
     files are removed. Raises DatasetError when the folder is not an unfinished archive.
     """
-    marker_path = folder / RECORDING_JSON
-    run_key: dict[str, Any] | None = None
-    if marker_path.exists():
-        try:
-            marker = json.loads(marker_path.read_text(encoding="utf-8"))
-            run_key = dict(marker.get("run_key", {}))
-        except (OSError, ValueError, AttributeError):
-            run_key = None
+    run_key = read_run_key(folder)
     meta = _complete_lines(folder / METADATA_CSV, AIR_HEADER)
     extra = _complete_lines(folder / FRAMES_CSV, FRAMES_HEADER)
     kept = 0

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
+import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +50,25 @@ _STATE_PROPERTIES = (
     "velocities/vtrue-fps",
     "gear/wow",
 )
+
+
+@contextlib.contextmanager
+def _quiet_stdout() -> Iterator[None]:
+    """Silence JSBSim's C++ prints (its trim writes "Sorry, ... not trimmable" to stdout)."""
+    if sys.stdout is not None:
+        sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+    except OSError:  # no stdout at all: nothing to silence
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as devnull:
+            os.dup2(devnull.fileno(), 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def _wheel_root() -> Path:
@@ -124,8 +146,11 @@ class JSBSimModel:
             raise AircraftError(msg)
         names = available_aircraft()
         if aircraft not in names:
-            shown = ", ".join(names[:8])
-            msg = f"unknown aircraft {aircraft!r}: expected one of {shown}, ... ({len(names)})"
+            shown = ", ".join(n for n in (DEFAULT_AIRCRAFT, "c172p", "J3Cub", "pa28") if n in names)
+            msg = (
+                f"unknown aircraft {aircraft!r}: expected {shown} or another of the "
+                f"{len(names)} JSBSim models installed"
+            )
             raise AircraftError(msg)
         self.aircraft = aircraft
         self.step_ns = step_ns
@@ -227,15 +252,27 @@ class JSBSimModel:
         fdm["ic/theta-deg"] = 0.0
         fdm["ic/phi-deg"] = 0.0
         fdm.run_ic()
+        self._start_engines()
         # JSBSim's ground trim finds the height and pitch at which the gear carries the weight;
         # should it fail, the settling below still brings the aircraft to rest.
-        with contextlib.suppress(Exception):
+        with contextlib.suppress(Exception), _quiet_stdout():
             fdm.do_trim(2)
         self.trim_command = ActuatorCommand(brake=1.0)
         # Let the gear springs settle with the brakes on (hidden time, not part of the flight).
         self._apply(self.trim_command)
         for _ in range(int(2.0 / self._dt_s)):
             self._run()
+
+    def _start_engines(self) -> None:
+        """Engines running, mixture rich (piston aircraft of the wheel need both to go)."""
+        fdm = self._fdm
+        fdm["propulsion/set-running"] = -1
+        pm = fdm.get_property_manager()
+        for i in range(16):
+            name = f"fcs/mixture-cmd-norm[{i}]"
+            if not pm.hasNode(name):
+                break
+            fdm[name] = 1.0
 
     def _trim_airborne(self, initial: InitialCondition, wind: Wind) -> None:
         fdm = self._fdm
@@ -250,9 +287,10 @@ class JSBSimModel:
         fdm["ic/vt-fps"] = initial.airspeed_m_s * M_FT
         fdm["ic/gamma-deg"] = 0.0
         fdm.run_ic()
-        fdm["propulsion/set-running"] = -1
+        self._start_engines()
         try:
-            fdm.do_trim(1)  # full trim: throttle, pitch trim, aileron and rudder trims
+            with _quiet_stdout():
+                fdm.do_trim(1)  # full trim: throttle, pitch trim, aileron and rudder trims
         except Exception:
             msg = (
                 f"aircraft {self.aircraft!r}: cannot trim level flight at "

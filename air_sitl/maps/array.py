@@ -50,7 +50,9 @@ class ArrayMap(TiledMap):
         if zone is None:
             raise map_error(name, f"CRS {crs!r} is not a UTM EPSG code (EPSG:326zz/327zz)")
         if image.ndim != 3 or image.shape[2] not in (3, 4) or image.dtype != np.uint8:
-            raise map_error(name, f"image of shape {image.shape} {image.dtype}: expected HxWx3 uint8")
+            raise map_error(
+                name, f"image of shape {image.shape} {image.dtype}: expected HxWx3 uint8"
+            )
         self._zone = zone
         self._image = (
             cv2.cvtColor(image, cv2.COLOR_BGR2BGRA) if image.shape[2] == 3 else image.copy()
@@ -59,9 +61,7 @@ class ArrayMap(TiledMap):
         h, w = image.shape[:2]
         gsd = math.sqrt(abs(transform[1] * transform[5] - transform[2] * transform[4]))
         self.name = name
-        self.georef = Georeference(
-            crs=crs, transform=transform, width_px=w, height_px=h, gsd_m=gsd
-        )
+        self.georef = Georeference(crs=crs, transform=transform, width_px=w, height_px=h, gsd_m=gsd)
         self.ground_elevation_m = ground_elevation_m
         self.num_levels = num_levels_for(w, h)
 

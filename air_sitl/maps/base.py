@@ -72,7 +72,7 @@ class MapSource(Protocol):
         ...
 
     def level_for_gsd(self, gsd_m: float) -> int:
-        """The pyramid level whose pixels are nearest ``gsd_m`` metres (in log scale)."""
+        """The coarsest pyramid level whose pixels are no larger than ``gsd_m`` metres."""
         ...
 
     def read_level(self, level: int, x0: int, y0: int, width: int, height: int) -> Image:
@@ -188,10 +188,15 @@ class TiledMap:
         return self.georef.crs_to_px(x, y)
 
     def level_for_gsd(self, gsd_m: float) -> int:
-        """Nearest level in log scale: sampling steps stay within [0.71, 1.41) level pixels."""
+        """Coarsest level whose pixels are no larger than ``gsd_m``: steps stay in [1, 2).
+
+        Levels are low-passed with a binomial filter (zero response at their Nyquist), so a
+        step below 2 level pixels does not alias visibly, and rounding down keeps the image
+        as sharp as a single level allows.
+        """
         if gsd_m <= self.georef.gsd_m:
             return 0
-        level = round(math.log2(gsd_m / self.georef.gsd_m))
+        level = math.floor(math.log2(gsd_m / self.georef.gsd_m) + 1e-9)
         return max(0, min(self.num_levels - 1, level))
 
     def level_size(self, level: int) -> tuple[int | None, int | None]:

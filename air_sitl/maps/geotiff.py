@@ -11,12 +11,14 @@ from __future__ import annotations
 import hashlib
 import math
 import threading
+import warnings
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import rasterio
-from rasterio.errors import RasterioError
+from rasterio.errors import NotGeoreferencedWarning, RasterioError
 from rasterio.warp import transform as warp_transform
 from rasterio.windows import Window
 
@@ -51,7 +53,9 @@ class GeoTiffMap(TiledMap):
         if not path.is_file():
             raise map_error(str(path), "no such GeoTIFF file")
         try:
-            src = rasterio.open(path)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", NotGeoreferencedWarning)
+                src = rasterio.open(path)
         except RasterioError as err:
             raise map_error(str(path), f"not a readable GeoTIFF ({err})") from None
         self._src = src
@@ -81,7 +85,7 @@ class GeoTiffMap(TiledMap):
         self.ground_elevation_m = ground_elevation_m
         self.num_levels = num_levels_for(src.width, src.height)
         self._overview_index = {
-            int(round(math.log2(f))): i for i, f in enumerate(src.overviews(1)) if f & (f - 1) == 0
+            round(math.log2(f)): i for i, f in enumerate(src.overviews(1)) if f & (f - 1) == 0
         }
         self._crs_text = crs_text
         self._sha256: str | None = None
@@ -155,15 +159,16 @@ class GeoTiffMap(TiledMap):
 
 def write_geotiff(
     path: Path,
-    tiles: Any,
+    tiles: Callable[[int, int, int, int], Image],
     *,
     width_px: int,
     height_px: int,
     crs: str,
     transform: tuple[float, float, float, float, float, float],
     jpeg_quality: int = 90,
+    lossless: bool = False,
 ) -> None:
-    """Write a Cloud-Optimized GeoTIFF (tiled, JPEG-YCbCr, overviews) from an RGB block source.
+    """Write a Cloud-Optimized GeoTIFF (tiled, JPEG q90 or DEFLATE, overviews) from blocks.
 
     ``tiles`` is a callable ``(x0, y0, w, h) -> (h, w, 3) BGR uint8`` giving level-0 pixels;
     the file is assembled block by block in a temporary tiled GeoTIFF (bounded memory), then
@@ -201,12 +206,16 @@ def write_geotiff(
                     bgr = tiles(x0, y0, w, h)
                     rgb = np.ascontiguousarray(bgr[:, :, 2::-1].transpose(2, 0, 1))
                     dst.write(rgb, window=Window(x0, y0, w, h))
+        compression = (
+            {"COMPRESS": "DEFLATE", "PREDICTOR": "2"}
+            if lossless
+            else {"COMPRESS": "JPEG", "QUALITY": str(jpeg_quality)}
+        )
         rio_copy(
             tmp,
             path,
             driver="COG",
-            COMPRESS="JPEG",
-            QUALITY=str(jpeg_quality),
+            **compression,
             BLOCKSIZE="512",
             OVERVIEW_RESAMPLING="AVERAGE",
             BIGTIFF="IF_SAFER",

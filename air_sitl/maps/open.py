@@ -67,7 +67,10 @@ def _open_geotiff(path: Path, home: GeoPoint, *, reference: Path) -> MapSource:
         ref = GeoTiffMap(reference, ground_elevation_m=home.alt_amsl_m)
         try:
             if ref.georef.crs != tif.georef.crs:
-                msg = f"{path}: CRS {tif.georef.crs} differs from {reference} ({ref.georef.crs}); dates of one map must share it"
+                msg = (
+                    f"{path}: CRS {tif.georef.crs} differs from {reference} "
+                    f"({ref.georef.crs}); dates of one map must share it"
+                )
                 raise MapError(msg)
         finally:
             ref.close()

@@ -52,7 +52,7 @@ class UtmZone:
 
 def utm_zone_of(lat_deg: float, lon_deg: float) -> UtmZone:
     """The standard zone of a position (no Norway/Svalbard exceptions)."""
-    zone = int(math.floor((lon_deg + 180.0) / 6.0)) % 60 + 1
+    zone = math.floor((lon_deg + 180.0) / 6.0) % 60 + 1
     return UtmZone(zone, lat_deg >= 0.0)
 
 

@@ -491,7 +491,7 @@ class VehicleEndpoint:
             return
         mission = Mission(
             items=items,
-            planned_home=self._mission_meta.planned_home,
+            planned_home=self._mission_meta.planned_home or self.home,
             cruise_speed_m_s=self._mission_meta.cruise_speed_m_s,
             fence=self.protocol.items(MissionType.FENCE),
             rally=self.protocol.items(MissionType.RALLY),

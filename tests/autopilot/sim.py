@@ -21,9 +21,7 @@ G = 9.80665
 DT_NS = 20_000_000  # the executor runs at 50 Hz
 
 
-def wp(
-    n: float, e: float, alt: float, cmd: int = MavCmd.NAV_WAYPOINT, **kw: float
-) -> MissionItem:
+def wp(n: float, e: float, alt: float, cmd: int = MavCmd.NAV_WAYPOINT, **kw: float) -> MissionItem:
     """A positioned item at (north, east) metres from HOME, ``alt`` metres above home."""
     lat, lon, _ = ned2geodetic(n, e, 0.0, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m)
     return MissionItem(command=cmd, lat_deg=lat, lon_deg=lon, alt_m=alt, **kw)  # type: ignore[arg-type]
@@ -114,7 +112,7 @@ class KinematicPlane:
                     min(target.climb_rate_limit_m_s, 0.3 * (target.altitude_amsl_m - self.alt)),
                 )
                 if phase is ControlPhase.LAND:
-                    climb = max(climb, -2.0)
+                    climb = max(min(climb, -0.5), -2.0)  # flare, then touch down
             self.vz = -climb
             self.alt += climb * dt_s
             self.v += (target.airspeed_m_s - self.v) * min(1.0, dt_s / 2.0)
@@ -127,7 +125,7 @@ class KinematicPlane:
         ve = self.v * math.sin(self.psi) + (0.0 if self.on_ground else self.wind[1])
         self.n += vn * dt_s
         self.e += ve * dt_s
-        self.t_ns += int(round(dt_s * 1e9))
+        self.t_ns += round(dt_s * 1e9)
         return self.state()
 
 

@@ -14,6 +14,9 @@ from air_sitl.fdm.base import InitialCondition, Wind
 from air_sitl.fdm.jsbsim_model import JSBSimModel
 from air_sitl.state import ActuatorCommand, GeoPoint, VehicleState
 
+# Real JSBSim flights (fast: the whole module takes a few seconds).
+pytestmark = pytest.mark.integration
+
 HOME = GeoPoint(lat_deg=47.3977, lon_deg=8.5456, alt_amsl_m=488.0)
 STEPS_PER_S = 1_000_000_000 // PHYSICS_STEP_NS
 CRUISE_ALT_M = HOME.alt_amsl_m + 200.0
@@ -207,3 +210,63 @@ def test_cruise_in_moderate_turbulence_stays_near_altitude_and_speed() -> None:
     assert max(abs(s.alt_amsl_m - CRUISE_ALT_M) for s in states) < 10.0
     assert min(s.airspeed_m_s for s in states) > 11.0
     assert max(abs(s.roll_rad - 0.3) for s in states[5 * STEPS_PER_S :]) < math.radians(15.0)
+
+
+def test_glide_slope_then_flare_touches_down_near_the_aim_point() -> None:
+    """As guidance lands: CRUISE down a 5 degree slope, the LAND law below 8 m."""
+    model = JSBSimModel()
+    ic = InitialCondition(
+        lat_deg=HOME.lat_deg,
+        lon_deg=HOME.lon_deg,
+        alt_amsl_m=HOME.alt_amsl_m + 40.0,
+        heading_rad=0.0,
+        airspeed_m_s=15.0,
+        on_ground=False,
+    )
+    state = model.reset(HOME, ic, Wind())
+    controller = Controller(trim=model.trim_command)
+    slope = math.radians(5.0)
+    aim_north_m = 40.0 / math.tan(slope)
+    errors = []
+    touchdown_north_m = math.nan
+    for _ in range(60 * STEPS_PER_S):
+        slope_alt = HOME.alt_amsl_m + max(0.0, aim_north_m - state.pos_ned_m[0]) * math.tan(slope)
+        low = state.alt_agl_m < 8.0 or state.on_ground
+        if 10.0 < state.alt_agl_m < 30.0:
+            errors.append(state.alt_amsl_m - slope_alt)
+        target = ControlTarget(
+            phase=ControlPhase.LAND if low else ControlPhase.CRUISE,
+            altitude_amsl_m=slope_alt,
+            airspeed_m_s=13.0,
+            heading_rad=0.0,
+        )
+        before = state
+        state = model.step(controller.update(state, target))
+        if state.on_ground and math.isnan(touchdown_north_m):
+            touchdown_north_m = state.pos_ned_m[0]
+            assert before.vel_ned_m_s[2] < 1.0
+    assert max(abs(e) for e in errors) < 1.5
+    assert abs(touchdown_north_m - aim_north_m) < 60.0
+    assert state.on_ground
+    assert state.airspeed_m_s < 0.1
+
+
+def test_take_off_in_a_5_m_s_crosswind_stays_near_the_runway_heading() -> None:
+    model = JSBSimModel()
+    ic = InitialCondition(
+        lat_deg=HOME.lat_deg, lon_deg=HOME.lon_deg, alt_amsl_m=HOME.alt_amsl_m, heading_rad=0.0
+    )
+    state = model.reset(HOME, ic, Wind(speed_m_s=5.0, from_deg=90.0))
+    controller = Controller()
+
+    def target(s: VehicleState) -> ControlTarget:
+        phase = ControlPhase.GROUND_ROLL if s.alt_agl_m < 5.0 else ControlPhase.CLIMB
+        return ControlTarget(phase=phase, heading_rad=0.0, airspeed_m_s=15.0)
+
+    states = _fly(model, controller, state, target, 30.0)
+    on_ground = [s for s in states if s.on_ground]
+    assert on_ground
+    assert all(abs(s.yaw_rad) < math.radians(20.0) for s in on_ground)
+    assert all(abs(s.pos_ned_m[1]) < 2.0 for s in on_ground)  # stays on a 4 m wide strip
+    assert states[-1].alt_agl_m > 60.0
+    assert all(abs(s.roll_rad) < math.radians(8.0) for s in states)

@@ -127,7 +127,9 @@ def samples(frames: int) -> Iterator[tuple[SimSample, CameraFrame | None]]:
         t += PHYSICS_STEP_NS
 
 
-def fly(sink: Sink, frames: int, *, first_frame: int = 0, stop_after_frame: int | None = None) -> None:
+def fly(
+    sink: Sink, frames: int, *, first_frame: int = 0, stop_after_frame: int | None = None
+) -> None:
     """Feed the scripted flight to ``sink`` like the runner does (frames from first_frame)."""
     for sample, frame in samples(frames):
         sink.on_sample(sample)

@@ -68,5 +68,6 @@ def test_conversion_rotates_vectors_consistently(roll: float, pitch: float, yaw:
         expected = ned2enu(quat_rotate(q_ned, v_frd))
         assert _close(quat_rotate(q_enu, v_flu), expected, 1e-9)
     back = q_flu_enu_to_frd_ned(q_enu)
-    sign = 1.0 if q_ned[0] * back[0] + sum(a * b for a, b in zip(q_ned[1:], back[1:])) >= 0 else -1.0
+    dot = sum(a * b for a, b in zip(q_ned, back, strict=True))
+    sign = 1.0 if dot >= 0 else -1.0
     assert _close(tuple(sign * c for c in back), q_ned, 1e-9)

@@ -13,6 +13,9 @@ from air_sitl.fdm.jsbsim_model import JSBSimModel, available_aircraft
 from air_sitl.frames import geodetic2ned, quat2euler
 from air_sitl.state import ActuatorCommand, GeoPoint, VehicleState
 
+# Real JSBSim flights (fast: the whole module takes a few seconds).
+pytestmark = pytest.mark.integration
+
 HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
 STEPS_PER_S = 1_000_000_000 // PHYSICS_STEP_NS
 
@@ -201,3 +204,20 @@ def test_turbulence_is_seeded_repeatable_and_really_gusty() -> None:
 def test_turbulence_above_1_is_refused() -> None:
     with pytest.raises(AircraftError, match="turbulence"):
         JSBSimModel().reset(HOME, _air_start(15.0), Wind(turbulence=1.5))
+
+
+def test_phugoid_after_an_elevator_pulse_dies_out_hands_off() -> None:
+    model = JSBSimModel()
+    model.reset(HOME, _air_start(15.0), Wind())
+    trim = model.trim_command
+    pulse = ActuatorCommand(
+        aileron=trim.aileron, elevator=trim.elevator - 0.1, rudder=trim.rudder,
+        throttle=trim.throttle,
+    )  # fmt: skip
+    _hold(model, pulse, 1.0)
+    speeds = [s.airspeed_m_s for s in _hold(model, trim, 40.0)]
+    first = speeds[: 10 * STEPS_PER_S]
+    last = speeds[30 * STEPS_PER_S :]
+    assert max(first) - min(first) > 1.0  # the pulse did excite the phugoid
+    assert max(last) - min(last) < 0.1 * (max(first) - min(first))
+    assert abs(speeds[-1] - 15.0) < 0.1

@@ -16,7 +16,14 @@ from typing import Any
 
 import numpy as np
 
-from air_sitl.maps.base import DEFAULT_CACHE_BYTES, TILE_PX, Georeference, Image, TiledMap, map_error
+from air_sitl.maps.base import (
+    DEFAULT_CACHE_BYTES,
+    TILE_PX,
+    Georeference,
+    Image,
+    TiledMap,
+    map_error,
+)
 from air_sitl.maps.procedural.canvas import DATES, DateLook
 from air_sitl.maps.procedural.forest import ForestWorld
 from air_sitl.maps.procedural.urban import UrbanWorld
@@ -62,10 +69,12 @@ class ProceduralMap(TiledMap):
         self.kind = kind
         self.seed = int(seed)
         self.date = parse_date(date)
-        self._world: UrbanWorld | ForestWorld = UrbanWorld(self.seed) if kind == "urban" else ForestWorld(self.seed)
+        self._world: UrbanWorld | ForestWorld = (
+            UrbanWorld(self.seed) if kind == "urban" else ForestWorld(self.seed)
+        )
         self.zone = utm_zone_of(home.lat_deg, home.lon_deg)
         e, n = latlon2utm(home.lat_deg, home.lon_deg, self.zone)
-        # Absolute lattice: pixel k spans [k, k+1) * gsd in easting and [-k-1, -k) * gsd in northing.
+        # Absolute lattice: pixel k spans [k, k+1) * gsd east and [-k-1, -k) * gsd north.
         cell_x = math.floor(e / gsd_m / TILE_PX) * TILE_PX
         cell_y = math.floor(-n / gsd_m / TILE_PX) * TILE_PX
         self.origin_abs_px = (cell_x - NOMINAL_HALF_PX, cell_y - NOMINAL_HALF_PX)
@@ -95,7 +104,9 @@ class ProceduralMap(TiledMap):
         for dy in (0, 1):
             for dx in (0, 1):
                 tile = np.empty((TILE_PX, TILE_PX, 4), dtype=np.uint8)
-                tile[:, :, :3] = bgr[dy * TILE_PX : (dy + 1) * TILE_PX, dx * TILE_PX : (dx + 1) * TILE_PX]
+                tile[:, :, :3] = bgr[
+                    dy * TILE_PX : (dy + 1) * TILE_PX, dx * TILE_PX : (dx + 1) * TILE_PX
+                ]
                 tile[:, :, 3] = 255
                 if (gx + dx, gy + dy) == (tx, ty):
                     mine = tile

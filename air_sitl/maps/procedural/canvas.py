@@ -21,6 +21,7 @@ _SHIFT = 4
 _ONE = 1 << _SHIFT
 
 Color = tuple[float, float, float]  # BGR 0..255
+Paint = Color | tuple[float]  # a colour, or one value on a mask layer
 Point = tuple[float, float]  # (E, N) metres
 
 
@@ -98,7 +99,7 @@ class Canvas:
             or n0 > self.n_max + margin_m
         )
 
-    def poly(self, pts: Sequence[Point], color: Color, layer: str = "img") -> None:
+    def poly(self, pts: Sequence[Point], color: Paint, layer: str = "img") -> None:
         """Fill a polygon on a layer ("img", "shadow", "veg")."""
         p = self._px(pts)
         if not self.visible(p):
@@ -107,7 +108,7 @@ class Canvas:
         col = color if layer == "img" else (color[0],)
         cv2.fillPoly(target, [np.array(p, dtype=np.int32)], col, cv2.LINE_AA, _SHIFT)
 
-    def circle(self, c: Point, r_m: float, color: Color, layer: str = "img") -> None:
+    def circle(self, c: Point, r_m: float, color: Paint, layer: str = "img") -> None:
         """Fill a disc."""
         k = _ONE / self.gsd_m
         px = round(c[0] * k - (0.5 + self.x0) * _ONE)
@@ -126,7 +127,9 @@ class Canvas:
         thick = max(1, round(width_m / self.gsd_m))
         p = self._px(pts)
         if self.visible(p, thick):
-            cv2.polylines(self.img, [np.array(p, dtype=np.int32)], False, color, thick, cv2.LINE_AA, _SHIFT)
+            cv2.polylines(
+                self.img, [np.array(p, dtype=np.int32)], False, color, thick, cv2.LINE_AA, _SHIFT
+            )
 
     def segments(self, segs: Sequence[tuple[Point, Point]], color: Color, width_m: float) -> None:
         """Many separate two-point lines in one call (dashes, stall lines)."""

@@ -36,7 +36,9 @@ class ForestWorld:
     def __init__(self, seed: int) -> None:
         self.seed = seed
 
-    def draw(self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook) -> npt.NDArray[np.uint8]:
+    def draw(
+        self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook
+    ) -> npt.NDArray[np.uint8]:
         """One BGR tile of ``size`` pixels at absolute lattice (x0, y0)."""
         k = key_of(self.seed, 41)
         pm = 1.0 / gsd_m
@@ -63,7 +65,10 @@ class ForestWorld:
         if season == "autumn":
             mix = np.clip(0.5 + 0.8 * value_noise(k + 5, x0, y0, size, 6.0 * pm), 0.0, 1.0)
             alt = np.array((36, 132, 176), dtype=np.float32)
-            dec = dec_col[None, None, :] * (1 - mix[:, :, None]) + alt[None, None, :] * mix[:, :, None]
+            dec = (
+                dec_col[None, None, :] * (1 - mix[:, :, None])
+                + alt[None, None, :] * mix[:, :, None]
+            )
         else:
             dec = np.broadcast_to(dec_col, (size, size, 3))
         con_col = np.array(_CONIFER[season], dtype=np.float32)
@@ -79,7 +84,9 @@ class ForestWorld:
         meadow_tex *= 1.0 - shrubs
         meadow = np.array(_MEADOW[season], dtype=np.float32)[None, None, :] * meadow_tex[:, :, None]
         # Scattered single trees at clearing edges keep texture there.
-        edge_trees = np.clip((height - 0.35) * 3.0, 0.0, 1.0) * np.clip(1.6 - (clear_n - thr) * 4, 0.0, 1.0)
+        edge_trees = np.clip((height - 0.35) * 3.0, 0.0, 1.0) * np.clip(
+            1.6 - (clear_n - thr) * 4, 0.0, 1.0
+        )
         open_a = open_a * (1.0 - edge_trees)
         # Clear-cuts: whole cells felled at a given date (construction change of a forest).
         cut = self._cuts(x0, y0, size, gsd_m, d)
@@ -92,18 +99,24 @@ class ForestWorld:
         cv.img = np.clip(img, 0, 255).astype(np.uint8)
         self._tracks(cv, d)
         self._roads(cv, date)
-        out = cv.img.astype(np.float32)
-        water_n = value_noise(k + 8, x0, y0, size, 700.0 * pm) + 0.25 * value_noise(k + 9, x0, y0, size, 150.0 * pm)
+        out: npt.NDArray[np.float32] = cv.img.astype(np.float32)
+        water_n = value_noise(k + 8, x0, y0, size, 700.0 * pm) + 0.25 * value_noise(
+            k + 9, x0, y0, size, 150.0 * pm
+        )
         water_a = np.clip((-water_n - 1.25) * 8.0, 0.0, 1.0)
         if float(water_a.max()) > 0.0:
             # Lakes last: tracks and roads end at the shore.
             ripple = 1.0 + 0.05 * value_noise(k + 10, x0, y0, size, 4.0 * pm)
             water = np.array(_WATER, dtype=np.float32)[None, None, :] * ripple[:, :, None]
-            out = out * (1.0 - water_a[:, :, None]) + water * water_a[:, :, None]
+            out = (out * (1.0 - water_a[:, :, None]) + water * water_a[:, :, None]).astype(
+                np.float32
+            )
         out += 5.0 * white_noise(k + 11, x0, y0, size)[:, :, None]
         return np.clip(out, 0, 255).astype(np.uint8)
 
-    def _cuts(self, x0: int, y0: int, size: int, gsd_m: float, d: int) -> npt.NDArray[np.float32] | None:
+    def _cuts(
+        self, x0: int, y0: int, size: int, gsd_m: float, d: int
+    ) -> npt.NDArray[np.float32] | None:
         """Mask of cells clear-cut at or before date ``d``."""
         if d == 0:
             return None
@@ -130,7 +143,10 @@ class ForestWorld:
 
     def _node(self, i: int, j: int) -> Point:
         rng = rng_for(self.seed, 61, i, j)
-        return ((i + rng.uniform(0.2, 0.8)) * TRACK_CELL_M, (j + rng.uniform(0.2, 0.8)) * TRACK_CELL_M)
+        return (
+            (i + rng.uniform(0.2, 0.8)) * TRACK_CELL_M,
+            (j + rng.uniform(0.2, 0.8)) * TRACK_CELL_M,
+        )
 
     def _tracks(self, cv: Canvas, d: int) -> None:
         """Dirt tracks joining jittered nodes of a coarse grid (some links missing)."""
@@ -148,12 +164,19 @@ class ForestWorld:
                     if not on:
                         continue
                     b = self._node(i + di, j + dj)
-                    if not cv.overlaps(min(a[0], b[0]), min(a[1], b[1]), max(a[0], b[0]), max(a[1], b[1]), 50.0):
+                    if not cv.overlaps(
+                        min(a[0], b[0]), min(a[1], b[1]), max(a[0], b[0]), max(a[1], b[1]), 50.0
+                    ):
                         continue
                     pts = []
                     for t in np.linspace(0.0, 1.0, 17):
                         bend = math.sin(math.pi * t) * w
-                        pts.append((a[0] + (b[0] - a[0]) * t - dj * bend, a[1] + (b[1] - a[1]) * t + di * bend))
+                        pts.append(
+                            (
+                                a[0] + (b[0] - a[0]) * t - dj * bend,
+                                a[1] + (b[1] - a[1]) * t + di * bend,
+                            )
+                        )
                     cv.line(pts, shade(_TRACK, 0.85), 4.2)
                     cv.line(pts, _TRACK, 3.0)
 
@@ -163,19 +186,27 @@ class ForestWorld:
         for axis in (0, 1):
             lo, hi = (cv.e_min, cv.e_max) if axis == 0 else (cv.n_min, cv.n_max)
             along_lo, along_hi = (cv.n_min, cv.n_max) if axis == 0 else (cv.e_min, cv.e_max)
-            for kk in range(math.floor((lo - 200) / ROAD_PITCH_M), math.floor((hi + 200) / ROAD_PITCH_M) + 1):
+            for kk in range(
+                math.floor((lo - 200) / ROAD_PITCH_M), math.floor((hi + 200) / ROAD_PITCH_M) + 1
+            ):
                 rng = rng_for(self.seed, 71, axis, kk)
                 base = kk * ROAD_PITCH_M + rng.uniform(-300, 300)
                 phase, amp = rng.uniform(0, 6.28), rng.uniform(20, 80)
 
-                def pos(t: float, base: float = base, phase: float = phase, amp: float = amp) -> float:
+                def pos(
+                    t: float, base: float = base, phase: float = phase, amp: float = amp
+                ) -> float:
                     return base + amp * math.sin(t / 450.0 + phase)
 
                 ts = np.arange(math.floor(along_lo / 20.0) * 20.0 - 60.0, along_hi + 80.0, 20.0)
                 pts = [(pos(t), t) if axis == 0 else (t, pos(t)) for t in ts]
-                if axis == 0 and (min(p[0] for p in pts) > hi + 60 or max(p[0] for p in pts) < lo - 60):
+                if axis == 0 and (
+                    min(p[0] for p in pts) > hi + 60 or max(p[0] for p in pts) < lo - 60
+                ):
                     continue
-                if axis == 1 and (min(p[1] for p in pts) > hi + 60 or max(p[1] for p in pts) < lo - 60):
+                if axis == 1 and (
+                    min(p[1] for p in pts) > hi + 60 or max(p[1] for p in pts) < lo - 60
+                ):
                     continue
                 cv.line(pts, (120, 128, 132), 9.0)
                 cv.line(pts, _ROAD if d < 2 or kk % 2 else shade(_ROAD, 0.6), 7.0)
@@ -203,4 +234,11 @@ class ForestWorld:
                         hull = cv2.convexHull(np.asarray(poly + shadow, dtype=np.float32))
                         cv.poly([(float(p[0][0]), float(p[0][1])) for p in hull], (40, 52, 50))
                         cv.poly(poly, shade(roof, 0.85))
-                        cv.poly(rect(bc[0], bc[1], hw, hh / 2, 1.0, 0.0)[:2] + [(bc[0] + hw, bc[1]), (bc[0] - hw, bc[1])], roof)
+                        cv.poly(
+                            [
+                                *rect(bc[0], bc[1], hw, hh / 2, 1.0, 0.0)[:2],
+                                (bc[0] + hw, bc[1]),
+                                (bc[0] - hw, bc[1]),
+                            ],
+                            roof,
+                        )

@@ -31,7 +31,9 @@ def hash2(ix: npt.NDArray[np.int64], iy: npt.NDArray[np.int64], key: int) -> npt
     return h
 
 
-def unit2(ix: npt.NDArray[np.int64], iy: npt.NDArray[np.int64], key: int) -> npt.NDArray[np.float64]:
+def unit2(
+    ix: npt.NDArray[np.int64], iy: npt.NDArray[np.int64], key: int
+) -> npt.NDArray[np.float64]:
     """Uniform values in [0, 1) from lattice coordinates."""
     return (hash2(ix, iy, key) >> np.uint64(11)).astype(np.float64) * (1.0 / 2**53)
 
@@ -50,7 +52,9 @@ def rng_for(*parts: int) -> np.random.Generator:
 
 
 @functools.lru_cache(maxsize=1024)
-def _weights(start: float, size: int, cell: float) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.float32], int, int]:
+def _weights(
+    start: float, size: int, cell: float
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.float32], int, int]:
     """Cubic B-spline taps from lattice nodes to pixel centres start..start+size-1.
 
     Returns (first tap index per pixel relative to the first node, 4 weights per pixel,

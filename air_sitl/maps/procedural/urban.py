@@ -14,8 +14,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from air_sitl.maps.procedural.canvas import DATES, Canvas, Color, DateLook, Point, finish, rect, shade
-from air_sitl.maps.procedural.noise import fractal_noise, key_of, rng_for, unit2, value_noise, white_noise
+from air_sitl.maps.procedural.canvas import (
+    DATES,
+    Canvas,
+    Color,
+    DateLook,
+    Point,
+    finish,
+    rect,
+    shade,
+)
+from air_sitl.maps.procedural.noise import (
+    fractal_noise,
+    key_of,
+    rng_for,
+    unit2,
+    value_noise,
+    white_noise,
+)
 
 PITCH_M = 105.0
 _ASPHALT: Color = (86, 85, 84)
@@ -41,7 +57,12 @@ _ROOFS: tuple[Color, ...] = (
     (80, 100, 72),
     (150, 150, 150),
 )
-_FLAT_ROOFS: tuple[Color, ...] = ((202, 204, 200), (150, 152, 150), (176, 178, 170), (110, 112, 112))
+_FLAT_ROOFS: tuple[Color, ...] = (
+    (202, 204, 200),
+    (150, 152, 150),
+    (176, 178, 170),
+    (110, 112, 112),
+)
 _CARS: tuple[Color, ...] = (
     (235, 235, 235),
     (30, 30, 30),
@@ -115,11 +136,13 @@ class UrbanWorld:
         v0, v1 = vy0 + wy0, vy1 - wy1
         rng = rng_for(self.seed, 21, kx, ky)
         # Districts: a smooth field (1.5 km) shifts blocks between homes, shops and parks.
-        zone = float(value_noise(key_of(self.seed, 22), (u0 + u1) / 2 / 1500.0, (v0 + v1) / 2 / 1500.0, 1, 1.0)[0, 0])
+        zone = float(
+            value_noise(
+                key_of(self.seed, 22), (u0 + u1) / 2 / 1500.0, (v0 + v1) / 2 / 1500.0, 1, 1.0
+            )[0, 0]
+        )
         kind = float(np.clip(rng.random() + 0.18 * zone, 0.0, 0.999))
-        grounds: list[tuple[tuple[Point, ...], str]] = [
-            (tuple(_box(u0, v0, u1, v1)), "sidewalk")
-        ]
+        grounds: list[tuple[tuple[Point, ...], str]] = [(tuple(_box(u0, v0, u1, v1)), "sidewalk")]
         b0, b1, c0, c1 = u0 + 2.5, u1 - 2.5, v0 + 2.5, v1 - 2.5
         buildings: list[Building] = []
         trees: list[tuple[Point, float, int, int]] = []
@@ -150,7 +173,12 @@ class UrbanWorld:
         """One BGR tile of ``size`` pixels at absolute lattice (x0, y0)."""
         cv = Canvas(x0, y0, size, gsd_m, _ASPHALT)
         # Layout-frame range of the tile (its rotated bounding box) plus shadow margin.
-        corners = [(cv.e_min, cv.n_min), (cv.e_max, cv.n_min), (cv.e_min, cv.n_max), (cv.e_max, cv.n_max)]
+        corners = [
+            (cv.e_min, cv.n_min),
+            (cv.e_max, cv.n_min),
+            (cv.e_min, cv.n_max),
+            (cv.e_max, cv.n_max),
+        ]
         us = [self.c * e + self.s * n for e, n in corners]
         vs = [-self.s * e + self.c * n for e, n in corners]
         margin = 45.0
@@ -259,7 +287,11 @@ class UrbanWorld:
                 new = self.resurfaced_at(axis, k) <= d
                 lo, hi = (v_lo, v_hi) if axis == 0 else (u_lo, u_hi)
                 if new:
-                    poly = _box(pos - half, lo, pos + half, hi) if axis == 0 else _box(lo, pos - half, hi, pos + half)
+                    poly = (
+                        _box(pos - half, lo, pos + half, hi)
+                        if axis == 0
+                        else _box(lo, pos - half, hi, pos + half)
+                    )
                     cv.poly(self.to_world(poly), _ASPHALT_NEW)
                 color = (60, 180, 210) if main else (220, 222, 224)
                 width = 0.3 if new else 0.25
@@ -269,13 +301,21 @@ class UrbanWorld:
                 t = math.floor(lo / 9.0) * 9.0
                 while t < hi:
                     for off in offsets:
-                        seg = ((pos + off, t), (pos + off, t + dash)) if axis == 0 else ((t, pos + off), (t + dash, pos + off))
+                        seg = (
+                            ((pos + off, t), (pos + off, t + dash))
+                            if axis == 0
+                            else ((t, pos + off), (t + dash, pos + off))
+                        )
                         w = self.to_world(seg)
                         segs.append((w[0], w[1]))
                     t += 9.0
                 if main:
                     for off in (-half + 1.0, half - 1.0):
-                        line = ((pos + off, lo), (pos + off, hi)) if axis == 0 else ((lo, pos + off), (hi, pos + off))
+                        line = (
+                            ((pos + off, lo), (pos + off, hi))
+                            if axis == 0
+                            else ((lo, pos + off), (hi, pos + off))
+                        )
                         w = self.to_world(line)
                         segs.append((w[0], w[1]))
                 cv.segments(segs, color, width)
@@ -285,7 +325,9 @@ def _box(u0: float, v0: float, u1: float, v1: float) -> list[Point]:
     return [(u0, v0), (u1, v0), (u1, v1), (u0, v1)]
 
 
-def _box_overlaps(b: tuple[float, float, float, float], u0: float, v0: float, u1: float, v1: float) -> bool:
+def _box_overlaps(
+    b: tuple[float, float, float, float], u0: float, v0: float, u1: float, v1: float
+) -> bool:
     return not (b[2] < u0 or b[0] > u1 or b[3] < v0 or b[1] > v1)
 
 
@@ -319,10 +361,14 @@ def _erase_circle(cv: Canvas, c: Point, r: float) -> None:
     import cv2
 
     p = cv.px([c])[0]
-    cv2.circle(cv.shadow, (int(p[0]), int(p[1])), max(1, round(r / cv.gsd_m * 16)), (0,), -1, cv2.LINE_8, 4)
+    cv2.circle(
+        cv.shadow, (int(p[0]), int(p[1])), max(1, round(r / cv.gsd_m * 16)), (0,), -1, cv2.LINE_8, 4
+    )
 
 
-def _roof(cv: Canvas, world_: UrbanWorld, b: Building, world: list[Point], sun_e: float, sun_n: float) -> None:
+def _roof(
+    cv: Canvas, world_: UrbanWorld, b: Building, world: list[Point], sun_e: float, sun_n: float
+) -> None:
     """A gabled roof in two shaded halves with a ridge, or a flat roof with a parapet."""
     p = b.corners
     if b.gabled:
@@ -372,11 +418,22 @@ def _residential(rng, b0, c0, b1, c1, grounds, buildings, trees, cars) -> None: 
             gabled = rng.random() < 0.75
             ridge = rng.random() < 0.6
             life = rng.random()
-            born, gone = (1, 3) if life < 0.07 else (2, 3) if life < 0.14 else (0, 2) if life < 0.19 else (0, 3)
+            born, gone = (
+                (1, 3)
+                if life < 0.07
+                else (2, 3)
+                if life < 0.14
+                else (0, 2)
+                if life < 0.19
+                else (0, 3)
+            )
             recolor = rng.random() < 0.12
             pool = rng.random() < 0.12
             n_trees = int(rng.integers(0, 4))
-            tree_xy = [(rng.uniform(0.1, 0.9) * lot_w + a0, rng.uniform(0.55, 0.95) * lot_d) for _ in range(n_trees)]
+            tree_xy = [
+                (rng.uniform(0.1, 0.9) * lot_w + a0, rng.uniform(0.55, 0.95) * lot_d)
+                for _ in range(n_trees)
+            ]
             tree_r = [rng.uniform(2.0, 4.5) for _ in range(n_trees)]
             tree_c = [int(rng.integers(3)) for _ in range(n_trees)]
             car = rng.random() < 0.5
@@ -399,12 +456,18 @@ def _residential(rng, b0, c0, b1, c1, grounds, buildings, trees, cars) -> None: 
                 cars.append((poly(dx0 + 0.7, 1.0, dx0 + 2.5, 5.4), car_col))
             if recolor:
                 # Re-roofed later: a second building record covering later dates.
-                buildings.append(Building(house, height, roof, gabled, ridge ^ (not along_u), born, min(gone, 2)))
+                buildings.append(
+                    Building(house, height, roof, gabled, ridge ^ (not along_u), born, min(gone, 2))
+                )
                 roof2 = _ROOFS[(_ROOFS.index(roof) + 3) % len(_ROOFS)]
                 if gone > 2:
-                    buildings.append(Building(house, height, roof2, gabled, ridge ^ (not along_u), 2, gone))
+                    buildings.append(
+                        Building(house, height, roof2, gabled, ridge ^ (not along_u), 2, gone)
+                    )
             else:
-                buildings.append(Building(house, height, roof, gabled, ridge ^ (not along_u), born, gone))
+                buildings.append(
+                    Building(house, height, roof, gabled, ridge ^ (not along_u), born, gone)
+                )
             for (tx, ty), tr, tc in zip(tree_xy, tree_r, tree_c, strict=True):
                 p = to_block(tx, ty)
                 trees.append((p, tr, tc, 0))
@@ -424,16 +487,37 @@ def _commercial(rng, b0, c0, b1, c1, buildings, trees, cars, paint) -> None:  # 
         height = rng.uniform(8.0, 30.0)
         life = rng.random()
         born, gone = (1, 3) if life < 0.1 else (2, 3) if life < 0.18 else (0, 3)
-        buildings.append(Building(tuple(rect(cx, cy, bw / 2, bh / 2, 1.0, 0.0)), height, roof, False, True, born, gone))
+        buildings.append(
+            Building(
+                tuple(rect(cx, cy, bw / 2, bh / 2, 1.0, 0.0)), height, roof, False, True, born, gone
+            )
+        )
         for _ in range(int(rng.integers(2, 7))):
             ux = cx + rng.uniform(-0.35, 0.35) * bw
             uy = cy + rng.uniform(-0.35, 0.35) * bh
             s = rng.uniform(1.0, 2.5)
-            buildings.append(Building(tuple(rect(ux, uy, s, s * 0.7, 1.0, 0.0)), height + 1.5, (190, 190, 192), False, True, born, gone))
+            buildings.append(
+                Building(
+                    tuple(rect(ux, uy, s, s * 0.7, 1.0, 0.0)),
+                    height + 1.5,
+                    (190, 190, 192),
+                    False,
+                    True,
+                    born,
+                    gone,
+                )
+            )
     _stalls(rng, b0 + 2, c0 + 2, b1 - 2, c0 + 0.18 * h, cars, paint)
     _stalls(rng, b0 + 2, c1 - 0.18 * h, b1 - 2, c1 - 2, cars, paint)
     for _ in range(int(rng.integers(2, 8))):
-        trees.append(((rng.uniform(b0, b1), rng.choice([c0 + 1.0, c1 - 1.0])), rng.uniform(2.0, 3.5), int(rng.integers(3)), 0))
+        trees.append(
+            (
+                (rng.uniform(b0, b1), rng.choice([c0 + 1.0, c1 - 1.0])),
+                rng.uniform(2.0, 3.5),
+                int(rng.integers(3)),
+                0,
+            )
+        )
 
 
 def _stalls(rng, u0, v0, u1, v1, cars, paint) -> None:  # type: ignore[no-untyped-def]
@@ -444,18 +528,45 @@ def _stalls(rng, u0, v0, u1, v1, cars, paint) -> None:  # type: ignore[no-untype
         if rng.random() < 0.55:
             col = _CARS[int(rng.integers(len(_CARS)))]
             cm = (v0 + v1) / 2
-            cars.append(((( u + 0.45, cm - 2.2), (u + 2.15, cm - 2.2), (u + 2.15, cm + 2.2), (u + 0.45, cm + 2.2)), col))
+            cars.append(
+                (
+                    (
+                        (u + 0.45, cm - 2.2),
+                        (u + 2.15, cm - 2.2),
+                        (u + 2.15, cm + 2.2),
+                        (u + 0.45, cm + 2.2),
+                    ),
+                    col,
+                )
+            )
         u += 2.6
 
 
 def _park(rng, b0, c0, b1, c1, grounds, trees) -> None:  # type: ignore[no-untyped-def]
     """Lawn, a path across, clusters of trees and sometimes a pond."""
     grounds.append((((b0, c0), (b0 + 2.4, c0), (b1, c1), (b1 - 2.4, c1)), "path"))
-    grounds.append((((b0 + (b1 - b0) / 2 - 1.2, c0), (b0 + (b1 - b0) / 2 + 1.2, c0), (b0 + (b1 - b0) / 2 + 1.2, c1), (b0 + (b1 - b0) / 2 - 1.2, c1)), "path"))
+    grounds.append(
+        (
+            (
+                (b0 + (b1 - b0) / 2 - 1.2, c0),
+                (b0 + (b1 - b0) / 2 + 1.2, c0),
+                (b0 + (b1 - b0) / 2 + 1.2, c1),
+                (b0 + (b1 - b0) / 2 - 1.2, c1),
+            ),
+            "path",
+        )
+    )
     for _ in range(int(rng.integers(4, 9))):
         cu, cv_ = rng.uniform(b0, b1), rng.uniform(c0, c1)
         for _ in range(int(rng.integers(3, 12))):
-            trees.append(((cu + rng.normal(0, 7), cv_ + rng.normal(0, 7)), rng.uniform(2.5, 5.5), int(rng.integers(3)), int(rng.random() < 0.15)))
+            trees.append(
+                (
+                    (cu + rng.normal(0, 7), cv_ + rng.normal(0, 7)),
+                    rng.uniform(2.5, 5.5),
+                    int(rng.integers(3)),
+                    int(rng.random() < 0.15),
+                )
+            )
 
 
 def _parking(rng, b0, c0, b1, c1, cars, paint, trees) -> None:  # type: ignore[no-untyped-def]
@@ -465,7 +576,9 @@ def _parking(rng, b0, c0, b1, c1, cars, paint, trees) -> None:  # type: ignore[n
         _stalls(rng, b0 + 1.0, v, b1 - 1.0, v + 5.0, cars, paint)
         v += 12.0
     for _ in range(int(rng.integers(0, 5))):
-        trees.append(((rng.uniform(b0, b1), c1 - 1.0), rng.uniform(2.0, 3.0), int(rng.integers(3)), 0))
+        trees.append(
+            ((rng.uniform(b0, b1), c1 - 1.0), rng.uniform(2.0, 3.0), int(rng.integers(3)), 0)
+        )
 
 
 ALL_DATES = DATES

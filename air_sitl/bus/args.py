@@ -1,0 +1,237 @@
+"""Command-line options of the bus (fly, serve, the bridges) and of GNSS denial: parsed here once."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace, check_chunk
+from air_sitl.bus.lockstep import WaitFor
+from air_sitl.bus.session import DEFAULT_ENDPOINT, BusConfig, Mode
+from air_sitl.clock import NS_PER_S
+from air_sitl.errors import OptionError
+
+DEFAULT_WAIT_TIMEOUT_S = 10.0
+
+
+def add_connection_arguments(parser: argparse.ArgumentParser, *, serves: bool) -> None:
+    """``--zenoh-listen``, ``--zenoh-connect``, ``--zenoh-config``, ``--zenoh-mode``, ``--vehicle``."""
+    g = parser.add_argument_group("zenoh connection")
+    default = "listen on" if serves else "connect to"
+    g.add_argument(
+        "--zenoh-listen",
+        action="append",
+        metavar="ENDPOINT",
+        help=f"listen on this zenoh endpoint, repeatable (default: {default} {DEFAULT_ENDPOINT})",
+    )
+    g.add_argument(
+        "--zenoh-connect",
+        action="append",
+        metavar="ENDPOINT",
+        help="connect to this zenoh endpoint (a router or a peer), repeatable",
+    )
+    g.add_argument(
+        "--zenoh-config",
+        default=None,
+        metavar="FILE",
+        help="zenoh JSON5 config (TLS, access control ...); the options above apply on top",
+    )
+    g.add_argument(
+        "--zenoh-mode",
+        choices=("peer", "client"),
+        default="peer",
+        help="zenoh session mode (default peer; multicast scouting is off)",
+    )
+    g.add_argument(
+        "--vehicle",
+        default=DEFAULT_VEHICLE,
+        metavar="NAME",
+        help=f"vehicle name in the key space air/<NAME>/... (default {DEFAULT_VEHICLE})",
+    )
+
+
+def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
+    """Every bus option of a command that flies a vehicle (fly, serve), plus GNSS denial."""
+    g = parser.add_argument_group("zenoh bus")
+    g.add_argument(
+        "--zenoh",
+        action="store_true",
+        help="publish camera frames, IMU, GNSS, clock and mission status on zenoh",
+    )
+    g.add_argument(
+        "--publish-truth",
+        action="store_true",
+        help="also publish ground truth on air/<vehicle>/truth (implies --zenoh)",
+    )
+    g.add_argument(
+        "--imu-rate",
+        default="200",
+        metavar="HZ",
+        help="rate of air/<vehicle>/imu (default 200, the physics rate)",
+    )
+    g.add_argument(
+        "--wait-for",
+        default=None,
+        metavar="NAME[:MAX_LAG]",
+        help="lockstep with the estimator NAME: frame k+MAX_LAG (default 1) is not rendered "
+        "before its estimate of frame k arrived (implies --zenoh)",
+    )
+    g.add_argument(
+        "--wait-timeout",
+        default=str(DEFAULT_WAIT_TIMEOUT_S),
+        metavar="S",
+        help="wall seconds to wait for an estimator or the remote camera before giving up "
+        f"(default {DEFAULT_WAIT_TIMEOUT_S:g})",
+    )
+    g.add_argument(
+        "--svo-columns",
+        default=None,
+        metavar="NAME",
+        help="fill AIR's SvoX/SvoY/SvoZ with the positions the estimator NAME sent (ENU, home)",
+    )
+    g.add_argument(
+        "--camera",
+        choices=("local", "remote"),
+        default="local",
+        help="render in this process (local, default) or ask `air-sitl camera-bridge` over zenoh",
+    )
+    add_connection_arguments(parser, serves=True)
+    d = parser.add_argument_group("GNSS denial")
+    d.add_argument(
+        "--gps-denied-after",
+        default=None,
+        metavar="SECONDS",
+        help="no GNSS fix from this simulated time (s since the start) to the end",
+    )
+    d.add_argument(
+        "--gps-denied-window",
+        action="append",
+        metavar="A:B",
+        help="no GNSS fix from simulated second A to B; repeatable",
+    )
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class BusOptions:
+    """The bus options of one flying command, validated."""
+
+    enabled: bool  # open a session at all
+    publish: bool  # put the simulation on the bus
+    config: BusConfig
+    keys: KeySpace
+    publish_truth: bool
+    imu_rate_hz: float
+    wait: WaitFor | None
+    wait_timeout_s: float
+    svo_columns: str | None
+    remote_camera: bool
+
+
+def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig:
+    """The session configuration of the connection options."""
+    config_file = None
+    if args.zenoh_config:
+        config_file = Path(args.zenoh_config)
+        if not config_file.is_file():
+            msg = f"--zenoh-config {config_file}: no such file"
+            raise OptionError(msg)
+    listen = tuple(args.zenoh_listen) if args.zenoh_listen else None
+    connect = tuple(args.zenoh_connect) if args.zenoh_connect else None
+    for endpoint in (*(listen or ()), *(connect or ())):
+        if "/" not in endpoint:
+            msg = f"zenoh endpoint {endpoint!r}: expected PROTOCOL/ADDRESS, e.g. {DEFAULT_ENDPOINT}"
+            raise OptionError(msg)
+    if listen is None and connect is not None:
+        listen = ()
+    if connect is None and listen is not None:
+        connect = ()
+    mode: Mode = "client" if getattr(args, "zenoh_mode", "peer") == "client" else "peer"
+    return BusConfig(
+        mode=mode, listen=listen, connect=connect, config_file=config_file, serves=serves
+    )
+
+
+def parse_wait_for(text: str, timeout_s: float) -> WaitFor:
+    """``NAME`` or ``NAME:MAX_LAG`` (MAX_LAG an integer >= 1)."""
+    name, _, lag_text = text.partition(":")
+    check_chunk("--wait-for", name)
+    lag = 1
+    if lag_text:
+        try:
+            lag = int(lag_text)
+        except ValueError:
+            lag = 0
+        if lag < 1:
+            msg = f"--wait-for {text!r}: MAX_LAG must be an integer >= 1"
+            raise OptionError(msg)
+    return WaitFor(name=name, max_lag=lag, timeout_s=timeout_s)
+
+
+def _positive(name: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        msg = f"{name}: {text!r} is not a number > 0"
+        raise OptionError(msg)
+    return value
+
+
+def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
+    """Validate the bus options of ``fly``/``serve``."""
+    timeout = _positive("--wait-timeout", args.wait_timeout)
+    imu_rate = _positive("--imu-rate", args.imu_rate)
+    if imu_rate > 200:
+        msg = f"--imu-rate {args.imu_rate}: at most 200 Hz (the physics rate)"
+        raise OptionError(msg)
+    wait = parse_wait_for(args.wait_for, timeout) if args.wait_for else None
+    svo = check_chunk("--svo-columns", args.svo_columns) if args.svo_columns else None
+    remote = args.camera == "remote"
+    explicit = bool(args.zenoh_listen or args.zenoh_connect or args.zenoh_config)
+    publish = bool(args.zenoh or args.publish_truth or wait or svo)
+    return BusOptions(
+        enabled=publish or remote or explicit,
+        publish=publish or explicit,
+        config=bus_config_from_args(args, serves=True),
+        keys=KeySpace(args.vehicle),
+        publish_truth=bool(args.publish_truth),
+        imu_rate_hz=imu_rate,
+        wait=wait,
+        wait_timeout_s=timeout,
+        svo_columns=svo,
+        remote_camera=remote,
+    )
+
+
+def gps_denied_from_args(args: argparse.Namespace) -> tuple[tuple[int, int], ...]:
+    """GNSS denial windows [start, end) in simulation nanoseconds, sorted."""
+    windows: list[tuple[int, int]] = []
+    if args.gps_denied_after is not None:
+        start = _nonneg("--gps-denied-after", args.gps_denied_after)
+        windows.append((round(start * NS_PER_S), 2**62))
+    for text in args.gps_denied_window or ():
+        a_text, sep, b_text = text.partition(":")
+        if not sep:
+            msg = f"--gps-denied-window {text!r}: expected A:B in simulated seconds, e.g. 60:120"
+            raise OptionError(msg)
+        a = _nonneg("--gps-denied-window", a_text)
+        b = _nonneg("--gps-denied-window", b_text)
+        if b <= a:
+            msg = f"--gps-denied-window {text!r}: the end must come after the start"
+            raise OptionError(msg)
+        windows.append((round(a * NS_PER_S), round(b * NS_PER_S)))
+    return tuple(sorted(windows))
+
+
+def _nonneg(name: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 0):
+        msg = f"{name}: {text!r} is not a number of seconds >= 0"
+        raise OptionError(msg)
+    return value

@@ -1,0 +1,216 @@
+"""Estimates coming back from external localization processes: logged, and awaited in lockstep.
+
+Subscribes to ``air/<vehicle>/estimate/*``. Each estimate is written (on the zenoh thread: it
+is I/O, not simulation state) to ``estimates/<name>.csv`` with its latency in wall
+milliseconds and in frames, counted from the moment its frame was published.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+from air_sitl.bus import codec
+from air_sitl.bus.keys import KeySpace
+from air_sitl.bus.publisher import FrameLedger
+from air_sitl.bus.session import Bus, Message
+from air_sitl.errors import BusError
+from air_sitl.frames import geodetic2ned, ned2geodetic
+from air_sitl.state import GeoPoint, Vec3
+
+ESTIMATES_DIR = "estimates"
+ESTIMATE_COLUMNS = (
+    "sim_time_ns",
+    "frame",
+    "east_m",
+    "north_m",
+    "up_m",
+    "lat_deg",
+    "lon_deg",
+    "alt_amsl_m",
+    "qw",
+    "qx",
+    "qy",
+    "qz",
+    "latency_wall_ms",
+    "latency_frames",
+)
+
+
+@dataclass(slots=True)
+class _Track:
+    """What one estimator sent so far."""
+
+    file: IO[str] | None
+    frames: set[int] = field(default_factory=set)
+    enu_by_frame: dict[int, Vec3] = field(default_factory=dict)
+    rows: int = 0
+
+
+class EstimateLog:
+    """Receives, converts and logs estimates of every estimator of one vehicle."""
+
+    def __init__(
+        self,
+        bus: Bus,
+        keys: KeySpace,
+        ledger: FrameLedger,
+        *,
+        out_dir: Path | None,
+        home: GeoPoint | None,
+    ) -> None:
+        self.keys = keys
+        self.ledger = ledger
+        self.out_dir = out_dir
+        self.home = home
+        self._cond = threading.Condition()
+        self._tracks: dict[str, _Track] = {}
+        self._closed = False
+        self.rejected = 0
+        self.first_error: str | None = None
+        self._prefix = keys.estimate("x")[:-1]
+        bus.subscribe(keys.estimates, self._on_message)
+
+    def _on_message(self, message: Message) -> None:
+        name = message.key[len(self._prefix) :]
+        received = time.monotonic()
+        try:
+            est = codec.decode_estimate(message.payload, message.key)
+        except BusError as err:
+            with self._cond:
+                self.rejected += 1
+                self.first_error = self.first_error or str(err)
+            return
+        frame, t, wall, last = self.ledger.lookup(est.frame, est.sim_time_ns)
+        enu, geo = self._positions(est)
+        q = est.q_body_to_ned_wxyz
+        latency_ms = "" if wall is None else f"{(received - wall) * 1e3:.3f}"
+        latency_frames = "" if frame is None or wall is None else str(last - frame)
+        row = ",".join(
+            (
+                "" if t is None else str(t),
+                "" if frame is None else str(frame),
+                *(_num(c, 4) for c in enu),
+                *(("", "", "") if geo is None else (
+                    f"{geo.lat_deg:.9f}", f"{geo.lon_deg:.9f}", f"{geo.alt_amsl_m:.4f}"
+                )),
+                *(("", "", "", "") if q is None else tuple(f"{c:.8f}" for c in q)),
+                latency_ms,
+                latency_frames,
+            )
+        )
+        with self._cond:
+            if self._closed:
+                return
+            track = self._tracks.get(name)
+            if track is None:
+                track = _Track(self._open(name))
+                self._tracks[name] = track
+            if track.file is not None:
+                track.file.write(row + "\n")
+            track.rows += 1
+            if frame is not None:
+                track.frames.add(frame)
+                if all(math.isfinite(c) for c in enu):
+                    track.enu_by_frame[frame] = enu
+            self._cond.notify_all()
+
+    def _positions(self, est: codec.Estimate) -> tuple[Vec3, GeoPoint | None]:
+        nan = math.nan
+        home = self.home
+        if est.enu_m is not None:
+            enu = est.enu_m
+            if home is None:
+                return enu, est.geo
+            lat, lon, alt = ned2geodetic(
+                enu[1], enu[0], -enu[2], home.lat_deg, home.lon_deg, home.alt_amsl_m
+            )
+            return enu, est.geo or GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
+        geo = est.geo
+        assert geo is not None  # decode_estimate guarantees a position
+        if home is None:
+            return (nan, nan, nan), geo
+        n, e, d = geodetic2ned(
+            geo.lat_deg, geo.lon_deg, geo.alt_amsl_m, home.lat_deg, home.lon_deg, home.alt_amsl_m
+        )
+        return (e, n, -d), geo
+
+    def _open(self, name: str) -> IO[str] | None:
+        if self.out_dir is None:
+            return None
+        folder = self.out_dir / ESTIMATES_DIR
+        path = folder / f"{name}.csv"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            f = path.open("w", encoding="ascii", newline="")
+        except OSError as err:
+            self.first_error = self.first_error or f"{path}: cannot write: {err.strerror}"
+            return None
+        f.write(",".join(ESTIMATE_COLUMNS) + "\n")
+        return f
+
+    def has(self, name: str, frame: int) -> bool:
+        """True once an estimate for ``frame`` came from ``name``."""
+        with self._cond:
+            track = self._tracks.get(name)
+            return track is not None and frame in track.frames
+
+    def wait_for(self, name: str, frame: int, timeout_s: float) -> bool:
+        """Block until ``name`` answered ``frame`` or ``timeout_s`` of wall time passed."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while True:
+                track = self._tracks.get(name)
+                if track is not None and frame in track.frames:
+                    return True
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return False
+                self._cond.wait(left)
+
+    def settle(self, quiet_s: float, max_s: float) -> None:
+        """Wait for late estimates: until ``quiet_s`` passes without one (at most ``max_s``)."""
+        end = time.monotonic() + max_s
+        with self._cond:
+            while True:
+                before = sum(t.rows for t in self._tracks.values())
+                left = min(quiet_s, end - time.monotonic())
+                if left <= 0:
+                    return
+                self._cond.wait(left)
+                if sum(t.rows for t in self._tracks.values()) == before:
+                    return
+
+    def names(self) -> list[str]:
+        """Estimators heard from, sorted."""
+        with self._cond:
+            return sorted(self._tracks)
+
+    def rows(self, name: str) -> int:
+        """Estimates received from ``name``."""
+        with self._cond:
+            track = self._tracks.get(name)
+            return 0 if track is None else track.rows
+
+    def positions_enu(self, name: str) -> dict[int, Vec3]:
+        """Latest ENU position per frame from ``name`` (for AIR's SvoX..SvoZ)."""
+        with self._cond:
+            track = self._tracks.get(name)
+            return {} if track is None else dict(track.enu_by_frame)
+
+    def close(self) -> None:
+        """Stop logging and close the CSV files (later estimates are ignored)."""
+        with self._cond:
+            self._closed = True
+            for track in self._tracks.values():
+                if track.file is not None:
+                    track.file.close()
+                    track.file = None
+
+
+def _num(value: float, digits: int) -> str:
+    return "nan" if math.isnan(value) else f"{value:.{digits}f}"

@@ -1,0 +1,182 @@
+"""The zenoh publisher sink: frames, IMU, GNSS, clock, mission status and (opt-in) truth.
+
+Runs on the simulation thread. Every put is drop-on-congestion: a slow subscriber loses
+samples itself and never holds the simulation. Only in lockstep are frames published with
+blocking congestion control (the simulation waits for the estimator anyway).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+
+from air_sitl.bus import codec
+from air_sitl.bus.keys import KeySpace
+from air_sitl.bus.session import Bus, QueryAnswer, QueryRequest
+from air_sitl.clock import CAMERA_PERIOD_NS, CAMERA_RATE_HZ, NS_PER_S
+from air_sitl.sinks import FlightResult, NullSink
+from air_sitl.state import AutopilotStatus, CameraFrame, GeoPoint, SimSample
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class PublishOptions:
+    """What to publish, and how often."""
+
+    keys: KeySpace = KeySpace()
+    publish_truth: bool = False
+    imu_rate_hz: float = 200.0  # physics rate by default; decimated to a divisor of it
+    home: GeoPoint | None = None  # sent in mission/status so clients can use ENU
+    camera_info: codec.CameraInfo | None = None
+    block_frames: bool = False  # lockstep: never drop a frame
+
+
+class FrameLedger:
+    """Frames published so far: index -> (sim time, wall time); shared with the estimate log.
+
+    Written on the simulation thread, read on zenoh threads: guarded by a lock.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._wall_s: dict[int, float] = {}
+        self._time_ns: dict[int, int] = {}
+        self._index_by_time: dict[int, int] = {}
+        self.last_index = -1
+        self.count = 0
+
+    def record(self, index: int, sim_time_ns: int) -> None:
+        """Frame ``index`` was just published."""
+        now = time.monotonic()
+        with self._lock:
+            self._wall_s[index] = now
+            self._time_ns[index] = sim_time_ns
+            self._index_by_time[sim_time_ns] = index
+            self.last_index = max(self.last_index, index)
+            self.count += 1
+
+    def published(self, index: int) -> bool:
+        """True once frame ``index`` went out."""
+        with self._lock:
+            return index in self._wall_s
+
+    def lookup(
+        self, frame: int | None, sim_time_ns: int | None
+    ) -> tuple[int | None, int | None, float | None, int]:
+        """(frame, sim time, publish wall time, last published index) for an estimate."""
+        with self._lock:
+            if frame is None and sim_time_ns is not None:
+                frame = self._index_by_time.get(sim_time_ns)
+            if frame is not None and sim_time_ns is None:
+                sim_time_ns = self._time_ns.get(frame)
+            wall = None if frame is None else self._wall_s.get(frame)
+            return frame, sim_time_ns, wall, self.last_index
+
+
+class BusPublisher(NullSink):
+    """A :class:`~air_sitl.sinks.Sink` that puts the simulation on the bus."""
+
+    def __init__(self, bus: Bus, options: PublishOptions, ledger: FrameLedger | None = None) -> None:
+        self.bus = bus
+        self.options = options
+        self.ledger = ledger or FrameLedger()
+        k = options.keys
+        js = codec.JSON_ENCODING
+        self._imu = bus.publisher(k.imu, encoding=js)
+        self._gps = bus.publisher(k.gps, encoding=js)
+        self._clock = bus.publisher(k.clock, encoding=js)
+        self._status = bus.publisher(k.mission_status, encoding=js)
+        self._truth = bus.publisher(k.truth, encoding=js) if options.publish_truth else None
+        self._image = bus.publisher(
+            k.image, encoding=codec.JPEG_ENCODING, block=options.block_frames
+        )
+        self._info_pub = bus.publisher(k.info, encoding=js)
+        self._info: bytes | None = None
+        if options.camera_info is not None:
+            self._info = codec.encode_camera_info(options.camera_info)
+            self._info_pub.put(self._info)
+        bus.queryable(k.info, self._answer_info)
+        self._imu_every = max(1, round(200.0 / max(options.imu_rate_hz, 1e-9)))
+        self._step = 0
+        self._capture_ticks = 0
+        self._last_status: tuple[object, ...] | None = None
+        self._last_status_ns = -NS_PER_S
+        self.frames_published = 0
+
+    @property
+    def image_matched(self) -> bool:
+        """True when a subscriber listens to ``camera/image``."""
+        return self._image.matched
+
+    def _answer_info(self, request: QueryRequest) -> QueryAnswer:
+        info = self._info
+        if info is None:
+            from air_sitl.errors import BusError
+
+            msg = f"{self.options.keys.info}: this simulator has no camera"
+            raise BusError(msg)
+        return QueryAnswer(info, encoding=codec.JSON_ENCODING)
+
+    def on_sample(self, sample: SimSample) -> None:
+        """Clock and IMU every step (IMU decimated), GNSS when fresh, status on change, truth."""
+        t = sample.state.sim_time_ns
+        self._clock.put(codec.encode_clock(t))
+        if self._step % self._imu_every == 0:
+            self._imu.put(codec.encode_imu(sample.imu))
+        self._step += 1
+        if sample.gps is not None:
+            self._gps.put(codec.encode_gps(sample.gps))
+        status = sample.autopilot
+        key = _status_key(status)
+        if key != self._last_status or t - self._last_status_ns >= NS_PER_S:
+            self._status.put(codec.encode_status(t, status, self.options.home))
+            self._last_status = key
+            self._last_status_ns = t
+        frame: int | None = None
+        if status.capturing and t % CAMERA_PERIOD_NS == 0:
+            # Same rule as the runner's capture index: every camera tick inside the window.
+            frame = self._capture_ticks
+            self._capture_ticks += 1
+        if self._truth is not None:
+            self._truth.put(codec.encode_truth(sample.state, frame))
+
+    def on_frame(self, frame: CameraFrame) -> None:
+        """Publish the frame unless the lockstep source already did."""
+        if not self.ledger.published(frame.index):
+            self.publish_frame(frame)
+
+    def publish_frame(self, frame: CameraFrame) -> None:
+        """JPEG payload + attachment (frame index, simulation time, size)."""
+        if self._info is None:
+            # No camera description was given: describe the frames as the SPEC default camera.
+            info = codec.CameraInfo(
+                width_px=frame.width_px,
+                height_px=frame.height_px,
+                hfov_deg=57.0,
+                rate_hz=float(CAMERA_RATE_HZ),
+                q_cam_to_body_wxyz=(0.7071067811865476, 0.0, 0.0, 0.7071067811865476),
+            )
+            self._info = codec.encode_camera_info(info)
+            self._info_pub.put(self._info)
+        meta = codec.FrameMeta(
+            frame=frame.index,
+            sim_time_ns=frame.sim_time_ns,
+            width_px=frame.width_px,
+            height_px=frame.height_px,
+        )
+        self._image.put(frame.jpeg, codec.encode_frame_meta(meta))
+        self.ledger.record(frame.index, frame.sim_time_ns)
+        self.frames_published += 1
+
+    def close(self, result: FlightResult) -> None:
+        """Nothing buffered: puts went out as they came."""
+
+
+def _status_key(status: AutopilotStatus) -> tuple[object, ...]:
+    return (
+        status.mode,
+        status.armed,
+        status.current_seq,
+        status.capturing,
+        status.mission_completed,
+    )

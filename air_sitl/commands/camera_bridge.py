@@ -1,0 +1,115 @@
+"""``air-sitl camera-bridge --map M``: render camera frames for simulators on the bus.
+
+Two ways in (both served at once): ``fly --camera remote`` asks for each frame with a zenoh
+query on ``air/<vehicle>/camera/render`` (lockstep, nothing lost, images byte-identical to the
+in-process camera); and every ``truth`` sample that carries a frame index (a simulator with
+``--publish-truth`` and no camera) is rendered and published on ``camera/image``. Rendering can
+so run on another host. Runs until SIGINT or SIGTERM.
+"""
+
+from __future__ import annotations
+
+import argparse
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from air_sitl.bus.remote_camera import RenderFn, RenderSettings
+
+HELP = "render camera frames for simulators over zenoh (fly --camera remote; truth -> camera/image)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``camera-bridge``."""
+    from air_sitl.bus.args import add_connection_arguments
+    from air_sitl.camera.options import add_camera_arguments, add_map_arguments
+
+    add_map_arguments(parser)
+    add_camera_arguments(parser)
+    parser.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="noise seed of frames rendered from truth (render queries carry their own)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="print only errors")
+    add_connection_arguments(parser, serves=False)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve renders until interrupted; exit 0 on SIGINT/SIGTERM."""
+    from air_sitl.bus.args import bus_config_from_args
+    from air_sitl.bus.hookup import camera_fields
+    from air_sitl.bus.keys import KeySpace
+    from air_sitl.bus.remote_camera import CameraBridgeServer, RenderSettings
+    from air_sitl.bus.session import open_bus
+    from air_sitl.bus.signals import wait_until_signalled
+    from air_sitl.camera.options import camera_from_args
+    from air_sitl.state import GeoPoint
+
+    keys = KeySpace(args.vehicle)
+    camera = camera_from_args(args)  # validates the options before joining the bus
+    spec = args.map or "urban"
+    closers: list[object] = []
+
+    def factory(settings: RenderSettings) -> RenderFn:
+        return _renderer(spec, args.map_seed, args.map_date, settings, closers)
+
+    def free_settings(home: GeoPoint) -> RenderSettings:
+        return RenderSettings(home=home, camera=camera_fields(camera), seed=args.seed)
+
+    with open_bus(bus_config_from_args(args, serves=False)) as bus:
+        server = CameraBridgeServer(bus, keys, factory, free_settings=free_settings)
+        if not args.quiet:
+            print(
+                f"air-sitl camera-bridge: map {spec}; serving {keys.render}, "
+                f"{keys.truth} -> {keys.image}",
+                flush=True,
+            )
+        wait_until_signalled()
+        if not args.quiet:
+            print(
+                f"air-sitl camera-bridge: stopped; {server.rendered} frames rendered, "
+                f"{server.published} published from truth",
+                flush=True,
+            )
+    for obj in closers:
+        close = getattr(obj, "close", None)
+        if callable(close):
+            close()
+    return 0
+
+
+def _renderer(
+    spec: str, map_seed: int, map_date: str | None, settings: RenderSettings, closers: list[object]
+) -> RenderFn:
+    """A render function for one (home, camera, seed): the same Renderer the in-process camera uses."""
+    from air_sitl.bus.remote_camera import RenderedFrame
+    from air_sitl.camera.model import CameraModel
+    from air_sitl.camera.render import Renderer
+    from air_sitl.errors import BusError
+    from air_sitl.maps.open import open_map
+    from air_sitl.state import VehicleState
+
+    c = settings.camera
+    try:
+        rpy = tuple(float(a) for a in c["mount_rpy_deg"])
+        camera = CameraModel(
+            width_px=int(c["width_px"]),
+            height_px=int(c["height_px"]),
+            hfov_deg=float(c["hfov_deg"]),
+            mount_rpy_deg=(rpy[0], rpy[1], rpy[2]),
+            noise_sigma=float(c["noise_sigma"]),
+            jpeg_quality=int(c["jpeg_quality"]),
+        )
+    except (KeyError, TypeError, ValueError, IndexError) as err:
+        msg = f"camera/render: bad camera settings ({err!r})"
+        raise BusError(msg) from None
+    map_source = open_map(spec, settings.home, seed=map_seed, date=map_date)
+    closers.append(map_source)
+    renderer = Renderer(map_source, camera, seed=settings.seed)
+
+    def render(state: VehicleState, index: int) -> RenderedFrame:
+        jpeg, xy = renderer.frame_jpeg(state, index)
+        return RenderedFrame(jpeg, xy, camera.width_px, camera.height_px)
+
+    return render

@@ -1,0 +1,123 @@
+"""``air-sitl map make``: write a procedural map as a Cloud-Optimized GeoTIFF.
+
+The file uses the UTM zone of ``--origin`` and the procedural map's own pixel lattice; with the
+default size and ``--origin`` equal to a flight's home, its pixel grid is exactly the grid
+MapX/MapY count in when flying that procedural map.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+HELP = "make map files (map make {urban,forest} --out FILE.tif)"
+
+DEFAULT_ORIGIN = (54.6872, 25.2797)  # Vilnius, where AIR was made
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``map`` and its ``make`` subcommand."""
+    sub = parser.add_subparsers(dest="map_command", metavar="SUBCOMMAND", required=True)
+    make = sub.add_parser(
+        "make",
+        help="write a procedural map as a georeferenced Cloud-Optimized GeoTIFF",
+        description="write a procedural map as a georeferenced Cloud-Optimized GeoTIFF",
+    )
+    make.add_argument("kind", choices=("urban", "forest"), help="procedural map")
+    make.add_argument("--out", required=True, metavar="FILE.tif", help="output GeoTIFF")
+    make.add_argument("--seed", type=int, default=0, help="map seed (default 0)")
+    make.add_argument(
+        "--size-m",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("W", "H"),
+        help="extent in metres (default 10240 pixels square: 6144 m at 0.6 m)",
+    )
+    make.add_argument("--gsd-m", type=float, default=0.6, help="metres per pixel (default 0.6)")
+    make.add_argument("--date", default=None, help="map date: 0, 1, 2 or its label (default 0)")
+    make.add_argument(
+        "--origin",
+        default=None,
+        metavar="LAT,LON",
+        help=f"centre (the flight's home) (default {DEFAULT_ORIGIN[0]},{DEFAULT_ORIGIN[1]})",
+    )
+    make.add_argument(
+        "--lossless", action="store_true", help="DEFLATE instead of JPEG q90 compression"
+    )
+
+
+def _parse_origin(text: str | None) -> tuple[float, float]:
+    from air_sitl.errors import OptionError
+
+    if text is None:
+        return DEFAULT_ORIGIN
+    try:
+        lat_s, lon_s = text.split(",")
+        lat, lon = float(lat_s), float(lon_s)
+    except ValueError:
+        msg = f"--origin {text!r}: expected LAT,LON in degrees"
+        raise OptionError(msg) from None
+    if not (-80.0 <= lat <= 84.0 and -180.0 <= lon <= 180.0):
+        msg = f"--origin {text!r}: outside the UTM domain (latitude -80..84, longitude -180..180)"
+        raise OptionError(msg)
+    return (lat, lon)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Generate the map window block by block and write it as a COG."""
+    from air_sitl.errors import OptionError
+    from air_sitl.maps.geotiff import write_geotiff
+    from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
+    from air_sitl.state import GeoPoint
+
+    lat, lon = _parse_origin(args.origin)
+    out = Path(args.out)
+    if out.suffix.lower() not in (".tif", ".tiff"):
+        msg = f"--out {out}: expected a .tif or .tiff file name"
+        raise OptionError(msg)
+    if not out.parent.is_dir():
+        msg = f"--out {out}: folder {out.parent} does not exist"
+        raise OptionError(msg)
+    gsd = float(args.gsd_m)
+    if not (math.isfinite(gsd) and 0.05 <= gsd <= 100.0):
+        msg = f"--gsd-m {args.gsd_m}: expected 0.05..100 metres per pixel"
+        raise OptionError(msg)
+    if args.size_m is None:
+        w_px = h_px = 2 * NOMINAL_HALF_PX
+    else:
+        w_m, h_m = args.size_m
+        if not (math.isfinite(w_m) and math.isfinite(h_m) and w_m > 0 and h_m > 0):
+            msg = f"--size-m {w_m} {h_m}: expected two positive sizes in metres"
+            raise OptionError(msg)
+        w_px, h_px = round(w_m / gsd), round(h_m / gsd)
+        if w_px < 16 or h_px < 16 or w_px * h_px > 200_000 * 200_000:
+            msg = f"--size-m {w_m} {h_m}: {w_px}x{h_px} pixels at {gsd} m is too small or too large"
+            raise OptionError(msg)
+    home = GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=0.0)
+    pmap = ProceduralMap(args.kind, home, seed=args.seed, date=args.date, gsd_m=gsd)
+    c0 = NOMINAL_HALF_PX - w_px // 2
+    r0 = NOMINAL_HALF_PX - h_px // 2
+    t0, t1, t2, t3, t4, t5 = pmap.georef.transform
+    transform = (t0 + c0 * t1, t1, t2, t3 + r0 * t5, t4, t5)
+
+    def pixels(x0: int, y0: int, w: int, h: int):  # type: ignore[no-untyped-def]
+        return pmap.read_bgr(c0 + x0, r0 + y0, w, h)
+
+    write_geotiff(
+        out,
+        pixels,
+        width_px=w_px,
+        height_px=h_px,
+        crs=pmap.georef.crs,
+        transform=transform,
+        lossless=args.lossless,
+    )
+    print(
+        f"{out}: {args.kind} seed {args.seed} date {pmap.date.label}, {w_px}x{h_px} px at "
+        f"{gsd} m, {pmap.georef.crs}",
+        file=sys.stdout,
+    )
+    return 0

@@ -1,0 +1,142 @@
+"""The 12 AIR scenarios: the paper's Table 2, where their plans live, the stats table."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from air_sitl.errors import OptionError
+
+# Table 2 of the AIR paper (SPEC section 1): images at 50 Hz, flown distance in metres.
+PAPER_TABLE: dict[str, tuple[int, int]] = {
+    "FL-200": (11837, 2936),
+    "FL-300": (9020, 2736),
+    "FR-200": (16056, 4748),
+    "FR-300": (15307, 4541),
+    "FC-200": (3601, 1065),
+    "FC-300": (3450, 1028),
+    "UL-200": (8735, 2592),
+    "UL-300": (8416, 2496),
+    "UR-200": (14997, 4418),
+    "UR-300": (15361, 4542),
+    "UC-200": (3422, 1016),
+    "UC-300": (3272, 970),
+}
+ALL_SCENARIOS: tuple[str, ...] = tuple(PAPER_TABLE)
+
+STATS_COLUMNS = (
+    "scenario",
+    "images",
+    "distance_m",
+    "paper_images",
+    "paper_distance_m",
+    "images_ratio",
+    "distance_ratio",
+    "mission_completed",
+    "sim_time_s",
+)
+
+
+def missions_dir(explicit: str | None = None) -> Path:
+    """The folder holding ``<scenario>.plan``: ``--missions``, the repository's, or ./missions."""
+    if explicit:
+        path = Path(explicit)
+        if not path.is_dir():
+            msg = f"--missions {explicit}: no such folder"
+            raise OptionError(msg)
+        return path
+    import air_sitl
+
+    candidates = [
+        Path(air_sitl.__file__).resolve().parent.parent / "missions",  # editable install
+        Path.cwd() / "missions",
+    ]
+    for path in candidates:
+        if path.is_dir() and any(path.glob("*.plan")):
+            return path
+    looked = ", ".join(str(p) for p in candidates)
+    msg = f"no missions folder with .plan files found (looked in {looked}); pass --missions DIR"
+    raise OptionError(msg)
+
+
+def parse_scenarios(text: str, folder: Path) -> list[str]:
+    """``all`` or a comma list of names; each must have ``<name>.plan`` in ``folder``."""
+    names = list(ALL_SCENARIOS) if text.strip().lower() == "all" else []
+    if not names:
+        names = [n.strip().upper() for n in text.split(",") if n.strip()]
+    if not names:
+        msg = f"--scenarios {text!r}: expected 'all' or names such as FL-200,UC-300"
+        raise OptionError(msg)
+    available = sorted(p.stem for p in folder.glob("*.plan"))
+    by_upper = {n.upper(): n for n in available}
+    out: list[str] = []
+    for name in names:
+        if name not in by_upper:
+            msg = (
+                f"--scenarios: {name} has no plan in {folder} "
+                f"(available: {', '.join(available) or 'none'})"
+            )
+            raise OptionError(msg)
+        if by_upper[name] not in out:
+            out.append(by_upper[name])
+    return out
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class ScenarioStats:
+    """One line of the AIR table: what we flew beside what the paper reports."""
+
+    scenario: str
+    images: int
+    distance_m: float
+    mission_completed: bool
+    sim_time_s: float
+
+    def row(self) -> list[str]:
+        """The stats.csv fields."""
+        paper = PAPER_TABLE.get(self.scenario.split("@")[0].upper())
+        p_img, p_dist = paper if paper else (None, None)
+        return [
+            self.scenario,
+            str(self.images),
+            f"{self.distance_m:.1f}",
+            "" if p_img is None else str(p_img),
+            "" if p_dist is None else str(p_dist),
+            "" if not p_img else f"{self.images / p_img:.3f}",
+            "" if not p_dist else f"{self.distance_m / p_dist:.3f}",
+            str(self.mission_completed).lower(),
+            f"{self.sim_time_s:.1f}",
+        ]
+
+
+def stats_table(stats: Sequence[ScenarioStats]) -> list[list[str]]:
+    """Rows for stats.csv (header, one per scenario, then the total)."""
+    rows = [list(STATS_COLUMNS)]
+    rows += [s.row() for s in stats]
+    images = sum(s.images for s in stats)
+    dist = sum(s.distance_m for s in stats)
+    papers = [PAPER_TABLE.get(s.scenario.split("@")[0].upper()) for s in stats]
+    known = [p for p in papers if p is not None]
+    p_img = sum(p[0] for p in known) if len(known) == len(stats) else None
+    p_dist = sum(p[1] for p in known) if len(known) == len(stats) else None
+    rows.append(
+        [
+            "total",
+            str(images),
+            f"{dist:.1f}",
+            "" if p_img is None else str(p_img),
+            "" if p_dist is None else str(p_dist),
+            "" if not p_img else f"{images / p_img:.3f}",
+            "" if not p_dist else f"{dist / p_dist:.3f}",
+            str(all(s.mission_completed for s in stats)).lower(),
+            f"{sum(s.sim_time_s for s in stats):.1f}",
+        ]
+    )
+    return rows
+
+
+def format_table(rows: Sequence[Sequence[str]]) -> str:
+    """The stats table as aligned text for the terminal."""
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)) for r in rows)

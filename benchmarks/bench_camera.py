@@ -1,0 +1,192 @@
+"""Camera speed and memory: per-frame cost vs JPEG alone, threaded frames/s, RSS over a big COG.
+
+Run: ``python benchmarks/bench_camera.py [--frames N] [--cog /tmp/bench40k.tif]``. Prints:
+
+1. one core: render + noise + JPEG per frame at 200 m, 300 m and 3000 m over ``urban`` (tiles
+   warm), beside JPEG encoding alone of the same frames in the same run, and their ratio
+   (target <= 2.5); plus the first, cold pass that also generates the map tiles;
+2. the threaded camera bridge (FrameSource) in frames/s with 1 and 2 workers;
+3. resident memory while flying over a 40,000 x 40,000 pixel COG (built with
+   ``air-sitl map make urban --size-m 24000 24000`` when missing; target < 1 GB).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from air_sitl.camera.bridge import CameraBridge
+from air_sitl.camera.model import CameraModel
+from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.frames import ned2geodetic
+from air_sitl.maps.open import open_map
+from air_sitl.state import AutopilotStatus, FlightMode, GeoPoint, ImuSample, SimSample, VehicleState
+
+HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
+
+
+def rss_mb() -> float:
+    """Resident set size of this process, MB (Linux /proc)."""
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+def path_states(
+    alt_m: float, n: int, *, speed_m_s: float = 15.0, east0_m: float = 0.0
+) -> list[VehicleState]:
+    """A 50 Hz straight flight north with a gentle roll oscillation, like AIR's lines."""
+    out = []
+    for i in range(n):
+        north = speed_m_s * i / 50.0
+        lat, lon, _ = ned2geodetic(north, east0_m, 0.0, HOME.lat_deg, HOME.lon_deg, 0.0)
+        out.append(
+            pose_state(
+                lat,
+                lon,
+                HOME.alt_amsl_m + alt_m,
+                alt_agl_m=alt_m,
+                roll_rad=math.radians(5.0) * math.sin(i / 40.0),
+                pitch_rad=math.radians(2.0),
+                yaw_rad=0.02,
+                sim_time_ns=i * 20_000_000,
+            )
+        )
+    return out
+
+
+def sample_of(state: VehicleState) -> SimSample:
+    """A SimSample around a state (the bridge takes samples)."""
+    return SimSample(
+        state=state,
+        autopilot=AutopilotStatus(
+            mode=FlightMode.MISSION,
+            armed=True,
+            current_seq=1,
+            capturing=True,
+            mission_completed=False,
+        ),
+        imu=ImuSample(
+            sim_time_ns=state.sim_time_ns,
+            gyro_frd_rad_s=(0.0, 0.0, 0.0),
+            accel_frd_m_s2=(0.0, 0.0, -9.8),
+            q_ahrs_body_to_ned_wxyz=state.q_body_to_ned_wxyz,
+        ),
+        gps=None,
+    )
+
+
+def one_core(frames: int) -> None:
+    """Per-frame cost of the pipeline vs JPEG only, same frames, same run."""
+    cv2.setNumThreads(1)
+    print("1) one core, urban map, 640x480, q90, noise sigma 1.8 (ms per frame)")
+    print(
+        f"{'alt m':>6} {'cold':>7} {'render':>7} {'noise':>6} {'jpeg':>6} {'whole':>7}"
+        f" {'jpeg-only':>9} {'ratio':>6}"
+    )
+    for alt in (200.0, 300.0, 3000.0):
+        renderer = Renderer(open_map("urban", HOME, seed=0), CameraModel(), seed=0)
+        states = path_states(alt, frames)
+        t0 = time.perf_counter()
+        for i, s in enumerate(states):  # cold: generates the tiles the flight needs
+            renderer.encode(renderer.add_noise(renderer.render(s), i))
+        cold = (time.perf_counter() - t0) / frames * 1e3
+        t_render = t_noise = t_jpeg = 0.0
+        noisy = []
+        for i, s in enumerate(states):
+            a = time.perf_counter()
+            img = renderer.render(s)
+            b = time.perf_counter()
+            img = renderer.add_noise(img, i)
+            c = time.perf_counter()
+            renderer.encode(img)
+            d = time.perf_counter()
+            t_render += b - a
+            t_noise += c - b
+            t_jpeg += d - c
+            noisy.append(img)
+        t0 = time.perf_counter()
+        for img in noisy:
+            renderer.encode(img)
+        jpeg_only = (time.perf_counter() - t0) / frames * 1e3
+        whole = (t_render + t_noise + t_jpeg) / frames * 1e3
+        print(
+            f"{alt:6.0f} {cold:7.2f} {t_render / frames * 1e3:7.2f} {t_noise / frames * 1e3:6.2f}"
+            f" {t_jpeg / frames * 1e3:6.2f} {whole:7.2f} {jpeg_only:9.2f} {whole / jpeg_only:6.2f}"
+        )
+
+
+def threaded(frames: int) -> None:
+    """Frames/s of the CameraBridge FrameSource (tiles warm), 1 and 2 workers."""
+    cv2.setNumThreads(1)
+    print("2) camera bridge (FrameSource), 300 m, tiles warm")
+    renderer = Renderer(open_map("urban", HOME, seed=0), CameraModel(), seed=0)
+    samples = [sample_of(s) for s in path_states(300.0, frames)]
+    for s in samples[:: max(1, frames // 50)]:
+        renderer.render(s.state)
+    for workers in (1, 2):
+        bridge = CameraBridge(renderer, workers=workers, max_pending=16)
+        t0 = time.perf_counter()
+        got = 0
+        for i, s in enumerate(samples):
+            bridge.submit(s, i)
+            got += len(bridge.ready())
+        got += len(bridge.flush())
+        dt = time.perf_counter() - t0
+        bridge.close()
+        print(f"   workers {workers}: {got / dt:7.1f} frames/s ({got} frames)")
+
+
+def big_cog(cog: Path, frames: int) -> None:
+    """Resident memory while flying over a 40,000 x 40,000 px COG at 300 m and 3000 m."""
+    print(f"3) memory over {cog}")
+    if not cog.exists():
+        print("   building it with air-sitl map make (once; several minutes)...", flush=True)
+        subprocess.run(
+            [sys.executable, "-m", "air_sitl", "map", "make", "urban", "--out", str(cog),
+             "--size-m", "24000", "24000", "--origin", f"{HOME.lat_deg},{HOME.lon_deg}"],
+            check=True,
+        )  # fmt: skip
+    start = rss_mb()
+    m = open_map(str(cog), HOME)
+    w, h = m.georef.width_px, m.georef.height_px
+    print(f"   {w} x {h} px, {cog.stat().st_size / 1e6:.0f} MB on disk, RSS at start {start:.0f} MB")
+    renderer = Renderer(m, CameraModel(), seed=0)
+    peak = start
+    t0 = time.perf_counter()
+    count = 0
+    for alt, speed in ((300.0, 400.0), (3000.0, 2000.0)):
+        # Fast flights (speed in m/s of simulated time) so new ground keeps coming.
+        for i, s in enumerate(path_states(alt, frames, speed_m_s=speed, east0_m=-3000.0)):
+            renderer.frame_jpeg(s, i)
+            count += 1
+            if i % 10 == 0:
+                peak = max(peak, rss_mb())
+    dt = time.perf_counter() - t0
+    print(f"   {count} frames ({count / dt:.0f} frames/s cold), peak RSS {peak:.0f} MB (< 1024)")
+
+
+def main() -> None:
+    """Parse options and run the three measurements."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=300)
+    parser.add_argument("--cog", type=Path, default=Path("/tmp/bench40k.tif"))
+    parser.add_argument("--skip-cog", action="store_true")
+    args = parser.parse_args()
+    print(f"RSS at start {rss_mb():.0f} MB")
+    one_core(args.frames)
+    threaded(args.frames * 2)
+    if not args.skip_cog:
+        big_cog(args.cog, args.frames)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,367 @@
+"""``air-sitl fly`` archives, end to end with real JSBSim, autopilot, map and camera.
+
+A short plan (air start, 300 frames) keeps each flight to a second or two. Covers: an
+independent minimal AIR reader written from SPEC section 1 only, determinism, SIGKILL at random
+moments followed by ``check`` and ``--resume``, a full disk and a read-only folder, bad input.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import pytest
+
+import air_sitl.dataset
+from air_sitl.cli import main
+from air_sitl.dataset.check import check_archive
+from air_sitl.frames import ned2geodetic
+from air_sitl.maps.open import open_map
+from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
+from air_sitl.mission.plan_file import write_plan
+from air_sitl.state import GeoPoint
+
+pytestmark = pytest.mark.integration
+
+HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
+LEG_M = 100.0  # capture leg: 100 m at 15 m/s, about 330 frames
+WALL_CLOCK = {"summary.json", "manifest.json"}
+
+
+def write_short_plan(path: Path, *, alt_m: float = 200.0, leg_m: float = LEG_M) -> Path:
+    """Take-off, waypoint, IMAGE_START, a leg east, IMAGE_STOP, one more waypoint."""
+
+    def wp(n: float, e: float) -> MissionItem:
+        lat, lon, _ = ned2geodetic(n, e, 0.0, HOME.lat_deg, HOME.lon_deg, 0.0)
+        return MissionItem(command=MavCmd.NAV_WAYPOINT, lat_deg=lat, lon_deg=lon, alt_m=alt_m)
+
+    items = (
+        MissionItem(
+            command=MavCmd.NAV_TAKEOFF,
+            param1=15.0,
+            lat_deg=HOME.lat_deg,
+            lon_deg=HOME.lon_deg,
+            alt_m=alt_m,
+        ),
+        wp(300.0, 0.0),
+        MissionItem(command=MavCmd.IMAGE_START_CAPTURE, frame=MavFrame.MISSION, param2=0.02),
+        wp(300.0, leg_m),
+        MissionItem(command=MavCmd.IMAGE_STOP_CAPTURE, frame=MavFrame.MISSION),
+        wp(300.0, leg_m + 60.0),
+    )
+    mission = Mission(items=items, planned_home=HOME, cruise_speed_m_s=15.0, name=path.stem)
+    write_plan(mission, path)
+    return path
+
+
+def fly_args(plan: Path, out: Path, *extra: str) -> list[str]:
+    return ["fly", str(plan), "--out", str(out), "--air-start", "--quiet", *extra]
+
+
+def data_files(folder: Path) -> dict[str, bytes]:
+    """Every file but the two that hold wall-clock figures (summary.json, and the manifest
+    through summary.json's hash)."""
+    return {
+        p.relative_to(folder).as_posix(): p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and p.name not in WALL_CLOCK
+    }
+
+
+def manifest_hashes(folder: Path) -> dict[str, str]:
+    files = dict(json.loads((folder / "manifest.json").read_text())["files"])
+    files.pop("summary.json")
+    return files
+
+
+@pytest.fixture(scope="module")
+def plan(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_short_plan(tmp_path_factory.mktemp("plan") / "UT-200.plan")
+
+
+@pytest.fixture(scope="module")
+def clean(plan: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("clean") / "a"
+    assert main(fly_args(plan, out)) == 0
+    return out
+
+
+# -- an independent minimal reader, written from SPEC section 1 only ---------------------------
+
+SPEC_HEADER = [
+    "Filename",
+    "Latitude",
+    "Longitude",
+    "RelativeAltitude",
+    "ImuX",
+    "ImuY",
+    "ImuZ",
+    "ImuW",
+    "PoseX",
+    "PoseY",
+    "PoseZ",
+    "OrientationX",
+    "OrientationY",
+    "OrientationZ",
+    "OrientationW",
+    "MapX",
+    "MapY",
+    "SvoX",
+    "SvoY",
+    "SvoZ",
+]
+
+
+def minimal_read(folder: Path) -> list[dict[str, Any]]:
+    """csv module, quotes stripped around Filename, MapX/MapY as int, everything else float."""
+    with (folder / "metadata.csv").open(newline="") as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == SPEC_HEADER
+    out: list[dict[str, Any]] = []
+    for fields in rows[1:]:
+        row: dict[str, Any] = {}
+        for name, value in zip(SPEC_HEADER, fields, strict=True):
+            if name == "Filename":
+                row[name] = value.strip('"')
+            elif name in ("MapX", "MapY"):
+                row[name] = int(value)
+            else:
+                row[name] = float(value)
+        out.append(row)
+    return out
+
+
+def _rotate_xyzw(q: tuple[float, float, float, float], v: np.ndarray) -> np.ndarray:
+    x, y, z, w = q
+    r = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    return r @ v
+
+
+def test_minimal_reader_counts_geometry_and_image_size(clean: Path) -> None:
+    rows = minimal_read(clean)
+    summary = json.loads((clean / "summary.json").read_text())
+    jpgs = sorted(clean.glob("*.jpg"))
+    assert len(rows) == summary["capture_frames"] == len(jpgs) > 250
+    assert summary["mission_completed"] is True
+    urban = open_map("urban", HOME, seed=0)
+    worst_pose = worst_map = 0.0
+    for row in rows[::7]:
+        # PoseX/PoseY (ENU, relative to home) against Latitude/Longitude.
+        lat, lon, _ = ned2geodetic(
+            float(row["PoseY"]),
+            float(row["PoseX"]),
+            -float(row["PoseZ"]),
+            HOME.lat_deg,
+            HOME.lon_deg,
+            HOME.alt_amsl_m,
+        )
+        north_err = (lat - row["Latitude"]) * 111_320.0
+        east_err = (lon - row["Longitude"]) * 111_320.0 * math.cos(math.radians(lat))
+        worst_pose = max(worst_pose, math.hypot(north_err, east_err))
+        # The image centre ray (camera looks along body down = FLU -z) meets the ground.
+        q = tuple(
+            float(row[k]) for k in ("OrientationX", "OrientationY", "OrientationZ", "OrientationW")
+        )
+        ray = _rotate_xyzw(q, np.array([0.0, 0.0, -1.0]))
+        pose = np.array([row["PoseX"], row["PoseY"], row["PoseZ"]])
+        ground = pose + ray * (pose[2] / -ray[2])
+        g_lat, g_lon, _ = ned2geodetic(
+            ground[1], ground[0], 0.0, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m
+        )
+        mx, my = urban.latlon_to_map_px(g_lat, g_lon)
+        worst_map = max(worst_map, math.hypot(mx - int(row["MapX"]), my - int(row["MapY"])))
+        image = cv2.imread(str(clean / str(row["Filename"])))
+        assert image is not None and image.shape == (480, 640, 3)
+    assert worst_pose < 0.5, worst_pose
+    assert worst_map < 2.0, worst_map
+
+
+def test_the_archive_passes_check_and_has_every_file(clean: Path) -> None:
+    assert main(["check", str(clean)]) == 0
+    names = {p.name for p in clean.iterdir()}
+    for name in (
+        "metadata.csv",
+        "frames.csv",
+        "imu.csv",
+        "camera.yaml",
+        "UT-200.plan",
+        "trajectory.csv",
+        "summary.json",
+        "manifest.json",
+    ):
+        assert name in names
+    manifest = json.loads((clean / "manifest.json").read_text())
+    assert manifest["complete"] is True and manifest["frame_count"] == len(minimal_read(clean))
+    assert manifest["map"]["kind"] == "urban" and manifest["flight"]["seed"] == 0
+    assert not any(n.endswith(".tmp") or n.startswith(".") for n in names)
+
+
+def test_same_seed_gives_identical_archives(plan: Path, clean: Path, tmp_path: Path) -> None:
+    out = tmp_path / "b"
+    assert main(fly_args(plan, out, "--render-workers", "1")) == 0
+    assert manifest_hashes(out) == manifest_hashes(clean)
+    assert data_files(out) == data_files(clean)
+
+
+def test_another_seed_gives_another_archive(plan: Path, clean: Path, tmp_path: Path) -> None:
+    out = tmp_path / "c"
+    assert main(fly_args(plan, out, "--seed", "7")) == 0
+    a, b = manifest_hashes(out), manifest_hashes(clean)
+    assert a["imu.csv"] != b["imu.csv"]
+    assert a["frame_000000.jpg"] != b["frame_000000.jpg"]  # camera noise follows the seed
+
+
+def _spawn_fly(plan: Path, out: Path, **kw: object) -> subprocess.Popen[bytes]:
+    cmd = [sys.executable, "-m", "air_sitl", *fly_args(plan, out)]
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)
+
+
+def _wait_for_first_frame(out: Path, proc: subprocess.Popen[bytes], timeout_s: float) -> None:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end and proc.poll() is None:
+        if (out / "frame_000000.jpg").exists():
+            return
+        time.sleep(0.005)
+
+
+def test_sigkill_at_random_moments_then_check_and_resume(
+    plan: Path, clean: Path, tmp_path: Path
+) -> None:
+    rng = np.random.default_rng(20261122)
+    delays = sorted(float(d) for d in rng.uniform(0.0, 1.2, size=3))
+    kept: list[int] = []
+    for k, delay in enumerate(delays):
+        out = tmp_path / f"k{k}"
+        proc = _spawn_fly(plan, out)
+        _wait_for_first_frame(out, proc, 60.0)
+        time.sleep(delay)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        with air_sitl.dataset.open(out) as archive:
+            report = check_archive(archive)
+        assert report.valid, f"killed after {delay:.3f} s:\n{report.text()}"
+        kept.append(report.frames)
+        assert main([*fly_args(plan, out), "--resume"]) == 0
+        assert manifest_hashes(out) == manifest_hashes(clean), f"killed after {delay:.3f} s"
+        assert data_files(out) == data_files(clean)
+    print("frames kept at each kill:", kept)
+    assert any(0 < n < len(minimal_read(clean)) for n in kept), kept
+
+
+def test_resume_of_a_complete_archive_does_nothing(plan: Path, clean: Path, tmp_path: Path) -> None:
+    out = tmp_path / "done"
+    shutil.copytree(clean, out)
+    before = data_files(out)
+    assert main([*fly_args(plan, out), "--resume"]) == 0
+    assert data_files(out) == before
+
+
+def test_resume_with_other_inputs_is_refused(
+    plan: Path, clean: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "partial"
+    shutil.copytree(clean, out)
+    (out / "manifest.json").unlink()
+    (out / ".air-sitl-recording.json").write_text('{"run_key": {"flight": {"seed": 99}}}')
+    assert main([*fly_args(plan, out), "--resume"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--resume with different inputs" in err
+
+
+def _limit_file_size() -> None:
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # writes past the limit fail with EFBIG
+    resource.setrlimit(resource.RLIMIT_FSIZE, (150_000, 150_000))
+
+
+def test_a_full_disk_stops_with_one_line_and_the_folder_resumes(
+    plan: Path, clean: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "full"
+    proc = _spawn_fly(plan, out, preexec_fn=_limit_file_size)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 2
+    lines = err.decode().strip().splitlines()
+    assert len(lines) == 1 and "cannot write: File too large" in lines[0], lines
+    with air_sitl.dataset.open(out) as archive:
+        report = check_archive(archive)
+    assert report.valid, report.text()
+    assert main([*fly_args(plan, out), "--resume"]) == 0
+    assert data_files(out) == data_files(clean)
+
+
+def _chattr(flag: str, path: Path) -> bool:
+    try:
+        result = subprocess.run(["chattr", flag, str(path)], capture_output=True, check=False)
+    except FileNotFoundError:
+        return False
+    return result.returncode == 0
+
+
+def test_a_folder_turning_read_only_stops_with_one_line_and_resumes(
+    plan: Path, clean: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "ro"
+    out.mkdir()
+    if os.geteuid() != 0 or not _chattr("+i", out):
+        pytest.skip("needs root and chattr to make a folder read-only for root")
+    _chattr("-i", out)
+    proc = _spawn_fly(plan, out)
+    try:
+        _wait_for_first_frame(out, proc, 60.0)
+        assert _chattr("+i", out)  # no new file can appear: the next image fails
+        _, err = proc.communicate(timeout=120)
+    finally:
+        _chattr("-i", out)
+    assert proc.returncode == 2
+    lines = err.decode().strip().splitlines()
+    assert len(lines) == 1 and "cannot write: Operation not permitted" in lines[0], lines
+    with air_sitl.dataset.open(out) as archive:
+        report = check_archive(archive)
+    assert report.valid, report.text()
+    assert main([*fly_args(plan, out), "--resume"]) == 0
+    assert data_files(out) == data_files(clean)
+
+
+@pytest.mark.parametrize(
+    ("argv", "expected"),
+    [
+        (["fly", "{missing}", "--out", "{tmp}/x"], "no_such.plan"),
+        (["fly", "{plan}", "--out", "{tmp}/nonempty"], "is not empty"),
+        (["fly", "{plan}", "--out", "{tmp}/y", "--render-workers", "many"], "--render-workers"),
+        (["fly", "{plan}", "--out", "{tmp}/z", "--map", "moon"], "--map"),
+        (["check", "{tmp}/nothing"], "no such archive"),
+        (["check", "{plan}"], "not a folder or a readable zip"),
+        (["export", "{tmp}/nothing", "--tum", "{tmp}/t.txt"], "no such archive"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(
+    plan: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    argv: list[str],
+    expected: str,
+) -> None:
+    (tmp_path / "nonempty").mkdir()
+    (tmp_path / "nonempty" / "f").write_text("x")
+    values = {"missing": str(tmp_path / "no_such.plan"), "tmp": str(tmp_path), "plan": str(plan)}
+    assert main([a.format(**values) for a in argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("air-sitl: error:") and "\n" not in err and expected in err, err
