@@ -30,6 +30,7 @@ from air_sitl.errors import DatasetError
 from air_sitl.options import FlightOptions
 
 if TYPE_CHECKING:
+    from air_sitl.bus.hookup import BusHookup
     from air_sitl.camera.model import CameraModel
     from air_sitl.dataset.writer import ArchiveInfo
     from air_sitl.maps.base import MapSource
@@ -62,6 +63,7 @@ class RecordingRequest:
     render_workers: int = 2
     resume: bool = False
     scenario: str | None = None  # default: the plan's name
+    bus: BusHookup | None = None  # zenoh bus and GNSS denial (air_sitl.bus.hookup)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -325,6 +327,8 @@ def record_flight(
                 map_source=map_source,
                 plan_sha256=_sha256_file(request.plan),
             )
+            if request.bus is not None:
+                info = request.bus.extend_archive_info(info)
             if resuming:
                 first_frame = _trim_for_resume(out, info.run_key)
             writer = DatasetWriter(out, info, first_frame=first_frame)
@@ -341,6 +345,15 @@ def record_flight(
         raise DatasetError(msg)
 
     try:
+        if request.bus is not None:
+            bus_sinks, camera_source = request.bus.attach(
+                home=home,
+                out=out,
+                camera=request.camera,
+                seed=options.seed,
+                frame_source=camera_source,
+            )
+            sinks.extend(bus_sinks)
         sinks.append(TrajectoryWriter(out / TRAJECTORY_CSV))
         if writer is not None:
             sinks.append(writer)
@@ -354,6 +367,8 @@ def record_flight(
             camera_source.close()
         raise
     flight.first_frame_to_render = first_frame
+    if request.bus is not None:
+        flight.sensors.gps_denied_ns = request.bus.gps_denied_ns
     if on_start is not None:
         on_start(mission, first_frame)
     result = flight.run(
@@ -363,6 +378,8 @@ def record_flight(
     )
     summary = dict(result.summary)
     summary["plan"] = str(request.plan)
+    if request.bus is not None:
+        summary.update(request.bus.after_flight())
     manifest = None
     if writer is not None:
         writer.raise_if_failed()
@@ -376,6 +393,8 @@ def record_flight(
         if first_frame:
             summary["resumed_from_frame"] = first_frame
         manifest = writer.finish(summary)
+        if request.bus is not None:
+            request.bus.after_archive(out)
     else:
         _write_json(out / SUMMARY_JSON, dict(sorted(summary.items())))
     return RecordingResult(

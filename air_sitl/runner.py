@@ -20,7 +20,7 @@ from air_sitl.fdm.base import FlightModel, InitialCondition
 from air_sitl.flightlog import FlightStats
 from air_sitl.frames import geodetic2ned
 from air_sitl.mission.items import MavCmd, Mission
-from air_sitl.options import FlightOptions
+from air_sitl.options import DEFAULT_AIRCRAFT, FlightOptions
 from air_sitl.sensors import SensorNoise, SensorSuite
 from air_sitl.sinks import FlightResult, FrameSource, Sink
 from air_sitl.state import GeoPoint, SimSample, VehicleState
@@ -185,8 +185,19 @@ def assemble_flight(
     from air_sitl.fdm.jsbsim_model import JSBSimModel
 
     home = home or home_of(mission)
+    gains = gains_for(options.aircraft)
+    # Our UAV's parameter defaults; other aircraft fly inside their own speed envelope.
+    params = ParamStore(
+        None
+        if options.aircraft == DEFAULT_AIRCRAFT
+        else {
+            "FW_AIRSPD_TRIM": gains.ref_airspeed_m_s,
+            "FW_AIRSPD_MIN": gains.min_airspeed_m_s,
+            "FW_AIRSPD_MAX": gains.max_airspeed_m_s,
+        }
+    )
     if options.air_start:
-        lat, lon, alt, heading, airspeed = air_start_pose(mission, home)
+        lat, lon, alt, heading, airspeed = air_start_pose(mission, home, params)
         initial = InitialCondition(
             lat_deg=lat,
             lon_deg=lon,
@@ -210,8 +221,8 @@ def assemble_flight(
     autopilot = Autopilot(
         mission,
         home,
-        ParamStore(),
-        Controller(gains_for(options.aircraft), trim=trim),
+        params,
+        Controller(gains, trim=trim),
         air_start=options.air_start,
         auto_start=auto_start,
     )

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from air_sitl.frames import euler2quat, ned2geodetic, quat_multiply, quat_normalize
-from air_sitl.state import GeoPoint, GpsFix, ImuSample, Vec3, VehicleState
+from air_sitl.frames import ned2geodetic, quat_multiply, quat_normalize
+from air_sitl.state import GeoPoint, GpsFix, ImuSample, VehicleState
 
 NS_PER_S = 1_000_000_000
 
@@ -54,23 +54,22 @@ class SensorNoise:
 
 
 class _Normals:
-    """Standard normal draws served one at a time from pre-drawn blocks (fast and seeded)."""
+    """Rows of standard normal draws served one at a time from pre-drawn blocks (fast, seeded)."""
 
-    __slots__ = ("_block", "_i", "_rng")
+    __slots__ = ("_block", "_i", "_rng", "_width")
 
-    def __init__(self, rng: np.random.Generator) -> None:
+    def __init__(self, rng: np.random.Generator, width: int) -> None:
         self._rng = rng
-        self._block: list[float] = []
+        self._width = width
+        self._block: list[list[float]] = []
         self._i = 0
 
-    def next3(self) -> Vec3:
-        if self._i + 3 > len(self._block):
-            self._block = self._rng.standard_normal(3 * 4096).tolist()
+    def row(self) -> list[float]:
+        if self._i >= len(self._block):
+            self._block = self._rng.standard_normal((2048, self._width)).tolist()
             self._i = 0
-        i = self._i
-        self._i = i + 3
-        b = self._block
-        return (b[i], b[i + 1], b[i + 2])
+        self._i += 1
+        return self._block[self._i - 1]
 
 
 class SensorSuite:
@@ -91,24 +90,18 @@ class SensorSuite:
         self.gps_period_ns = round(NS_PER_S / self.noise.gps_rate_hz)
         self.gps_denied_ns = gps_denied_ns
         root = np.random.SeedSequence([seed, 0x5E7502])
-        imu_seq, ahrs_seq, gps_seq = root.spawn(3)
-        self._imu = _Normals(np.random.default_rng(imu_seq))
-        self._ahrs = _Normals(np.random.default_rng(ahrs_seq))
-        self._gps = _Normals(np.random.default_rng(gps_seq))
+        bias_seq, step_seq, gps_seq = root.spawn(3)
         n = self.noise
-        b = self._imu.next3()
-        self._gyro_bias = [
-            b[0] * n.gyro_bias_rad_s,
-            b[1] * n.gyro_bias_rad_s,
-            b[2] * n.gyro_bias_rad_s,
-        ]
-        a = self._imu.next3()
-        self._accel_bias = (
-            a[0] * n.accel_bias_m_s2,
-            a[1] * n.accel_bias_m_s2,
-            a[2] * n.accel_bias_m_s2,
-        )
+        b = np.random.default_rng(bias_seq).standard_normal(6).tolist()
+        self._gyro_bias = [v * n.gyro_bias_rad_s for v in b[:3]]
+        self._accel_bias = [v * n.accel_bias_m_s2 for v in b[3:]]
+        # Per step: bias walk (3), gyro noise (3), accel noise (3), AHRS drift (3), jitter (3).
+        self._step_noise = _Normals(np.random.default_rng(step_seq), 15)
+        self._gps = _Normals(np.random.default_rng(gps_seq), 6)
         self._ahrs_drift = [0.0, 0.0, 0.0]
+        sqrt_dt = math.sqrt(self.step_s)
+        self._walk_scale = n.gyro_bias_walk_rad_s_sqrt_s * sqrt_dt
+        self._drift_scale = n.ahrs_drift_rad_sqrt_s * sqrt_dt
 
     def gps_denied(self, sim_time_ns: int) -> bool:
         """True inside any GNSS denial window [start, end)."""
@@ -117,36 +110,33 @@ class SensorSuite:
     def sample(self, state: VehicleState) -> tuple[ImuSample, GpsFix | None]:
         """Sensor readings for one physics step (call once per step, in order)."""
         n = self.noise
-        sqrt_dt = math.sqrt(self.step_s)
-        walk = self._imu.next3()
-        for k in range(3):
-            self._gyro_bias[k] += walk[k] * n.gyro_bias_walk_rad_s_sqrt_s * sqrt_dt
-        gn = self._imu.next3()
-        an = self._imu.next3()
+        z = self._step_noise.row()
+        gb = self._gyro_bias
+        walk = self._walk_scale
+        gb[0] += z[0] * walk
+        gb[1] += z[1] * walk
+        gb[2] += z[2] * walk
+        ab = self._accel_bias
+        gs = n.gyro_noise_rad_s
+        acs = n.accel_noise_m_s2
         p, q, r = state.rate_frd_rad_s
         fx, fy, fz = state.specific_force_frd_m_s2
-        gb = self._gyro_bias
-        ab = self._accel_bias
-        gyro = (
-            p + gb[0] + gn[0] * n.gyro_noise_rad_s,
-            q + gb[1] + gn[1] * n.gyro_noise_rad_s,
-            r + gb[2] + gn[2] * n.gyro_noise_rad_s,
-        )
-        accel = (
-            fx + ab[0] + an[0] * n.accel_noise_m_s2,
-            fy + ab[1] + an[1] * n.accel_noise_m_s2,
-            fz + ab[2] + an[2] * n.accel_noise_m_s2,
-        )
-        dn = self._ahrs.next3()
-        jn = self._ahrs.next3()
+        gyro = (p + gb[0] + z[3] * gs, q + gb[1] + z[4] * gs, r + gb[2] + z[5] * gs)
+        accel = (fx + ab[0] + z[6] * acs, fy + ab[1] + z[7] * acs, fz + ab[2] + z[8] * acs)
+        # AHRS: truth rotated by a small error (bounded random-walk drift + white jitter).
         lim = n.ahrs_drift_limit_rad
-        for k in range(3):
-            d = self._ahrs_drift[k] + dn[k] * n.ahrs_drift_rad_sqrt_s * sqrt_dt
-            self._ahrs_drift[k] = max(-lim, min(lim, d))
-        err = euler2quat(
-            self._ahrs_drift[0] + jn[0] * n.ahrs_noise_rad,
-            self._ahrs_drift[1] + jn[1] * n.ahrs_noise_rad,
-            self._ahrs_drift[2] + jn[2] * n.ahrs_noise_rad,
+        d = self._ahrs_drift
+        ds = self._drift_scale
+        d[0] = max(-lim, min(lim, d[0] + z[9] * ds))
+        d[1] = max(-lim, min(lim, d[1] + z[10] * ds))
+        d[2] = max(-lim, min(lim, d[2] + z[11] * ds))
+        js = n.ahrs_noise_rad
+        half = 0.5
+        err = (
+            1.0,
+            (d[0] + z[12] * js) * half,
+            (d[1] + z[13] * js) * half,
+            (d[2] + z[14] * js) * half,
         )
         q_ahrs = quat_normalize(quat_multiply(state.q_body_to_ned_wxyz, err))
         imu = ImuSample(
@@ -158,19 +148,18 @@ class SensorSuite:
         gps = None
         if state.sim_time_ns % self.gps_period_ns == 0:
             # Draw even while denied so denial windows do not shift later noise.
-            pn = self._gps.next3()
-            vn = self._gps.next3()
+            g = self._gps.row()
             if not self.gps_denied(state.sim_time_ns):
-                gps = self._fix(state, pn, vn)
+                gps = self._fix(state, g)
         return imu, gps
 
-    def _fix(self, state: VehicleState, pn: Vec3, vn: Vec3) -> GpsFix:
+    def _fix(self, state: VehicleState, g: list[float]) -> GpsFix:
         n = self.noise
         north, east, down = state.pos_ned_m
         lat, lon, alt = ned2geodetic(
-            north + pn[0] * n.gps_horizontal_m,
-            east + pn[1] * n.gps_horizontal_m,
-            down + pn[2] * n.gps_vertical_m,
+            north + g[0] * n.gps_horizontal_m,
+            east + g[1] * n.gps_horizontal_m,
+            down + g[2] * n.gps_vertical_m,
             self.home.lat_deg,
             self.home.lon_deg,
             self.home.alt_amsl_m,
@@ -182,9 +171,9 @@ class SensorSuite:
             lon_deg=lon,
             alt_amsl_m=alt,
             vel_ned_m_s=(
-                v[0] + vn[0] * n.gps_velocity_m_s,
-                v[1] + vn[1] * n.gps_velocity_m_s,
-                v[2] + vn[2] * n.gps_velocity_m_s,
+                v[0] + g[3] * n.gps_velocity_m_s,
+                v[1] + g[4] * n.gps_velocity_m_s,
+                v[2] + g[5] * n.gps_velocity_m_s,
             ),
             fix_type=3,
             satellites=14,

@@ -1,4 +1,4 @@
-"""Command-line options of the bus (fly, serve, the bridges) and of GNSS denial: parsed here once."""
+"""Command-line options of the bus (fly, serve, bridges) and of GNSS denial: parsed here once."""
 
 from __future__ import annotations
 
@@ -17,14 +17,17 @@ DEFAULT_WAIT_TIMEOUT_S = 10.0
 
 
 def add_connection_arguments(parser: argparse.ArgumentParser, *, serves: bool) -> None:
-    """``--zenoh-listen``, ``--zenoh-connect``, ``--zenoh-config``, ``--zenoh-mode``, ``--vehicle``."""
+    """``--zenoh-listen``, ``--zenoh-connect``, ``--zenoh-config``, ``--zenoh-mode``, ``--vehicle``.
+
+    ``serves``: the program listens by default (a simulator), else it connects.
+    """
     g = parser.add_argument_group("zenoh connection")
-    default = "listen on" if serves else "connect to"
+    default = DEFAULT_ENDPOINT if serves else f"none, connect to {DEFAULT_ENDPOINT}"
     g.add_argument(
         "--zenoh-listen",
         action="append",
         metavar="ENDPOINT",
-        help=f"listen on this zenoh endpoint, repeatable (default: {default} {DEFAULT_ENDPOINT})",
+        help=f"listen on this zenoh endpoint, repeatable (default: {default})",
     )
     g.add_argument(
         "--zenoh-connect",

@@ -106,7 +106,7 @@ def decode_state(m: dict[str, Any], what: str = "truth") -> VehicleState:
 
 
 def encode_truth(state: VehicleState, frame: int | None) -> bytes:
-    """``truth``: the full VehicleState; ``frame`` is the capture index at camera ticks, else null."""
+    """``truth``: the full VehicleState; ``frame``: the capture index at camera ticks, else null."""
     return dumps({**encode_state(state), "frame": frame})
 
 
@@ -231,7 +231,8 @@ def decode_frame_meta(attachment: bytes | None) -> FrameMeta:
 class Estimate:
     """One position estimate received from ``estimate/<name>``.
 
-    At least one of ``frame`` / ``sim_time_ns`` and one of ``enu_m`` / ``geo`` is set.
+    At least one of ``frame`` / ``sim_time_ns`` is set. No position (or ``null`` coordinates)
+    is an answer saying "no estimate for this frame": it still counts in lockstep.
     """
 
     frame: int | None
@@ -277,7 +278,7 @@ def decode_estimate(payload: bytes, what: str) -> Estimate:
         if frame is None and t is None:
             msg = f"{what}: needs 'frame' or 'sim_time_ns'"
             raise BusError(msg)
-        enu = None if m.get("enu_m") is None else _vec3(m["enu_m"])
+        enu = None if m.get("enu_m") is None else _vec3_or_nan(m["enu_m"])
         geo = None
         if m.get("lat_deg") is not None:
             geo = GeoPoint(
@@ -288,9 +289,6 @@ def decode_estimate(payload: bytes, what: str) -> Estimate:
             if not (-90.0 <= geo.lat_deg <= 90.0 and -180.0 <= geo.lon_deg <= 180.0):
                 msg = f"{what}: lat/lon {geo.lat_deg}, {geo.lon_deg} out of range"
                 raise BusError(msg)
-        if enu is None and geo is None:
-            msg = f"{what}: needs 'enu_m' [e, n, u] or 'lat_deg'/'lon_deg'/'alt_amsl_m'"
-            raise BusError(msg)
         q = None if m.get("q_body_to_ned_wxyz") is None else _quat(m["q_body_to_ned_wxyz"])
         cov = None
         if m.get("cov_enu_m2") is not None:
@@ -302,14 +300,21 @@ def decode_estimate(payload: bytes, what: str) -> Estimate:
         msg = f"{what}: bad estimate ({err!r})"
         raise BusError(msg) from None
     for x in (*(enu or ()), *(q or ())):
-        if not math.isfinite(x):
+        if math.isinf(x):
             msg = f"{what}: non-finite number in the estimate"
             raise BusError(msg)
-    return Estimate(frame=frame, sim_time_ns=t, enu_m=enu, geo=geo, q_body_to_ned_wxyz=q, cov_enu_m2=cov)
+    return Estimate(
+        frame=frame, sim_time_ns=t, enu_m=enu, geo=geo, q_body_to_ned_wxyz=q, cov_enu_m2=cov
+    )
 
 
 def _vec3(value: Any) -> Vec3:
     x, y, z = (float(v) for v in value)
+    return (x, y, z)
+
+
+def _vec3_or_nan(value: Any) -> Vec3:
+    x, y, z = (math.nan if v is None else float(v) for v in value)
     return (x, y, z)
 
 

@@ -95,9 +95,11 @@ class EstimateLog:
                 "" if t is None else str(t),
                 "" if frame is None else str(frame),
                 *(_num(c, 4) for c in enu),
-                *(("", "", "") if geo is None else (
-                    f"{geo.lat_deg:.9f}", f"{geo.lon_deg:.9f}", f"{geo.alt_amsl_m:.4f}"
-                )),
+                *(
+                    ("", "", "")
+                    if geo is None
+                    else (f"{geo.lat_deg:.9f}", f"{geo.lon_deg:.9f}", f"{geo.alt_amsl_m:.4f}")
+                ),
                 *(("", "", "", "") if q is None else tuple(f"{c:.8f}" for c in q)),
                 latency_ms,
                 latency_frames,
@@ -131,8 +133,7 @@ class EstimateLog:
             )
             return enu, est.geo or GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
         geo = est.geo
-        assert geo is not None  # decode_estimate guarantees a position
-        if home is None:
+        if geo is None or home is None:
             return (nan, nan, nan), geo
         n, e, d = geodetic2ned(
             geo.lat_deg, geo.lon_deg, geo.alt_amsl_m, home.lat_deg, home.lon_deg, home.alt_amsl_m

@@ -11,6 +11,7 @@ session closes whatever happens.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from dataclasses import dataclass, field
@@ -27,6 +28,7 @@ if TYPE_CHECKING:
     from air_sitl.bus.publisher import BusPublisher
     from air_sitl.bus.session import Bus
     from air_sitl.camera.model import CameraModel
+    from air_sitl.dataset.writer import ArchiveInfo
     from air_sitl.sinks import FrameSource, Sink
     from air_sitl.state import GeoPoint
 
@@ -57,11 +59,25 @@ class BusHookup:
     ) -> None:
         self.close()
 
+    @property
+    def needs_camera(self) -> bool:
+        """True when the bus wants camera frames (publishing them, or the remote camera)."""
+        return self.options is not None and (self.options.publish or self.options.remote_camera)
+
     def manifest_extra(self) -> dict[str, Any]:
         """What the archive manifest should record: the GNSS denial windows (if any)."""
         if not self.gps_denied_ns:
             return {}
         return {"gps_denied": gps_denial_record(self.gps_denied_ns)}
+
+    def extend_archive_info(self, info: ArchiveInfo) -> ArchiveInfo:
+        """The archive's manifest (and resume key) with the GNSS denial windows added."""
+        extra = self.manifest_extra()
+        if not extra:
+            return info
+        return dataclasses.replace(
+            info, manifest={**info.manifest, **extra}, run_key={**info.run_key, **extra}
+        )
 
     def attach(
         self,
@@ -72,9 +88,10 @@ class BusHookup:
         seed: int,
         frame_source: FrameSource | None,
     ) -> tuple[list[Sink], FrameSource | None]:
-        """Sinks to add to the flight, and the FrameSource to fly with instead of ``frame_source``."""
+        """Sinks to add to the flight, and the FrameSource to use instead of ``frame_source``."""
         self.out = out
-        if out is not None and self.gps_denied_ns:
+        if out is not None and camera is None and self.gps_denied_ns:
+            # Without a camera there is no manifest: the windows get a file of their own.
             (out / GPS_DENIAL_JSON).write_text(
                 json.dumps(gps_denial_record(self.gps_denied_ns), indent=2) + "\n",
                 encoding="utf-8",

@@ -12,8 +12,8 @@ import time
 from dataclasses import dataclass
 
 from air_sitl.bus import codec
-from air_sitl.bus.keys import KeySpace
-from air_sitl.bus.session import Bus, QueryAnswer, QueryRequest
+from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace
+from air_sitl.bus.session import Bus, Publisher, QueryAnswer, QueryRequest
 from air_sitl.clock import CAMERA_PERIOD_NS, CAMERA_RATE_HZ, NS_PER_S
 from air_sitl.sinks import FlightResult, NullSink
 from air_sitl.state import AutopilotStatus, CameraFrame, GeoPoint, SimSample
@@ -23,7 +23,7 @@ from air_sitl.state import AutopilotStatus, CameraFrame, GeoPoint, SimSample
 class PublishOptions:
     """What to publish, and how often."""
 
-    keys: KeySpace = KeySpace()
+    keys: KeySpace = KeySpace(DEFAULT_VEHICLE)  # noqa: RUF009 (frozen, so shared safely)
     publish_truth: bool = False
     imu_rate_hz: float = 200.0  # physics rate by default; decimated to a divisor of it
     home: GeoPoint | None = None  # sent in mission/status so clients can use ENU
@@ -76,7 +76,9 @@ class FrameLedger:
 class BusPublisher(NullSink):
     """A :class:`~air_sitl.sinks.Sink` that puts the simulation on the bus."""
 
-    def __init__(self, bus: Bus, options: PublishOptions, ledger: FrameLedger | None = None) -> None:
+    def __init__(
+        self, bus: Bus, options: PublishOptions, ledger: FrameLedger | None = None
+    ) -> None:
         self.bus = bus
         self.options = options
         self.ledger = ledger or FrameLedger()
@@ -96,6 +98,14 @@ class BusPublisher(NullSink):
             self._info = codec.encode_camera_info(options.camera_info)
             self._info_pub.put(self._info)
         bus.queryable(k.info, self._answer_info)
+        # Latest value of each small topic, answered to queries (late joiners start from it).
+        self._latest: dict[str, bytes] = {}
+        self._latest_lock = threading.Lock()
+        latest_keys = [k.imu, k.gps, k.clock, k.mission_status]
+        if options.publish_truth:
+            latest_keys.append(k.truth)
+        for key in latest_keys:
+            bus.queryable(key, self._answer_latest)
         self._imu_every = max(1, round(200.0 / max(options.imu_rate_hz, 1e-9)))
         self._step = 0
         self._capture_ticks = 0
@@ -117,19 +127,37 @@ class BusPublisher(NullSink):
             raise BusError(msg)
         return QueryAnswer(info, encoding=codec.JSON_ENCODING)
 
+    def _answer_latest(self, request: QueryRequest) -> QueryAnswer:
+        with self._latest_lock:
+            payload = self._latest.get(request.key)
+        if payload is None:
+            from air_sitl.errors import BusError
+
+            msg = f"{request.key}: nothing published yet"
+            raise BusError(msg)
+        return QueryAnswer(payload, encoding=codec.JSON_ENCODING)
+
+    def _put(self, publisher: Publisher, key: str, payload: bytes) -> None:
+        publisher.put(payload)
+        with self._latest_lock:
+            self._latest[key] = payload
+
     def on_sample(self, sample: SimSample) -> None:
         """Clock and IMU every step (IMU decimated), GNSS when fresh, status on change, truth."""
+        k = self.options.keys
         t = sample.state.sim_time_ns
-        self._clock.put(codec.encode_clock(t))
+        self._put(self._clock, k.clock, codec.encode_clock(t))
         if self._step % self._imu_every == 0:
-            self._imu.put(codec.encode_imu(sample.imu))
+            self._put(self._imu, k.imu, codec.encode_imu(sample.imu))
         self._step += 1
         if sample.gps is not None:
-            self._gps.put(codec.encode_gps(sample.gps))
+            self._put(self._gps, k.gps, codec.encode_gps(sample.gps))
         status = sample.autopilot
         key = _status_key(status)
         if key != self._last_status or t - self._last_status_ns >= NS_PER_S:
-            self._status.put(codec.encode_status(t, status, self.options.home))
+            self._put(
+                self._status, k.mission_status, codec.encode_status(t, status, self.options.home)
+            )
             self._last_status = key
             self._last_status_ns = t
         frame: int | None = None
@@ -138,7 +166,7 @@ class BusPublisher(NullSink):
             frame = self._capture_ticks
             self._capture_ticks += 1
         if self._truth is not None:
-            self._truth.put(codec.encode_truth(sample.state, frame))
+            self._put(self._truth, k.truth, codec.encode_truth(sample.state, frame))
 
     def on_frame(self, frame: CameraFrame) -> None:
         """Publish the frame unless the lockstep source already did."""

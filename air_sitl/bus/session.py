@@ -109,11 +109,11 @@ class Publisher:
     @property
     def matched(self) -> bool:
         """True when at least one subscriber matches this key."""
-        return bool(self._pub.matching_status.matching)
+        return bool(self._pub.matching_status)
 
     def close(self) -> None:
         """Undeclare."""
-        self._pub.undeclare()
+        self._pub.undeclare()  # type: ignore[no-untyped-call]
 
 
 @dataclass(frozen=True, slots=True)
@@ -220,9 +220,10 @@ class Bus:
                 encoding=answer.encoding,
             )
 
-        q = self._session.declare_queryable(
-            key, zenoh.handlers.Callback(lambda query: self._guard(on_query, query))
-        )
+        def guarded(query: zenoh.Query) -> None:
+            self._guard(on_query, query)
+
+        q = self._session.declare_queryable(key, zenoh.handlers.Callback(guarded))
         with self._lock:
             self._handles.append(q)
 
@@ -253,7 +254,11 @@ class Bus:
                 on_answer(message, None)
             else:
                 err = reply.err
-                text = "error reply" if err is None else err.payload.to_bytes().decode(errors="replace")
+                text = (
+                    "error reply"
+                    if err is None
+                    else err.payload.to_bytes().decode(errors="replace")
+                )
                 on_answer(None, text)
 
         def on_end() -> None:
@@ -261,11 +266,15 @@ class Bus:
                 done.set()
                 on_answer(None, f"no answer within {timeout_s:g} s")
 
+        def guarded_reply(reply: zenoh.Reply) -> None:
+            self._guard(on_reply, reply)
+
+        def guarded_end() -> None:
+            self._guard(on_end)
+
         self._session.get(
             key,
-            zenoh.handlers.Callback(
-                lambda r: self._guard(on_reply, r), lambda: self._guard(on_end)
-            ),
+            zenoh.handlers.Callback(guarded_reply, guarded_end),
             payload=payload,
             attachment=attachment,
             timeout=timeout_s,
@@ -274,7 +283,12 @@ class Bus:
         )
 
     def query(
-        self, key: str, payload: bytes = b"", *, attachment: bytes | None = None, timeout_s: float = 5.0
+        self,
+        key: str,
+        payload: bytes = b"",
+        *,
+        attachment: bytes | None = None,
+        timeout_s: float = 5.0,
     ) -> Message:
         """Blocking query for one answer; BusError on an error reply or a timeout."""
         box: list[tuple[Message | None, str | None]] = []
@@ -312,7 +326,7 @@ class Bus:
         for h in handles:
             with contextlib.suppress(Exception):
                 h.undeclare()
-        self._session.close()
+        self._session.close()  # type: ignore[no-untyped-call]
 
 
 def open_bus(cfg: BusConfig) -> Bus:

@@ -11,6 +11,7 @@ A frame is a pure function of (map, camera, state, frame index, seed).
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 from typing import cast
 
@@ -20,7 +21,7 @@ import numpy.typing as npt
 
 from air_sitl.camera.model import CameraModel
 from air_sitl.frames import ned2geodetic
-from air_sitl.maps.base import FILL_BGRX, MapSource
+from air_sitl.maps.base import FILL_BGRX, TILE_PX, MapSource
 from air_sitl.maps.procedural.noise import key_of
 from air_sitl.state import CameraFrame, SimSample, VehicleState
 
@@ -53,16 +54,19 @@ class Renderer:
         self.seed = seed
         self._k_inv = np.linalg.inv(camera.intrinsics())
         self._r_c2b = camera.r_cam_to_body()
-        self._noise_bank: npt.NDArray[np.int16] | None = None
+        # Noise: a pre-drawn bank split into its positive and negative parts (uint8), so a
+        # frame costs two saturating adds (clip(img + n) exactly, as only one part is non-zero
+        # per element). A frame takes a contiguous slice at an offset drawn from
+        # (seed, frame index): deterministic, and different from frame to frame.
+        self._noise_pos: Image | None = None
+        self._noise_neg: Image | None = None
+        self._local = threading.local()
         if camera.noise_sigma > 0:
             rng = np.random.default_rng(key_of(seed, 0x4E01))
-            shape = (
-                camera.height_px * _NOISE_BANK_FACTOR,
-                camera.width_px * _NOISE_BANK_FACTOR,
-                3,
-            )
-            bank = np.rint(rng.standard_normal(shape, dtype=np.float32) * camera.noise_sigma)
-            self._noise_bank = bank.astype(np.int16)
+            n = camera.height_px * camera.width_px * 3 * _NOISE_BANK_FACTOR
+            bank = np.rint(rng.standard_normal(n, dtype=np.float32) * camera.noise_sigma)
+            self._noise_pos = np.clip(bank, 0, 255).astype(np.uint8)
+            self._noise_neg = np.clip(-bank, 0, 255).astype(np.uint8)
 
     # -- geometry -----------------------------------------------------------------------------
     def ground_affine(self, lat_deg: float, lon_deg: float) -> Mat3:
@@ -110,10 +114,10 @@ class Renderer:
         return self.geometry(state).center_map_px
 
     # -- pixels -------------------------------------------------------------------------------
-    def render(self, state: VehicleState) -> Image:
-        """The noiseless BGR image seen from ``state``."""
+    def render(self, state: VehicleState, geometry: FrameGeometry | None = None) -> Image:
+        """The noiseless BGR image seen from ``state`` (``geometry`` if already computed)."""
         cam = self.camera
-        g = self.geometry(state)
+        g = geometry if geometry is not None else self.geometry(state)
         out_shape = (cam.height_px, cam.width_px, 3)
         if g.height_m <= 0:
             out = np.empty(out_shape, dtype=np.uint8)
@@ -124,7 +128,7 @@ class Renderer:
         to_level = np.array([[1.0 / s, 0.0, -off / s], [0.0, 1.0 / s, -off / s], [0, 0, 1.0]])
         h_lvl = to_level @ g.h_img_to_map0
         x0, y0, x1, y1 = self._footprint(h_lvl, g)
-        mosaic = self.map.read_level(g.level, x0, y0, x1 - x0 + 1, y1 - y0 + 1)
+        mosaic, x0, y0 = self._mosaic(g.level, x0, y0, x1, y1)
         shift = np.array([[1.0, 0.0, -x0], [0.0, 1.0, -y0], [0.0, 0.0, 1.0]])
         warped = cv2.warpPerspective(
             mosaic,
@@ -143,6 +147,24 @@ class Renderer:
             sky = down_row[0] * u + down_row[1] * v + down_row[2] <= _MIN_DOWN
             img[sky] = FILL_BGR
         return img
+
+    def _mosaic(self, level: int, x0: int, y0: int, x1: int, y1: int) -> tuple[Image, int, int]:
+        """Map pixels covering [x0, x1] x [y0, y1] of a level, snapped out to whole tiles.
+
+        The snapped area depends on this frame alone (so the warp, and the bytes, do not
+        depend on which thread rendered what before); each thread keeps its last area, and
+        consecutive frames of a flight mostly fall in the same one and skip the tile copy.
+        """
+        t = TILE_PX
+        ax0, ay0 = (x0 // t) * t, (y0 // t) * t
+        ax1, ay1 = -(-(x1 + 1) // t) * t, -(-(y1 + 1) // t) * t
+        key = (level, ax0, ay0, ax1, ay1)
+        last = getattr(self._local, "mosaic", None)
+        if last is not None and last[0] == key:
+            return last[1], ax0, ay0
+        img = self.map.read_level(level, ax0, ay0, ax1 - ax0, ay1 - ay0)
+        self._local.mosaic = (key, img)
+        return img, ax0, ay0
 
     def _footprint(self, h_lvl: Mat3, g: FrameGeometry) -> tuple[int, int, int, int]:
         """Bounding box (inclusive, level pixels, 1 px margin) of the image on the map."""
@@ -185,14 +207,15 @@ class Renderer:
 
     def add_noise(self, img: Image, index: int) -> Image:
         """Gaussian noise of the camera's sigma, the same for the same (seed, frame index)."""
-        if self._noise_bank is None:
+        if self._noise_pos is None or self._noise_neg is None:
             return img
-        cam = self.camera
+        size = img.size
         rng = np.random.default_rng(key_of(self.seed, 0x4E02, index))
-        oy = int(rng.integers(0, self._noise_bank.shape[0] - cam.height_px + 1))
-        ox = int(rng.integers(0, self._noise_bank.shape[1] - cam.width_px + 1))
-        patch = self._noise_bank[oy : oy + cam.height_px, ox : ox + cam.width_px]
-        out = cast(Image, cv2.add(img, patch, dtype=cv2.CV_8U))
+        offset = int(rng.integers(0, self._noise_pos.size - size + 1))
+        pos = self._noise_pos[offset : offset + size].reshape(img.shape)
+        neg = self._noise_neg[offset : offset + size].reshape(img.shape)
+        out = cast(Image, cv2.add(img, pos))
+        cv2.subtract(out, neg, dst=out)
         return out
 
     def encode(self, img: Image) -> bytes:
@@ -205,8 +228,9 @@ class Renderer:
 
     def frame_jpeg(self, state: VehicleState, index: int) -> tuple[bytes, tuple[int, int]]:
         """Render, add noise, encode: (jpeg, MapX/MapY rounded; (-1, -1) without ground)."""
-        img = self.add_noise(self.render(state), index)
-        c = self.map_xy_px(state)
+        g = self.geometry(state)
+        img = self.add_noise(self.render(state, g), index)
+        c = g.center_map_px
         xy = (-1, -1) if c is None else (round(c[0]), round(c[1]))
         return self.encode(img), xy
 

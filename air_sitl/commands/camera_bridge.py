@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
 def _renderer(
     spec: str, map_seed: int, map_date: str | None, settings: RenderSettings, closers: list[object]
 ) -> RenderFn:
-    """A render function for one (home, camera, seed): the same Renderer the in-process camera uses."""
+    """A render function for one (home, camera, seed): the in-process camera's Renderer."""
     from air_sitl.bus.remote_camera import RenderedFrame
     from air_sitl.camera.model import CameraModel
     from air_sitl.camera.render import Renderer

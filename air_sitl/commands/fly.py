@@ -9,6 +9,7 @@ With the camera (default) DIR becomes an AIR archive: JPEG frames of the capture
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -21,6 +22,7 @@ HELP = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``fly``."""
+    from air_sitl.bus.args import add_bus_arguments
     from air_sitl.camera.options import add_camera_arguments, add_map_arguments
     from air_sitl.options import add_flight_arguments
 
@@ -49,6 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_flight_arguments(parser, default_speed=0.0)
     add_map_arguments(parser)
     add_camera_arguments(parser)
+    add_bus_arguments(parser)
 
 
 def prepare_out_dir(path: Path) -> Path:
@@ -80,6 +83,7 @@ def _workers(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Fly the plan; exit 0 when the mission completed, 1 when it did not."""
+    from air_sitl.bus.hookup import bus_sinks_from_args
     from air_sitl.camera.options import camera_from_args
     from air_sitl.mission.plan_file import load_mission
     from air_sitl.options import flight_options_from_args
@@ -102,6 +106,7 @@ def run(args: argparse.Namespace) -> int:
         map=MapChoice(spec=args.map, seed=args.map_seed, date=args.map_date),
         render_workers=workers,
         resume=bool(args.resume),
+        bus=bus_sinks_from_args(args),
     )
     show = not args.quiet and sys.stderr.isatty()
     bars: list[ProgressBar] = []
@@ -116,7 +121,8 @@ def run(args: argparse.Namespace) -> int:
         if bars:
             bars[0].update(sample, flight)
 
-    result = record_flight(request, progress=progress, on_start=on_start)
+    with request.bus or contextlib.nullcontext():
+        result = record_flight(request, progress=progress, on_start=on_start)
     if bars:
         bars[0].finish()
     if result.already_complete:

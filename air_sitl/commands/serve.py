@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from air_sitl.dataset.writer import DatasetWriter
     from air_sitl.options import FlightOptions
     from air_sitl.runner import Flight, InboxItem
-    from air_sitl.sinks import FlightResult, Sink
+    from air_sitl.sinks import FlightResult, FrameSource, Sink
     from air_sitl.state import CameraFrame, GeoPoint, SimSample
 
 HELP = "run a PX4-like MAVLink vehicle that ground stations connect to, upload missions to and fly"
@@ -35,6 +35,7 @@ FOREVER_NS = 2**62
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``serve``."""
+    from air_sitl.bus.args import add_bus_arguments
     from air_sitl.camera.options import add_camera_arguments, add_map_arguments
     from air_sitl.options import add_flight_arguments
 
@@ -61,6 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_flight_arguments(parser, default_speed=1.0)
     add_map_arguments(parser)
     add_camera_arguments(parser)
+    add_bus_arguments(parser)
 
 
 def parse_home(text: str) -> GeoPoint:
@@ -82,6 +84,7 @@ def parse_home(text: str) -> GeoPoint:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until interrupted; exit 0 on SIGINT/SIGTERM."""
+    from air_sitl.bus.hookup import bus_sinks_from_args
     from air_sitl.errors import OptionError
     from air_sitl.mavlink.codec import load_signing_key
     from air_sitl.mavlink.links import DEFAULT_LINKS, parse_link
@@ -127,22 +130,42 @@ def run(args: argparse.Namespace) -> int:
     endpoint = VehicleEndpoint(
         specs, home=home, mission=mission, post=post, options=EndpointOptions(signing_key=key)
     )
+    hookup = bus_sinks_from_args(args)
     addresses = endpoint.open()
     try:
         sinks: list[Sink] = [endpoint.sink]
-        camera = None
+        camera: FrameSource | None = None
         recorder = None
         if args.out:
             from air_sitl.camera.options import camera_bridge_from_args, camera_from_args
 
             camera = camera_bridge_from_args(args, home, mission.name, seed=options.seed)
             recorder = CaptureRecorder(
-                Path(args.out), camera_from_args(args), home, _manifest(args, options, home)
+                Path(args.out),
+                camera_from_args(args),
+                home,
+                _manifest(args, options, home) | hookup.manifest_extra(),
             )
             sinks.append(recorder)
+        if camera is None and hookup.needs_camera:
+            from air_sitl.camera.options import camera_bridge_from_args
+
+            camera = camera_bridge_from_args(args, home, mission.name, seed=options.seed)
+        if hookup.options is not None or hookup.gps_denied_ns:
+            from air_sitl.camera.options import camera_from_args
+
+            bus_sinks, camera = hookup.attach(
+                home=home,
+                out=Path(args.out) if args.out else None,
+                camera=camera_from_args(args) if camera is not None else None,
+                seed=options.seed,
+                frame_source=camera,
+            )
+            sinks.extend(bus_sinks)
         flight, home, _initial = assemble_flight(
             mission, options, sinks=sinks, camera=camera, home=home, auto_start=False
         )
+        flight.sensors.gps_denied_ns = hookup.gps_denied_ns
         endpoint.attach(flight.autopilot, flight.autopilot.params)
         if recorder is not None:
             recorder.autopilot = flight.autopilot
@@ -174,6 +197,7 @@ def run(args: argparse.Namespace) -> int:
                 signal.signal(s, handler)
     finally:
         endpoint.close()
+        hookup.close()
     if not args.quiet:
         c = endpoint.counters
         print(

@@ -19,6 +19,8 @@ import numpy as np
 from air_sitl.clock import CAMERA_PERIOD_NS
 from air_sitl.dataset.air_schema import (
     FRAMES_CSV,
+    IMU_COLUMNS,
+    IMU_CSV,
     MANIFEST_JSON,
     TMP_SUFFIX,
     frame_index_of,
@@ -225,6 +227,48 @@ def _check_frames_csv(
             pass
 
 
+def _check_imu(
+    archive: Archive, report: CheckReport, problems: _Problems, unfinished: bool
+) -> None:
+    """``imu.csv``: its header, and one row per physics step with increasing timestamps."""
+    if not archive.exists(IMU_CSV):
+        if not unfinished:
+            problems.add("imu", f"{IMU_CSV}: missing")
+        return
+    text = archive.read_bytes(IMU_CSV).decode("ascii", errors="replace")
+    lines = text.split("\n")
+    if lines[0].split(",") != list(IMU_COLUMNS):
+        problems.add("imu", f"{IMU_CSV}: header is not {','.join(IMU_COLUMNS)}")
+        return
+    if lines[-1]:
+        if unfinished:
+            report.notes.append(f"{IMU_CSV}: torn last line (interrupted write)")
+        else:
+            problems.add("imu", f"{IMU_CSV}: the last line has no newline")
+    body = lines[1:-1]
+    previous: int | None = None
+    step: int | None = None
+    for k, line in enumerate(body, start=2):
+        fields = line.split(",")
+        try:
+            t = int(fields[0])
+            values = [float(x) for x in fields[1:]]
+        except ValueError:
+            problems.add("imu", f"{IMU_CSV} line {k}: not numbers")
+            continue
+        if len(values) != len(IMU_COLUMNS) - 1 or not all(math.isfinite(v) for v in values):
+            problems.add("imu", f"{IMU_CSV} line {k}: expected {len(IMU_COLUMNS)} finite values")
+        if previous is not None:
+            dt = t - previous
+            if step is None:
+                step = dt
+            if dt <= 0 or dt != step:
+                problems.add("imu", f"{IMU_CSV} line {k}: step {dt} ns, expected {step} ns")
+        previous = t
+    if step:
+        report.notes.append(f"{IMU_CSV}: {len(body)} samples at {1e9 / step:.0f} Hz")
+
+
 def _check_manifest(archive: Archive, problems: _Problems) -> None:
     manifest = archive.manifest or {}
     files = manifest.get("files")
@@ -281,6 +325,7 @@ def check_archive(archive: Archive, *, decode_images: bool = True) -> CheckRepor
         if archive.camera() is None:
             problems.add("camera", "camera.yaml: missing or not a YAML mapping")
         _check_frames_csv(archive, report, problems, unfinished)
+        _check_imu(archive, report, problems, unfinished)
     if archive.rows:
         _check_rows(archive, report, problems)
         if decode_images:

@@ -1,8 +1,9 @@
 """``manifest.json``: what an archive holds, a SHA-256 per file, and ``complete: true`` last.
 
 Every file of an archive is byte-identical across runs with the same inputs and seed, except
-``summary.json`` (it holds wall-clock figures); the manifest names it in ``wall_clock_files`` so
-that determinism comparisons can leave it out.
+``summary.json`` (it holds wall-clock figures) and the logs of external estimators under
+``estimates/`` (their latency in wall milliseconds); the manifest names them in
+``wall_clock_files`` so that determinism comparisons can leave them out.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from air_sitl.dataset.air_schema import (
+    ESTIMATES_DIR,
     MANIFEST_JSON,
     RECORDING_JSON,
     SUMMARY_JSON,
@@ -96,7 +98,9 @@ def write_manifest(
     """Write ``manifest.json`` atomically, with ``complete: true`` as its last key."""
     content: dict[str, Any] = {"format": MANIFEST_FORMAT, "format_version": MANIFEST_VERSION}
     content.update(info)
-    content["wall_clock_files"] = [f for f in WALL_CLOCK_FILES if f in files]
+    content["wall_clock_files"] = [
+        f for f in sorted(files) if f in WALL_CLOCK_FILES or f.startswith(ESTIMATES_DIR + "/")
+    ]
     content["files"] = dict(sorted(files.items()))
     content["complete"] = True
     write_json_atomic(folder / MANIFEST_JSON, content)

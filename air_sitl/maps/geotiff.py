@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import threading
 import warnings
 from collections.abc import Callable
@@ -17,7 +18,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import rasterio
+
+# Decoded tiles are cached by the map itself (bounded LRU); GDAL's own block cache would
+# otherwise grow to 5% of RAM on big files. Must be set before GDAL's first read.
+os.environ.setdefault("GDAL_CACHEMAX", "64")
+
+import rasterio  # after GDAL_CACHEMAX on purpose
 from rasterio.errors import NotGeoreferencedWarning, RasterioError
 from rasterio.warp import transform as warp_transform
 from rasterio.windows import Window

@@ -88,6 +88,21 @@ def test_do_jump_repeats_like_px4() -> None:
     assert ex.mission_completed
 
 
+def test_nested_do_jumps_keep_their_counters_like_px4() -> None:
+    """PX4 does not reset an inner jump's counter when an outer jump repeats the loop."""
+    items = (
+        wp(0, 0, 50, MavCmd.NAV_TAKEOFF),
+        wp(300, 0, 100),  # 1
+        wp(300, 300, 100),  # 2
+        do(MavCmd.DO_JUMP, param1=1, param2=1),  # 3: inner
+        wp(0, 300, 100),  # 4
+        do(MavCmd.DO_JUMP, param1=1, param2=1),  # 5: outer
+    )
+    ex, plane = air_started(mission(*items))
+    assert _reached_log(ex, plane) == [0, 1, 2, 1, 2, 4, 1, 2, 4]
+    assert ex.mode is FlightMode.LOITER
+
+
 def test_do_jump_with_zero_repeats_never_jumps() -> None:
     items = (
         wp(0, 0, 50, MavCmd.NAV_TAKEOFF),

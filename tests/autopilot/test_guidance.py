@@ -145,3 +145,18 @@ def test_switch_distance() -> None:
 def test_angle_travelled_wraps() -> None:
     assert abs(gd.angle_travelled(3.0, -3.0, 1) - (2 * math.pi - 6.0)) < 1e-12
     assert abs(gd.angle_travelled(-3.0, 3.0, -1) - (2 * math.pi - 6.0)) < 1e-12
+
+
+@given(
+    pn=st.floats(-2000, 2000), pe=st.floats(-2000, 2000), vn=st.floats(-25, 25),
+    ve=st.floats(-25, 25), radius=st.floats(25, 1000), direction=st.sampled_from([1, -1]),
+)  # fmt: skip
+def test_circle_outputs_are_bounded_and_consistent(
+    pn: float, pe: float, vn: float, ve: float, radius: float, direction: int
+) -> None:
+    c = gd.follow_circle(pn, pe, vn, ve, (0.0, 0.0), radius, direction, **KW)
+    assert abs(c.bank_rad) <= LIM
+    assert c.radial_error_m == math.hypot(pn, pe) - radius
+    # The tangent course is 90 degrees from the radial direction, on the loiter side.
+    radial = math.atan2(pe, pn) if math.hypot(pn, pe) >= 1e-3 else 0.0
+    assert abs(gd.wrap_pi(c.course_rad - radial - direction * math.pi / 2)) < 1e-9

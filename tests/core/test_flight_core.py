@@ -56,3 +56,19 @@ def test_fly_is_deterministic_and_seeds_matter_only_where_they_should(tmp_path: 
     assert len(rows) > 1000
     times = [int(r.split(",")[0]) for r in rows[1:6]]
     assert [t2 - t1 for t1, t2 in zip(times, times[1:], strict=False)] == [20_000_000] * 4
+
+
+def test_a_wheel_aircraft_flies_a_plan_inside_its_own_speed_envelope(tmp_path: Path) -> None:
+    run = _fly("UC-200.plan", tmp_path / "c172p", "--aircraft", "c172p")
+    assert run.returncode == 0, run.stderr
+    rows = (tmp_path / "c172p" / "trajectory.csv").read_text().splitlines()[1:]
+    airspeeds = [float(r.split(",")[17]) for r in rows]
+    assert min(airspeeds) > 25.0  # the c172p's own cruise, not our UAV's 15 m/s
+
+
+def test_unknown_aircraft_is_a_one_line_error(tmp_path: Path) -> None:
+    run = _fly("UC-200.plan", tmp_path / "x", "--aircraft", "no_such_plane")
+    assert run.returncode == 2
+    assert run.stderr.count("\n") == 1
+    assert "no_such_plane" in run.stderr
+    assert "Traceback" not in run.stderr

@@ -85,3 +85,34 @@ def test_tum_ground_truth_and_refusing_to_overwrite(archive_dir: Path, tmp_path:
         assert (x, y, z) == archive.rows[3].pose_enu_m
     assert main(["export", str(archive_dir), "--rosbag1", str(out)]) == 2
     assert main(["export", str(archive_dir), "--tum", str(out), "--estimate", "nope"]) == 2
+
+
+def test_tum_of_an_estimate_file_and_of_the_svo_columns(archive_dir: Path, tmp_path: Path) -> None:
+    import shutil
+
+    from air_sitl.dataset.estimates import fill_svo_columns
+    from air_sitl.frames import ned2geodetic
+
+    from .synth import HOME
+
+    folder = tmp_path / "a"
+    shutil.copytree(archive_dir, folder)
+    (folder / "estimates").mkdir()
+    lat, lon, alt = ned2geodetic(20.0, 10.0, -200.0, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m)
+    (folder / "estimates" / "geo.csv").write_text(
+        f"frame,lat_deg,lon_deg,alt_amsl_m,latency_ms\n2,{lat:.10f},{lon:.10f},{alt:.4f},3.5\n"
+    )
+    out = tmp_path / "geo.txt"
+    assert main(["export", str(folder), "--tum", str(out), "--estimate", "geo"]) == 0
+    t, x, y, z, *q = (float(v) for v in out.read_text().split())
+    with air_sitl.dataset.open(folder) as archive:
+        assert t == pytest.approx(archive.timestamp_ns(2) / 1e9)
+    assert (x, y, z) == pytest.approx((10.0, 20.0, 200.0), abs=1e-3)
+    assert q == [0.0, 0.0, 0.0, 1.0]
+    fill_svo_columns(folder, {k: (float(k), 0.0, 1.0) for k in range(0, FRAMES, 2)})
+    out = tmp_path / "svo.txt"
+    assert main(["export", str(folder), "--tum", str(out), "--estimate", "svo"]) == 0
+    lines = out.read_text().splitlines()
+    assert len(lines) == (FRAMES + 1) // 2
+    assert lines[1].split()[1:4] == ["2.0000", "0.0000", "1.0000"]
+    assert main(["check", str(folder)]) == 0

@@ -18,7 +18,7 @@ from air_sitl.maps.procedural.canvas import Canvas, Color, DateLook, Point, rect
 from air_sitl.maps.procedural.noise import fractal_noise, key_of, rng_for, value_noise, white_noise
 
 _CONIFER = {"summer": (38, 64, 40), "autumn": (36, 60, 40), "spring": (44, 66, 46)}
-_DECIDUOUS = {"summer": (44, 100, 66), "autumn": (40, 104, 160), "spring": (72, 104, 104)}
+_DECIDUOUS = {"summer": (44, 100, 66), "autumn": (46, 96, 140), "spring": (72, 104, 104)}
 _MEADOW = {"summer": (70, 138, 112), "autumn": (84, 136, 150), "spring": (86, 124, 128)}
 _SOIL: Color = (90, 112, 132)
 _TRACK: Color = (110, 140, 160)
@@ -64,7 +64,7 @@ class ForestWorld:
         dec_col = np.array(_DECIDUOUS[season], dtype=np.float32)
         if season == "autumn":
             mix = np.clip(0.5 + 0.8 * value_noise(k + 5, x0, y0, size, 6.0 * pm), 0.0, 1.0)
-            alt = np.array((36, 132, 176), dtype=np.float32)
+            alt = np.array((44, 118, 150), dtype=np.float32)
             dec = (
                 dec_col[None, None, :] * (1 - mix[:, :, None])
                 + alt[None, None, :] * mix[:, :, None]
@@ -80,7 +80,7 @@ class ForestWorld:
         open_a = np.clip((clear_n - thr) * 5.0, 0.0, 1.0)
         meadow_tex = 1.0 + 0.07 * fractal_noise(k + 7, x0, y0, size, 6.0 * pm, 3)
         meadow_tex += 0.06 * fine
-        shrubs = np.clip((crowns - 1.3) * 2.5, 0.0, 0.6)  # scattered bushes in meadows
+        shrubs = np.clip((crowns - 1.7) * 2.0, 0.0, 0.4)  # scattered bushes in meadows
         meadow_tex *= 1.0 - shrubs
         meadow = np.array(_MEADOW[season], dtype=np.float32)[None, None, :] * meadow_tex[:, :, None]
         # Scattered single trees at clearing edges keep texture there.

@@ -1,0 +1,151 @@
+"""Shared pieces of the bus tests: free loopback endpoints, synthetic samples, processes."""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from air_sitl.bus.session import Bus, BusConfig, open_bus
+from air_sitl.frames import euler2quat, ned2geodetic
+from air_sitl.state import (
+    AutopilotStatus,
+    FlightMode,
+    GeoPoint,
+    GpsFix,
+    ImuSample,
+    SimSample,
+    VehicleState,
+)
+
+REPO = Path(__file__).resolve().parents[2]
+HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
+
+
+def free_endpoint() -> str:
+    """A loopback TCP endpoint on a port nobody uses right now."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    return f"tcp/127.0.0.1:{port}"
+
+
+def pair(endpoint: str) -> tuple[Bus, Bus]:
+    """Two peer sessions: the first listens (a simulator), the second connects to it."""
+    a = open_bus(BusConfig(listen=(endpoint,), connect=(), serves=True))
+    b = open_bus(BusConfig(listen=(), connect=(endpoint,)))
+    return a, b
+
+
+def wait_until(cond: Callable[[], bool], timeout_s: float = 5.0) -> bool:
+    """Poll ``cond`` until true or the timeout (wall time) passes."""
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if cond():
+            return True
+        time.sleep(0.01)
+    return cond()
+
+
+def make_sample(
+    t_ns: int,
+    *,
+    east_m: float = 0.0,
+    alt_agl_m: float = 200.0,
+    yaw_rad: float = math.pi / 2,
+    capturing: bool = True,
+    gps: bool = False,
+) -> SimSample:
+    """A level aircraft flying east at ``east_m`` from home, ``alt_agl_m`` high."""
+    lat, lon, alt = ned2geodetic(
+        0.0, east_m, -alt_agl_m, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m
+    )
+    q = euler2quat(0.0, 0.0, yaw_rad)
+    state = VehicleState(
+        sim_time_ns=t_ns,
+        lat_deg=lat,
+        lon_deg=lon,
+        alt_amsl_m=alt,
+        alt_agl_m=alt_agl_m,
+        pos_ned_m=(0.0, east_m, -alt_agl_m),
+        q_body_to_ned_wxyz=q,
+        roll_rad=0.0,
+        pitch_rad=0.0,
+        yaw_rad=yaw_rad,
+        vel_ned_m_s=(0.0, 15.0, 0.0),
+        rate_frd_rad_s=(0.0, 0.0, 0.0),
+        specific_force_frd_m_s2=(0.0, 0.0, -9.80665),
+        airspeed_m_s=15.0,
+        on_ground=False,
+    )
+    status = AutopilotStatus(
+        mode=FlightMode.MISSION,
+        armed=True,
+        current_seq=2,
+        capturing=capturing,
+        mission_completed=False,
+    )
+    imu = ImuSample(
+        sim_time_ns=t_ns,
+        gyro_frd_rad_s=(0.0, 0.0, 0.0),
+        accel_frd_m_s2=(0.0, 0.0, -9.80665),
+        q_ahrs_body_to_ned_wxyz=q,
+    )
+    fix = None
+    if gps:
+        fix = GpsFix(
+            sim_time_ns=t_ns,
+            lat_deg=lat,
+            lon_deg=lon,
+            alt_amsl_m=alt,
+            vel_ned_m_s=(0.0, 15.0, 0.0),
+            fix_type=3,
+            satellites=14,
+            eph_m=1.5,
+            epv_m=3.0,
+        )
+    return SimSample(state=state, autopilot=status, imu=imu, gps=fix)
+
+
+def cli(*args: str) -> list[str]:
+    """Command line of ``air-sitl ARGS`` with this interpreter."""
+    return [sys.executable, "-m", "air_sitl", *args]
+
+
+def start(cmd: list[str], **kwargs: object) -> subprocess.Popen[str]:
+    """Start a process with captured text output."""
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    return subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, **kwargs
+    )
+
+
+def wait_for_line(proc: subprocess.Popen[str], text: str, timeout_s: float = 20.0) -> str:
+    """Read stdout until a line containing ``text`` (fails on exit or timeout)."""
+    assert proc.stdout is not None
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        line = proc.stdout.readline()
+        if text in line:
+            return line
+        if not line and proc.poll() is not None:
+            break
+    raise AssertionError(f"no line with {text!r} from {proc.args}")
+
+
+def stop(proc: subprocess.Popen[str], sig: int = signal.SIGINT) -> tuple[int, str, str]:
+    """Signal the process, wait, return (exit code, rest of stdout, stderr)."""
+    if proc.poll() is None:
+        proc.send_signal(sig)
+    try:
+        out, err = proc.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+    return proc.returncode, out, err
