@@ -223,6 +223,7 @@ def archive_info_for(
     camera: CameraModel,
     map_source: MapSource,
     plan_sha256: str,
+    map_date: str | None = None,
 ) -> ArchiveInfo:
     """What a DatasetWriter needs besides the data: camera.yaml, the plan, manifest fields.
 
@@ -232,6 +233,8 @@ def archive_info_for(
     from air_sitl.mission.plan_file import plan_text
 
     map_info = _jsonable(map_source.describe())
+    if isinstance(map_info, dict) and "date" not in map_info:
+        map_info["date"] = map_date  # GeoTIFF dates are files: the one chosen, as asked
     run_key = _jsonable(
         {
             "plan_sha256": plan_sha256,
@@ -326,6 +329,7 @@ def record_flight(
                 camera=request.camera,
                 map_source=map_source,
                 plan_sha256=_sha256_file(request.plan),
+                map_date=request.map.date,
             )
             if request.bus is not None:
                 info = request.bus.extend_archive_info(info)

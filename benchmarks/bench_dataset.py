@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -48,14 +49,17 @@ def bench_scenario(scenario: str, out: Path) -> None:
     from air_sitl.options import FlightOptions
     from air_sitl.recording import RecordingRequest, record_flight
 
-    marks: list[tuple[float, int, float]] = []  # (wall, capture frames, sim s), every sim second
+    # (wall, capture frames, sim s, process CPU s), every simulated second
+    marks: list[tuple[float, int, float, float]] = []
 
     def progress(sample: object, flight: object) -> None:
+        usage = resource.getrusage(resource.RUSAGE_SELF)
         marks.append(
             (
                 time.perf_counter(),
                 flight.stats.capture_frames,  # type: ignore[attr-defined]
                 sample.state.sim_time_ns / 1e9,  # type: ignore[attr-defined]
+                usage.ru_utime + usage.ru_stime,
             )
         )
 
@@ -77,6 +81,7 @@ def bench_scenario(scenario: str, out: Path) -> None:
     wall = last[0] - first[0]
     sim = last[2] - first[2]
     per_frame = wall / frames
+    cpu_per_frame = (last[3] - first[3]) / frames
     one, two, n = _jpeg_only(out, camera.jpeg_quality)
     sim_total = float(result.summary["sim_time_s"])
     print(f"scenario {scenario}: {result.manifest['frame_count'] if result.manifest else 0} frames")
@@ -95,15 +100,29 @@ def bench_scenario(scenario: str, out: Path) -> None:
         f"{two * 1e3:5.2f} ms/frame on 2 threads ({1 / two:5.0f} frames/s), {n} frames"
     )
     print(f"  ratio pipeline / JPEG-only (2 threads): {per_frame / two:4.2f}")
+    cores = os.cpu_count() or 1
+    print(
+        f"  CPU per frame     {cpu_per_frame * 1e3:5.2f} ms (all threads: physics, render, "
+        f"JPEG, dataset writing) -> on {cores} idle cores at most "
+        f"{cores / cpu_per_frame:5.0f} frames/s ({cores / cpu_per_frame / 50:4.1f} x real time)"
+    )
 
 
 def bench_all(jobs: int, out: Path) -> None:
     """Part 2: all 12 scenarios with ``air-sitl dataset -j JOBS``."""
     cmd = [sys.executable, "-m", "air_sitl", "dataset", "-j", str(jobs), "--out", str(out)]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
     wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
     print(proc.stdout.rstrip())
+    cores = os.cpu_count() or 1
+    print(
+        f"CPU used: {cpu:.0f} s -> on {cores} idle cores at best {cpu / cores:.0f} s wall "
+        f"({cpu / wall:.2f} cores used in this run)"
+    )
     if proc.returncode != 0:
         print(proc.stderr.rstrip()[-2000:])
     print(

@@ -239,16 +239,21 @@ def _json_vec(v: tuple[float, float, float]) -> list[float | None]:
     return [None if math.isnan(c) else c for c in v]
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the example localizer until SIGINT/SIGTERM."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of the example localizer."""
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--name", default="ex", help="estimator name: estimate/<NAME> (default ex)")
     parser.add_argument(
         "--wait", type=float, default=30.0, help="seconds to wait for the simulator (default 30)"
     )
     parser.add_argument("--quiet", action="store_true", help="print only errors")
     add_connection_arguments(parser, serves=False)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the example localizer until SIGINT/SIGTERM."""
+    args = build_parser().parse_args(argv)
     try:
         check_chunk("--name", args.name)
         keys = KeySpace(args.vehicle)

@@ -147,7 +147,8 @@ class EstimateLog:
         path = folder / f"{name}.csv"
         try:
             folder.mkdir(parents=True, exist_ok=True)
-            f = path.open("w", encoding="ascii", newline="")
+            # Line-buffered: a row is on disk when its estimate arrived, whatever happens next.
+            f = path.open("w", encoding="ascii", newline="", buffering=1)
         except OSError as err:
             self.first_error = self.first_error or f"{path}: cannot write: {err.strerror}"
             return None

@@ -139,7 +139,10 @@ class RemoteCamera:
                 timer.daemon = True
                 timer.start()
                 return
-            self._finish(index, f"camera bridge, frame {index}: {error}")
+            if error.startswith("no answer"):
+                self._finish(index, self._silence(index))
+            else:
+                self._finish(index, f"camera bridge, frame {index}: {error}")
 
         left = max(0.1, deadline - time.monotonic())
         self.bus.query_async(
@@ -205,13 +208,14 @@ class RemoteCamera:
                     self._fail_slow()
                 self._cond.wait(left)
 
-    def _fail_slow(self) -> None:
-        head = self._order[0] if self._order else -1
-        msg = (
-            f"--camera remote: no frame {head} from a camera bridge on {self.keys.render} "
+    def _silence(self, index: int) -> str:
+        return (
+            f"--camera remote: no frame {index} from a camera bridge on {self.keys.render} "
             f"within {self.timeout_s:g} s (is `air-sitl camera-bridge` running?)"
         )
-        raise BusError(msg)
+
+    def _fail_slow(self) -> None:
+        raise BusError(self._silence(self._order[0] if self._order else -1))
 
     def close(self) -> None:
         """Stop asking (late answers are ignored)."""
@@ -294,11 +298,22 @@ class CameraBridgeServer:
                 alt_amsl_m=float(home["alt_amsl_m"]),
             )
 
+    def _home_now(self) -> GeoPoint | None:
+        """Home from the status seen so far, else asked for (callbacks race each other)."""
+        if self._home is None:
+            try:
+                self._on_status(self.bus.query(self.keys.mission_status, timeout_s=1.0))
+            except BusError:
+                return None
+        return self._home
+
     def _on_truth(self, message: Message) -> None:
         m = codec.loads(message.payload, message.key)
         frame = m.get("frame")
-        home = self._home
-        if not isinstance(frame, int) or home is None or self._free_settings is None:
+        if not isinstance(frame, int) or self._free_settings is None:
+            return
+        home = self._home_now()
+        if home is None:
             return
         state = codec.decode_state(m)
         out = self._renderer(self._free_settings(home))(state, frame)

@@ -27,6 +27,7 @@ from air_sitl.errors import BusError
 
 DEFAULT_PORT = 7447
 DEFAULT_ENDPOINT = f"tcp/127.0.0.1:{DEFAULT_PORT}"
+TX_QUEUE_BATCHES = 16  # zenoh's default is 2 batches of 64 kB per priority
 
 Mode = Literal["peer", "client", "router"]
 
@@ -68,6 +69,9 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
     else:
         conf = zenoh.Config()
         _insert(conf, "scouting/multicast/enabled", False)
+        # Room for bursts of frames (the camera threads deliver several at once): a slow
+        # reader still loses samples (drop on congestion), a merely busy one does not.
+        _insert(conf, "transport/link/tx/queue/size/data", TX_QUEUE_BATCHES)
         listen, connect = cfg.listen, cfg.connect
         if listen is None and connect is None:
             listen, connect = ((DEFAULT_ENDPOINT,), ()) if cfg.serves else ((), (DEFAULT_ENDPOINT,))
@@ -109,7 +113,9 @@ class Publisher:
     @property
     def matched(self) -> bool:
         """True when at least one subscriber matches this key."""
-        return bool(self._pub.matching_status)
+        # zenoh-python 1.x returns a MatchingStatus object (its stub says bool): read .matching.
+        status: Any = self._pub.matching_status
+        return bool(getattr(status, "matching", status))
 
     def close(self) -> None:
         """Undeclare."""

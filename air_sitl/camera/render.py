@@ -4,7 +4,10 @@ The ground is the plane at the map's ground elevation, in the local tangent fram
 aircraft; ground metres map to map pixels through the map's local affine at the nadir point
 (exact to far below a pixel over a camera footprint: UTM scale varies by 1e-6 per km).
 The pyramid level comes from the ground sample distance seen by the image (geometric mean of
-the centre and the coarsest corner), so 100 m to 3000 m stay sharp and free of aliasing.
+the centre and the coarsest corner, rounded down to a level), so 100 m to 3000 m stay sharp
+and free of aliasing. One level per frame: at extreme attitudes (horizon in view) the far
+ground aliases. Rays that miss the ground, or meet it beyond MAX_MOSAIC_HALF_PX level pixels
+from the image centre, get the fill colour (black), as does ground outside a bounded map.
 A frame is a pure function of (map, camera, state, frame index, seed).
 """
 
@@ -102,11 +105,11 @@ class Renderer:
             c = h0 @ centre
             centre_px = (float(c[0] / c[2]), float(c[1] / c[2]))
         level = 0
-        if height > 0:
-            steps = [_step(h0, p) for p in (centre, *corners) if p @ rays[2] > _MIN_DOWN]
-            if steps:
-                effective = math.sqrt(steps[0] * max(steps))
-                level = self.map.level_for_gsd(effective * self.map.georef.gsd_m)
+        if height > 0 and centre @ rays[2] > _MIN_DOWN:
+            pts = np.vstack([centre, corners[down > _MIN_DOWN]])
+            steps = _steps(h0, pts)
+            effective = math.sqrt(steps[0] * steps.max())
+            level = self.map.level_for_gsd(effective * self.map.georef.gsd_m)
         return FrameGeometry(h0, level, centre_px, sees_horizon, height)
 
     def map_xy_px(self, state: VehicleState) -> tuple[float, float] | None:
@@ -262,13 +265,17 @@ def _quat_matrix(q: tuple[float, float, float, float]) -> Mat3:
     )
 
 
-def _step(h: Mat3, p: npt.NDArray[np.float64]) -> float:
-    """Largest map-pixel step per image pixel of homography ``h`` at image point ``p``."""
-    q = h @ p
-    jx = (h[:2, 0] * q[2] - q[:2] * h[2, 0]) / q[2] ** 2
-    jy = (h[:2, 1] * q[2] - q[:2] * h[2, 1]) / q[2] ** 2
-    j = np.stack([jx, jy], axis=1)
-    return float(np.linalg.svd(j, compute_uv=False)[0])
+def _steps(h: Mat3, pts: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Largest map-pixel step per image pixel of homography ``h`` at image points (rows)."""
+    q = pts @ h.T
+    w = q[:, 2:3]
+    jx = (h[None, :2, 0] * w - q[:, :2] * h[2, 0]) / w**2  # d(map x, map y)/d(image u)
+    jy = (h[None, :2, 1] * w - q[:, :2] * h[2, 1]) / w**2  # d(map x, map y)/d(image v)
+    ssum = (jx**2).sum(axis=1) + (jy**2).sum(axis=1)
+    det = jx[:, 0] * jy[:, 1] - jx[:, 1] * jy[:, 0]
+    disc = np.sqrt(np.maximum(ssum**2 - 4.0 * det**2, 0.0))
+    out: npt.NDArray[np.float64] = np.sqrt((ssum + disc) / 2.0)
+    return out
 
 
 def pose_state(

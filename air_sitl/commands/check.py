@@ -18,9 +18,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the report; exit 0 when the archive is valid, 1 when it is not."""
+    from pathlib import Path
+
+    from air_sitl.dataset.air_schema import METADATA_CSV, RECORDING_JSON
     from air_sitl.dataset.check import check_archive
     from air_sitl.dataset.reader import open_archive
 
+    folder = Path(args.archive)
+    if (folder / RECORDING_JSON).is_file() and not (folder / METADATA_CSV).exists():
+        # Killed in its first instants: nothing recorded yet, nothing to be wrong.
+        sys.stdout.write(f"{folder}: air-sitl archive, unfinished, no frames yet\nVALID\n")
+        return 0
     with open_archive(args.archive) as archive:
         report = check_archive(archive, decode_images=not args.no_images)
     sys.stdout.write(report.text() + "\n")

@@ -94,6 +94,22 @@ class Outcome:
 def _init_worker(progress: Any) -> None:
     global _PROGRESS  # noqa: PLW0603  (one queue per worker process)
     _PROGRESS = progress
+    _die_with_parent()
+
+
+def _die_with_parent() -> None:
+    """Linux: a worker gets SIGKILL when the parent dies (a killed ``dataset`` leaves no
+    orphan still writing into a folder that ``--resume`` is about to continue)."""
+    import ctypes
+    import ctypes.util
+    import signal
+
+    pr_set_pdeathsig = 1
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
 
 
 def zip_folder(folder: Path, out: Path) -> None:
@@ -258,7 +274,7 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
 
     options = flight_options_from_args(args)
     camera = camera_from_args(args)
-    jobs_n = _int_option("-j", args.jobs, 1, 64)
+    _int_option("-j", args.jobs, 1, 64)  # validated before anything flies
     folder = missions_dir(args.missions)
     names = parse_scenarios(args.scenarios, folder)
     dates: list[str | None] = [None]
@@ -269,7 +285,9 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
             msg = f"{path}: no such GeoTIFF"
             raise OptionError(msg)
     root = Path(args.out)
-    workers = max(1, (os.cpu_count() or 2) // jobs_n)
+    # Every process may use every core: while one flies its take-off (physics only) the
+    # other's renderers take the idle core.
+    workers = max(1, min(4, os.cpu_count() or 2))
     jobs: list[Job] = []
     for scenario in names:
         spec = None
@@ -297,17 +315,38 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
                     zip=bool(args.zip),
                 )
             )
+    for job in jobs:
+        if job.map.spec is not None:
+            _check_map(job)
     return jobs
 
 
+def _check_map(job: Job) -> None:
+    """Open a GeoTIFF map once before flying: a map missing home fails now, not in an hour."""
+    from air_sitl.maps.open import open_map
+    from air_sitl.mission.plan_file import load_mission
+    from air_sitl.runner import home_of
+
+    assert job.map.spec is not None
+    home = home_of(load_mission(job.plan))
+    source = open_map(job.map.spec, home, seed=job.map.seed, date=job.map.date)
+    close = getattr(source, "close", None)
+    if callable(close):
+        close()
+
+
 def _run_pool(jobs: list[Job], n: int, display: Display) -> list[Outcome]:
+    from air_sitl.dataset.scenarios import PAPER_TABLE
+
     ctx = multiprocessing.get_context("fork")
     progress = ctx.Queue()
     outcomes: dict[str, Outcome] = {}
     with ProcessPoolExecutor(
         max_workers=n, mp_context=ctx, initializer=_init_worker, initargs=(progress,)
     ) as pool:
-        futures: dict[Future[Outcome], Job] = {pool.submit(run_job, job): job for job in jobs}
+        # Longest first (the paper's image counts): the processes finish together.
+        order = sorted(jobs, key=lambda j: -PAPER_TABLE.get(j.scenario.upper(), (0, 0))[0])
+        futures: dict[Future[Outcome], Job] = {pool.submit(run_job, job): job for job in order}
         pending = set(futures)
         while pending:
             try:

@@ -131,8 +131,8 @@ def run(args: argparse.Namespace) -> int:
         specs, home=home, mission=mission, post=post, options=EndpointOptions(signing_key=key)
     )
     hookup = bus_sinks_from_args(args)
-    addresses = endpoint.open()
     try:
+        addresses = endpoint.open()
         sinks: list[Sink] = [endpoint.sink]
         camera: FrameSource | None = None
         recorder = None

@@ -10,6 +10,7 @@ estimator with :func:`fill_svo_columns`.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 from collections.abc import Mapping
@@ -60,13 +61,20 @@ def _pick(header: list[str], options: tuple[tuple[str, ...], ...]) -> tuple[str,
 
 
 def read_estimates(path: Path, home: GeoPoint | None) -> list[EstimatePoint]:
-    """Parse ``estimates/<name>.csv`` (see the module docstring for the accepted columns)."""
+    """Read ``estimates/<name>.csv`` (see the module docstring for the accepted columns)."""
     try:
-        with path.open(encoding="utf-8", newline="") as f:
-            rows = list(csv.DictReader(f))
-    except OSError as err:
-        msg = f"{path}: cannot read the estimates: {err.strerror}"
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        msg = f"{path}: cannot read the estimates: {err}"
         raise DatasetError(msg) from None
+    return parse_estimates(text, str(path), home)
+
+
+def parse_estimates(text: str, path: str, home: GeoPoint | None) -> list[EstimatePoint]:
+    """Parse the text of an estimates file; ``path`` names it in error messages."""
+    if not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]  # a torn last line (interrupted write)
+    rows = list(csv.DictReader(io.StringIO(text)))
     header = list(rows[0].keys()) if rows else []
     time_col = next((c for c in _TIME_COLUMNS if c in header), None)
     enu_cols = _pick(header, _ENU_COLUMNS)

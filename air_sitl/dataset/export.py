@@ -19,8 +19,14 @@ from typing import Any
 
 import numpy as np
 
-from air_sitl.dataset.air_schema import IMU_COLUMNS, IMU_CSV, q_frd_ned_to_flu_enu, wxyz2xyzw
-from air_sitl.dataset.estimates import estimate_path, read_estimates
+from air_sitl.dataset.air_schema import (
+    ESTIMATES_DIR,
+    IMU_COLUMNS,
+    IMU_CSV,
+    q_frd_ned_to_flu_enu,
+    wxyz2xyzw,
+)
+from air_sitl.dataset.estimates import parse_estimates
 from air_sitl.dataset.reader import Archive
 from air_sitl.errors import DatasetError
 from air_sitl.state import GeoPoint, Quat
@@ -318,8 +324,8 @@ def tum_lines(archive: Archive, estimate: str | None = None) -> list[str]:
             t = archive.timestamp_ns(k) / 1e9
             lines.append(f"{t:.9f} {x:.4f} {y:.4f} {z:.4f} {qx:.9f} {qy:.9f} {qz:.9f} {qw:.9f}")
         return lines
-    path = estimate_path(archive.path, estimate)
-    if not archive.path.is_dir() or not path.exists():
+    name = f"{ESTIMATES_DIR}/{estimate}.csv"
+    if not archive.exists(name):
         if estimate.lower() == "svo":
             for k, row in enumerate(archive.rows):
                 if all(math.isfinite(c) for c in row.svo_enu_m):
@@ -327,9 +333,14 @@ def tum_lines(archive: Archive, estimate: str | None = None) -> list[str]:
                     t = archive.timestamp_ns(k) / 1e9
                     lines.append(f"{t:.9f} {x:.4f} {y:.4f} {z:.4f} 0 0 0 1")
             return lines
-        msg = f"{path}: no such estimate in the archive"
+        msg = f"{archive.path}/{name}: no such estimate in the archive"
         raise DatasetError(msg)
-    for p in read_estimates(path, _home(archive)):
+    try:
+        text = archive.read_bytes(name).decode("utf-8")
+    except UnicodeDecodeError as err:
+        msg = f"{archive.path}/{name}: not UTF-8 text ({err})"
+        raise DatasetError(msg) from None
+    for p in parse_estimates(text, f"{archive.path}/{name}", _home(archive)):
         if p.sim_time_ns is not None:
             t_ns = p.sim_time_ns
         elif p.frame is not None and 0 <= p.frame < len(archive.rows):

@@ -121,6 +121,7 @@ class DatasetWriter(NullSink):
         threaded: bool = True,
     ) -> None:
         self.folder = folder
+        self._folder_str = os.fspath(folder)
         self.info = info
         self.first_frame = first_frame
         self.next_index = first_frame
@@ -144,9 +145,14 @@ class DatasetWriter(NullSink):
             raise _os_error(folder, err) from None
         marker = {"scenario": info.scenario, "run_key": dict(info.run_key)}
         write_json_atomic(folder / RECORDING_JSON, marker)
-        _write_file_atomic(folder / CAMERA_YAML, info.camera_yaml.encode("utf-8"))
-        _write_file_atomic(folder / info.plan_name, info.plan_text.encode("utf-8"))
         self._open_streams()
+        try:
+            _write_file_atomic(folder / CAMERA_YAML, info.camera_yaml.encode("utf-8"))
+            _write_file_atomic(folder / info.plan_name, info.plan_text.encode("utf-8"))
+        except DatasetError:
+            for fd in self._fds.values():
+                os.close(fd)
+            raise
         self._queue: queue.Queue[tuple[Any, ...] | None] | None = None
         self._thread: threading.Thread | None = None
         if threaded:
@@ -298,11 +304,27 @@ class DatasetWriter(NullSink):
         except DatasetError as err:
             self.error = err
 
+    def _write_image(self, name: str, jpeg: bytes) -> None:
+        """:func:`_write_file_atomic` with plain string paths (this runs for every frame)."""
+        final = os.path.join(self._folder_str, name)
+        tmp = final + TMP_SUFFIX
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+            try:
+                _write_all(fd, jpeg)
+            finally:
+                os.close(fd)
+            os.replace(tmp, final)
+        except OSError as err:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise _os_error(Path(final), err) from None
+
     def _handle(self, item: tuple[Any, ...]) -> None:
         kind = item[0]
         if kind == "frame":
             _, name, jpeg, meta, extra = item
-            _write_file_atomic(self.folder / name, jpeg)
+            self._write_image(name, jpeg)
             self.jpeg_hashes[name] = sha256_bytes(jpeg)
             self._meta_buf.append(meta)
             self._frames_buf.append(extra)

@@ -20,7 +20,7 @@ from air_sitl.errors import MavlinkError
 
 Address = tuple[str, int]
 DEFAULT_LINKS = ("udpout:127.0.0.1:14550", "udpout:127.0.0.1:14540")
-UDP_PEER_TIMEOUT_S = 10.0  # a udpin peer silent this long stops receiving telemetry
+UDP_MAX_PEERS = 32  # udpin/udpout peers kept (the least recently heard is dropped beyond)
 TCP_MAX_BUFFER_BYTES = 256 * 1024  # per client; beyond this, frames to it are dropped
 _URL = re.compile(r"^(udpout|udpin|tcpin)(?::|://)(\[[0-9a-fA-F:.]+\]|[^:\[\]]*):(\d{1,5})$")
 
@@ -152,6 +152,12 @@ class UdpLink(Link):
     def _channel(self, address: Address) -> Channel:
         ch = self.channels.get(address)
         if ch is None:
+            if len(self.channels) >= UDP_MAX_PEERS:
+                quiet = min(
+                    (c for a, c in self.channels.items() if a != self._target),
+                    key=lambda c: c.last_seen_s,
+                )
+                del self.channels[quiet.address]
             ch = Channel(self, address, self._new_parser(), time.monotonic())
             self.channels[address] = ch
         return ch
@@ -179,11 +185,7 @@ class UdpLink(Link):
         if channel is not None:
             self._sendto(data, channel.address)
             return
-        now = time.monotonic()
-        for address, ch in list(self.channels.items()):
-            if address != self._target and now - ch.last_seen_s > UDP_PEER_TIMEOUT_S:
-                del self.channels[address]
-                continue
+        for address in self.channels:
             self._sendto(data, address)
 
     def _sendto(self, data: bytes, address: Address) -> None:

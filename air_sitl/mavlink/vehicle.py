@@ -83,6 +83,11 @@ Job = Callable[[AutopilotLike], None]
 PostFn = Callable[[Job], None]
 
 
+def _whole(value: float) -> int:
+    """A command parameter as an integer; -1 for NaN or infinity."""
+    return round(value) if math.isfinite(value) else -1
+
+
 def _outcome(value: Any) -> tuple[bool, str]:
     """Normalise what an autopilot command returned: None/True, False, or (ok, reason)."""
     if isinstance(value, tuple) and len(value) == 2:
@@ -273,13 +278,15 @@ class VehicleEndpoint:
         self._thread.start()
 
     def close(self) -> None:
-        """Stop the I/O thread and close every socket."""
+        """Stop the I/O thread and close every socket (idempotent)."""
         self._stop.set()
         self._wake()
         if self._thread is not None:
             self._thread.join(timeout=5.0)
+            self._thread = None
         for link in self._links:
             link.close()
+        self._links = []
         self._wake_r.close()
         self._wake_w.close()
 
@@ -536,6 +543,14 @@ class VehicleEndpoint:
         self._post(job)
 
     def _on_command(self, ch: Channel, msg: Message) -> None:
+        """Every COMMAND_LONG/INT gets a COMMAND_ACK, even when handling it fails."""
+        try:
+            self._command(ch, msg)
+        except Exception as err:
+            traceback.print_exc(file=sys.stderr)
+            self._ack(ch, msg, mav.MAV_RESULT_FAILED, f"{type(err).__name__}: {err}")
+
+    def _command(self, ch: Channel, msg: Message) -> None:
         cmd = msg.command
         p1, p2, p3, _p4 = msg.param1, msg.param2, msg.param3, msg.param4
         if msg.get_type() == "COMMAND_INT":
@@ -563,8 +578,8 @@ class VehicleEndpoint:
             else:
                 simple(lambda ap: ap.disarm(), "Disarm denied: ")
         elif cmd == mav.MAV_CMD_DO_SET_MODE:
-            mode = tm.PX4_TO_MODE.get((round(p2), round(p3)))
-            if not (round(p1) & mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED) or mode is None:
+            mode = tm.PX4_TO_MODE.get((_whole(p2), _whole(p3)))
+            if not (_whole(p1) & mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED) or mode is None:
                 self._ack(ch, msg, mav.MAV_RESULT_UNSUPPORTED)
                 return
             simple(lambda ap: ap.set_mode(mode), f"Mode {mode.name} denied: ")
@@ -576,13 +591,16 @@ class VehicleEndpoint:
         elif cmd == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             simple(lambda ap: ap.return_to_launch(), "RTL denied: ")
         elif cmd == mav.MAV_CMD_DO_SET_MISSION_CURRENT:
-            seq = round(p1) if math.isfinite(p1) else -1
+            seq = _whole(p1)
             if not 0 <= seq < len(self.protocol.items(MissionType.MISSION)):
                 self._ack(ch, msg, mav.MAV_RESULT_DENIED, f"No mission item {seq}")
                 return
             simple(lambda ap: ap.set_current(seq))
         elif cmd == mav.MAV_CMD_DO_REPOSITION:
             alt = p7 + home_alt if relative_alt and math.isfinite(p7) else p7
+            here = self.latest
+            if here is not None and not (math.isfinite(p5) and math.isfinite(p6)):
+                p5, p6 = here.state.lat_deg, here.state.lon_deg  # NaN: loiter where we are
             simple(lambda ap: ap.reposition(p5, p6, alt), "Reposition denied: ")
         elif cmd == mav.MAV_CMD_DO_CHANGE_SPEED:
             if not (math.isfinite(p2) and p2 > 0):
@@ -594,9 +612,9 @@ class VehicleEndpoint:
         elif cmd == mav.MAV_CMD_IMAGE_STOP_CAPTURE:
             simple(lambda ap: ap.stop_capture())
         elif cmd == mav.MAV_CMD_REQUEST_MESSAGE:
-            self._request_message(ch, msg, round(p1) if math.isfinite(p1) else -1)
+            self._request_message(ch, msg, _whole(p1))
         elif cmd == mav.MAV_CMD_SET_MESSAGE_INTERVAL:
-            self._set_interval(ch, msg, round(p1) if math.isfinite(p1) else -1, p2)
+            self._set_interval(ch, msg, _whole(p1), p2)
         elif cmd == mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             self._request_message(ch, msg, mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
         elif cmd == mav.MAV_CMD_GET_HOME_POSITION:

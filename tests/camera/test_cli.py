@@ -10,6 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
+from air_sitl.cli import main
+
 from .helpers import HOME
 
 
@@ -177,10 +179,29 @@ def test_map_make_then_render_it(tmp_path: Path) -> None:
         ["map", "make", "urban", "--out", "{d}/m.tif", "--date", "winter"],
     ],
 )
-def test_bad_input_exits_2_with_one_line(tmp_path: Path, args: list[str]) -> None:
+def test_bad_input_exits_2_with_one_line(
+    tmp_path: Path, args: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
     (tmp_path / "notes.tif").write_text("not a tiff")
+    code = main([a.format(d=tmp_path) for a in args])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("air-sitl: error: "), err
+    assert not (tmp_path / "x.jpg").exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["render", "--map", "{d}/plain.tif", "--lat", "54.6", "--lon", "25.2", "--alt-agl", "300",
+         "--out", "{d}/x.jpg"],
+        ["map", "make", "forest", "--out", "{d}/m.tif", "--origin", "91,0"],
+    ],
+)  # fmt: skip
+def test_bad_input_exit_code_of_the_real_command(tmp_path: Path, args: list[str]) -> None:
+    (tmp_path / "plain.tif").write_bytes(b"II*\x00" + bytes(64))
     r = _cli(*[a.format(d=tmp_path) for a in args])
     assert r.returncode == 2, r.stderr
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("air-sitl: error: "), r.stderr
-    assert not (tmp_path / "x.jpg").exists()

@@ -71,3 +71,32 @@ def test_conversion_rotates_vectors_consistently(roll: float, pitch: float, yaw:
     dot = sum(a * b for a, b in zip(q_ned, back, strict=True))
     sign = 1.0 if dot >= 0 else -1.0
     assert _close(tuple(sign * c for c in back), q_ned, 1e-9)
+
+
+@given(
+    angles,
+    st.floats(min_value=-1.5, max_value=1.5),
+    angles,
+    st.tuples(*[st.floats(min_value=-5000.0, max_value=5000.0)] * 3),
+)
+def test_metadata_row_reads_back_through_the_reader(
+    roll: float, pitch: float, yaw: float, ned: tuple[float, float, float]
+) -> None:
+    import dataclasses
+
+    from air_sitl.dataset.air_schema import metadata_row
+    from air_sitl.dataset.reader import parse_air_row
+
+    from .synth import sample_at
+
+    base = sample_at(2_000_000_000, 10)
+    q = euler2quat(roll, pitch, yaw)
+    state = dataclasses.replace(base.state, pos_ned_m=ned, q_body_to_ned_wxyz=q)
+    sample = dataclasses.replace(base, state=state)
+    line = metadata_row("frame_000007.jpg", sample, (123, -4))
+    row = parse_air_row(line.rstrip("\n").split(","), "test")
+    assert row.filename == "frame_000007.jpg" and row.map_xy_px == (123, -4)
+    assert _close(row.pose_enu_m, ned2enu(ned), 1e-4)
+    x, y, z, w = row.orientation_xyzw
+    assert _close((w, x, y, z), q_frd_ned_to_flu_enu(q), 1e-8)
+    assert all(math.isnan(c) for c in row.svo_enu_m)

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import csv
 import json
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -91,3 +95,85 @@ def test_unknown_scenario_and_missing_missions_are_one_line_errors(
     assert "XX-1 has no plan" in err and "\n" not in err
     assert main(["dataset", "--missions", str(tmp_path / "none")]) == 2
     assert "--missions" in capsys.readouterr().err
+
+
+def test_several_map_dates_give_one_folder_per_date(missions: Path, tmp_path: Path) -> None:
+    root = tmp_path / "dates"
+    argv = ["dataset", "--missions", str(missions), "--scenarios", "UC-200", "--dates", "0,2"]
+    assert main([*argv, "--air-start", "--quiet", "--out", str(root)]) == 0
+    a = json.loads((root / "UC-200@0" / "manifest.json").read_text())
+    b = json.loads((root / "UC-200@2" / "manifest.json").read_text())
+    assert a["map"]["date_index"] == 0 and b["map"]["date_index"] == 2
+    assert a["frame_count"] == b["frame_count"]
+    assert a["files"]["imu.csv"] == b["files"]["imu.csv"]  # same flight, other map date
+    assert a["files"]["frame_000010.jpg"] != b["files"]["frame_000010.jpg"]
+
+
+def test_a_geotiff_urban_map_is_used_and_a_map_without_home_is_refused_at_once(
+    missions: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    tif = tmp_path / "urban.tif"
+    origin = f"{HOME.lat_deg},{HOME.lon_deg}"
+    argv = ["map", "make", "urban", "--out", str(tif), "--size-m", "1200", "1200"]
+    assert main([*argv, "--gsd-m", "1.0", "--origin", origin]) == 0
+    root = tmp_path / "tif"
+    base = ["dataset", "--missions", str(missions), "--scenarios", "UC-200", "--quiet"]
+    assert main([*base, "--air-start", "--map-urban", str(tif), "--out", str(root)]) == 0
+    manifest = json.loads((root / "UC-200" / "manifest.json").read_text())
+    assert manifest["map"]["source"] != "procedural"
+    with air_sitl.dataset.open(root / "UC-200") as archive:
+        assert check_archive(archive).valid
+    far = tmp_path / "far.tif"
+    argv = ["map", "make", "urban", "--out", str(far), "--size-m", "600", "600"]
+    assert main([*argv, "--gsd-m", "2.0", "--origin", "10.0,10.0"]) == 0
+    capsys.readouterr()
+    assert main([*base, "--map-urban", str(far), "--out", str(tmp_path / "never")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "outside the map" in err and "\n" not in err
+    assert not (tmp_path / "never").exists()
+
+
+def _children(pid: int) -> list[int]:
+    path = Path(f"/proc/{pid}/task/{pid}/children")
+    return [int(p) for p in path.read_text().split()] if path.exists() else []
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def test_killing_a_parallel_run_leaves_no_worker_and_resume_matches_a_serial_run(
+    missions: Path, tmp_path: Path
+) -> None:
+    base = ["dataset", "--missions", str(missions), "--scenarios", "UC-200,FC-300"]
+    base += ["--air-start", "--quiet"]
+    serial = tmp_path / "serial"
+    assert main([*base, "-j", "1", "--out", str(serial)]) == 0
+    killed = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "air_sitl", *base, "-j", "2", "--out", str(killed)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    workers: list[int] = []
+    while time.monotonic() < deadline and not (killed / "FC-300" / "frame_000020.jpg").exists():
+        workers = _children(proc.pid) or workers
+        time.sleep(0.01)
+    workers = _children(proc.pid) or workers
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert workers
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(_alive(w) for w in workers):
+        time.sleep(0.05)
+    assert not any(_alive(w) for w in workers), "a worker outlived its killed parent"
+    assert main([*base, "-j", "2", "--out", str(killed), "--resume"]) == 0
+    for name in ("UC-200", "FC-300"):
+        a, b = (
+            json.loads((r / name / "manifest.json").read_text())["files"] for r in (serial, killed)
+        )
+        a.pop("summary.json")
+        b.pop("summary.json")
+        assert a == b, name

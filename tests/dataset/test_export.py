@@ -116,3 +116,19 @@ def test_tum_of_an_estimate_file_and_of_the_svo_columns(archive_dir: Path, tmp_p
     assert len(lines) == (FRAMES + 1) // 2
     assert lines[1].split()[1:4] == ["2.0000", "0.0000", "1.0000"]
     assert main(["check", str(folder)]) == 0
+
+
+def test_estimates_in_the_bus_log_layout_are_parsed() -> None:
+    from air_sitl.dataset.estimates import parse_estimates
+
+    text = (
+        "sim_time_ns,frame,east_m,north_m,up_m,lat_deg,lon_deg,alt_amsl_m,qw,qx,qy,qz,"
+        "latency_wall_ms,latency_frames\n"
+        "100000000,5,1.5,2.5,200.0,54.1,25.1,320.0,,,,,3.2,0\n"
+        "120000000,6,1.6,2.6,200.1,54.1,25.1,320.1,1,0,0,0,3.0,1\n"
+        "14000"
+    )
+    points = parse_estimates(text, "estimates/x.csv", None)
+    assert [p.frame for p in points] == [5, 6]
+    assert points[0].enu_m == (1.5, 2.5, 200.0) and points[0].q_body_to_ned_wxyz is None
+    assert points[1].sim_time_ns == 120000000 and points[1].q_body_to_ned_wxyz == (1, 0, 0, 0)

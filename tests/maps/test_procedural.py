@@ -128,3 +128,16 @@ def test_map_make_writes_the_procedural_pixels(tmp_path: Path) -> None:
     assert np.abs(a - b).mean() < 0.05
     assert tif.num_levels >= 3
     assert len(tif._src.overviews(1)) >= 1  # type: ignore[attr-defined]
+
+
+def test_direct_coarse_levels_match_reduced_level_0() -> None:
+    # Level 3 is drawn directly at level 2's resolution; it must look like level 0 reduced.
+    direct = ProceduralMap("forest", HOME, seed=6)
+    reduced = ProceduralMap("forest", HOME, seed=6)
+    reduced._native_tile = lambda *args: None  # type: ignore[method-assign]
+    a = direct.read_level(3, 20, 20, 256, 256)[:, :, :3].astype(np.float32)
+    b = reduced.read_level(3, 20, 20, 256, 256)[:, :, :3].astype(np.float32)
+    assert np.abs(a.mean(axis=(0, 1)) - b.mean(axis=(0, 1))).max() < 5.0
+    ga = cv2.GaussianBlur(_gray(a.astype(np.uint8)), (0, 0), 2.0)
+    gb = cv2.GaussianBlur(_gray(b.astype(np.uint8)), (0, 0), 2.0)
+    assert np.corrcoef(ga.ravel(), gb.ravel())[0, 1] > 0.8

@@ -13,7 +13,7 @@ import sys
 import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import IO, Any
 
 from pymavlink import mavutil
 
@@ -52,12 +52,12 @@ class Served:
 
 
 @contextlib.contextmanager
-def serve(*args: str, timeout_s: float = 30.0) -> Iterator[Served]:
+def serve(*args: str, timeout_s: float = 30.0, stderr: IO[str] | None = None) -> Iterator[Served]:
     """Start ``air-sitl serve ARGS``, wait for its banner, stop it at the end."""
     cmd = [sys.executable, "-m", "air_sitl", "serve", *args]
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen(
-        cmd, stdout=subprocess.PIPE, stderr=None, text=True, env=env, bufsize=1
+        cmd, stdout=subprocess.PIPE, stderr=stderr, text=True, env=env, bufsize=1
     )
     served = None
     try:

@@ -389,8 +389,8 @@ def test_lossy_upload_is_all_or_nothing(
     ]
     sent_items = [m.item for m in sent if isinstance(m, MissionItemMessage)]
     old_items = tuple(old)
-    assert (
-        same_items(stored, sent_items) or stored == old_items
-    ), f"stored {len(stored)} items: neither the {len(new)} sent nor the {len(old)} old"
+    assert same_items(stored, sent_items) or stored == old_items, (
+        f"stored {len(stored)} items: neither the {len(new)} sent nor the {len(old)} old"
+    )
     if gcs.result == MissionResult.ACCEPTED:
         assert same_items(stored, sent_items)

@@ -22,6 +22,7 @@ from air_sitl.maps.base import (
     Georeference,
     Image,
     TiledMap,
+    downsample2,
     map_error,
 )
 from air_sitl.maps.procedural.canvas import DATES, DateLook
@@ -34,6 +35,10 @@ KINDS = ("urban", "forest")
 DEFAULT_GSD_M = 0.6
 NOMINAL_HALF_PX = 5120
 NUM_LEVELS = 9  # level 8 is 256 x gsd per pixel (154 m at 0.6 m)
+# From this level up, tiles are drawn directly at the next finer level's resolution and
+# low-passed once, instead of from 4**level level-0 tiles: high flights see new ground at
+# about the cost of low ones. Finer levels are exact reductions of level 0.
+DIRECT_FROM_LEVEL = 3
 
 
 def parse_date(value: str | int | None) -> DateLook:
@@ -100,6 +105,23 @@ class ProceduralMap(TiledMap):
         gx, gy = tx - tx % 2, ty - ty % 2
         ox, oy = self.origin_abs_px
         bgr = self.render_abs(ox + gx * TILE_PX, oy + gy * TILE_PX, 2 * TILE_PX)
+        return self._split_group(0, gx, gy, tx, ty, bgr)
+
+    def _native_tile(self, level: int, tx: int, ty: int) -> Image | None:
+        if level < DIRECT_FROM_LEVEL:
+            return None
+        gx, gy = tx - tx % 2, ty - ty % 2
+        ox, oy = self.origin_abs_px
+        fine = level - 1
+        # The group's 2x2 tiles at `level` cover 4x4 tiles of `fine`: draw those at once.
+        x0 = (ox >> fine) + 2 * gx * TILE_PX
+        y0 = (oy >> fine) + 2 * gy * TILE_PX
+        bgr = self._world.draw(x0, y0, 4 * TILE_PX, self._gsd * (1 << fine), self.date)
+        small = downsample2(np.ascontiguousarray(bgr))
+        return self._split_group(level, gx, gy, tx, ty, small)
+
+    def _split_group(self, level: int, gx: int, gy: int, tx: int, ty: int, bgr: Image) -> Image:
+        """Cut a 2x2-tile BGR block into BGRx tiles; cache the siblings, return (tx, ty)."""
         mine: Image | None = None
         for dy in (0, 1):
             for dx in (0, 1):
@@ -112,7 +134,7 @@ class ProceduralMap(TiledMap):
                     mine = tile
                 else:
                     tile.setflags(write=False)
-                    self._cache.put((0, gx + dx, gy + dy), tile)
+                    self._cache.put((level, gx + dx, gy + dy), tile)
         assert mine is not None
         return mine
 

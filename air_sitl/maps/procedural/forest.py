@@ -48,16 +48,22 @@ class ForestWorld:
         crowns = value_noise(k + 1, x0, y0, size, 3.0 * pm)
         groups = value_noise(k + 2, x0, y0, size, 8.0 * pm)
         fine = fractal_noise(k + 3, x0, y0, size, 1.2 * pm, 2)
-        height = 0.55 * crowns + 0.35 * groups + 0.18 * fine
+        # Drawn coarse (direct pyramid levels), features under ~2 px average out: fade them.
+        w_crown = float(np.clip((3.0 * pm - 1.0) / 2.0, 0.0, 1.0))
+        w_group = float(np.clip((8.0 * pm - 1.0) / 2.0, 0.0, 1.0))
+        height = 0.55 * w_crown * crowns + 0.35 * w_group * groups + 0.18 * fine
         gx = cv2.Sobel(height, cv2.CV_32F, 1, 0, ksize=3) * np.float32(pm / 8.0 * 3.0)
         gy = cv2.Sobel(height, cv2.CV_32F, 0, 1, ksize=3) * np.float32(pm / 8.0 * 3.0)
         sun_e, sun_n = date.sun_dir()
         # Image x is east, image y is south: slope toward the sun lights the crown.
         lit = gx * np.float32(sun_e) - gy * np.float32(sun_n)
         low_sun = 1.0 / math.tan(math.radians(date.sun_elevation_deg))
-        shading = 1.0 + np.clip(lit * np.float32(0.9 * low_sun), -0.6, 0.6)
-        gaps = np.clip((-height - 0.55) * 2.0, 0.0, 1.0)  # deep gaps are in shadow
-        shading *= 1.0 - 0.55 * gaps
+        # Crown tops are bright whatever the sun (sun-independent structure keeps dates
+        # aligned), their sunny side brighter still.
+        tops = np.clip(height, -1.5, 1.5) * np.float32(0.28)
+        shading = 1.0 + tops + np.clip(lit * np.float32(0.04 * low_sun), -0.08, 0.08)
+        gaps = np.clip((-height - 0.7) * 1.5, 0.0, 1.0)  # deep gaps are in shadow
+        shading *= 1.0 - 0.45 * gaps
         # Species mix per stand.
         stand = fractal_noise(k + 4, x0, y0, size, 90.0 * pm, 2)
         conifer = np.clip(0.5 + stand * 0.9, 0.0, 1.0)
@@ -73,7 +79,8 @@ class ForestWorld:
             dec = np.broadcast_to(dec_col, (size, size, 3))
         con_col = np.array(_CONIFER[season], dtype=np.float32)
         canopy = con_col[None, None, :] * conifer[:, :, None] + dec * (1.0 - conifer[:, :, None])
-        canopy = canopy * shading[:, :, None]
+        # Crown shadows darken a canopy seen from afar; keep that when crowns are faded out.
+        canopy = canopy * (shading * np.float32(1.0 - 0.08 * (1.0 - w_crown)))[:, :, None]
         # Clearings (shrinking with the years: vegetation growth) and meadows.
         clear_n = fractal_noise(k + 6, x0, y0, size, 160.0 * pm, 3)
         thr = 1.45 + 0.12 * d
@@ -103,15 +110,16 @@ class ForestWorld:
         water_n = value_noise(k + 8, x0, y0, size, 700.0 * pm) + 0.25 * value_noise(
             k + 9, x0, y0, size, 150.0 * pm
         )
-        water_a = np.clip((-water_n - 1.25) * 8.0, 0.0, 1.0)
+        water_a = np.clip((-water_n - 1.7) * 8.0, 0.0, 1.0)
         if float(water_a.max()) > 0.0:
             # Lakes last: tracks and roads end at the shore.
-            ripple = 1.0 + 0.05 * value_noise(k + 10, x0, y0, size, 4.0 * pm)
+            ripple = 1.0 + 0.06 * value_noise(k + 10, x0, y0, size, 4.0 * pm)
+            ripple += 0.06 * fractal_noise(k + 12, x0, y0, size, 1.5 * pm, 2)
             water = np.array(_WATER, dtype=np.float32)[None, None, :] * ripple[:, :, None]
             out = (out * (1.0 - water_a[:, :, None]) + water * water_a[:, :, None]).astype(
                 np.float32
             )
-        out += 5.0 * white_noise(k + 11, x0, y0, size)[:, :, None]
+        out += float(5.0 * min(1.0, 0.6 * pm)) * white_noise(k + 11, x0, y0, size)[:, :, None]
         return np.clip(out, 0, 255).astype(np.uint8)
 
     def _cuts(

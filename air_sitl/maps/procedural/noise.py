@@ -17,18 +17,36 @@ _M1 = np.uint64(0x9E3779B97F4A7C15)
 _M2 = np.uint64(0xC2B2AE3D27D4EB4F)
 _M3 = np.uint64(0xBF58476D1CE4E5B9)
 _M4 = np.uint64(0x94D049BB133111EB)
+_MASK = 2**64 - 1
 
 
 def hash2(ix: npt.NDArray[np.int64], iy: npt.NDArray[np.int64], key: int) -> npt.NDArray[np.uint64]:
-    """A 64-bit hash of integer lattice coordinates (splitmix64 finaliser)."""
-    with np.errstate(over="ignore"):
-        h = ix.astype(np.uint64) * _M1 ^ iy.astype(np.uint64) * _M2 ^ np.uint64(key & (2**64 - 1))
-        h ^= h >> np.uint64(30)
-        h *= _M3
-        h ^= h >> np.uint64(27)
-        h *= _M4
-        h ^= h >> np.uint64(31)
+    """A 64-bit hash of integer lattice coordinates (splitmix64 finaliser); wraps silently."""
+    h = ix.astype(np.uint64) * _M1 ^ iy.astype(np.uint64) * _M2 ^ np.uint64(key & _MASK)
+    h ^= h >> np.uint64(30)
+    h *= _M3
+    h ^= h >> np.uint64(27)
+    h *= _M4
+    h ^= h >> np.uint64(31)
     return h
+
+
+def hash_int(*parts: int) -> int:
+    """The same kind of hash for a few Python integers (no numpy overhead)."""
+    h = 0x243F6A8885A308D3
+    for p in parts:
+        h = (h ^ ((p & _MASK) * 0x9E3779B97F4A7C15)) & _MASK
+        h ^= h >> 30
+        h = (h * 0xBF58476D1CE4E5B9) & _MASK
+        h ^= h >> 27
+        h = (h * 0x94D049BB133111EB) & _MASK
+        h ^= h >> 31
+    return h
+
+
+def unit_of(*parts: int) -> float:
+    """A uniform value in [0, 1) from a few integers."""
+    return (hash_int(*parts) >> 11) * (1.0 / 2**53)
 
 
 def unit2(
@@ -40,10 +58,7 @@ def unit2(
 
 def key_of(*parts: int) -> int:
     """Mix several integers (seed, salt, indices) into one hash key."""
-    h = np.array([0x243F6A8885A308D3], dtype=np.uint64)
-    for p in parts:
-        h = hash2(h.astype(np.int64), np.array([p], dtype=np.int64), int(h[0]))
-    return int(h[0])
+    return hash_int(*parts)
 
 
 def rng_for(*parts: int) -> np.random.Generator:

@@ -28,7 +28,7 @@ from air_sitl.maps.procedural.noise import (
     fractal_noise,
     key_of,
     rng_for,
-    unit2,
+    unit_of,
     value_noise,
     white_noise,
 )
@@ -104,7 +104,7 @@ class UrbanWorld:
 
     def __init__(self, seed: int) -> None:
         self.seed = seed
-        self.angle_rad = math.radians(35.0 * float(unit2(np.array([seed]), np.array([1]), 77)[0]))
+        self.angle_rad = math.radians(35.0 * unit_of(seed, 77))
         self.c = math.cos(self.angle_rad)
         self.s = math.sin(self.angle_rad)
 
@@ -116,13 +116,13 @@ class UrbanWorld:
 
     def street(self, axis: int, k: int) -> tuple[float, float, bool]:
         """Centre position, half width and 'main road' flag of street ``k`` along an axis."""
-        u = unit2(np.array([k]), np.array([axis]), key_of(self.seed, 11))[0]
+        u = unit_of(self.seed, 11, axis, k)
         main = k % 5 == 0
-        return (k * PITCH_M + (float(u) - 0.5) * 0.45 * PITCH_M, 10.0 if main else 6.0, main)
+        return (k * PITCH_M + (u - 0.5) * 0.45 * PITCH_M, 10.0 if main else 6.0, main)
 
     def resurfaced_at(self, axis: int, k: int) -> int:
         """Date index from which street k has fresh asphalt (3 = never)."""
-        u = float(unit2(np.array([k]), np.array([axis]), key_of(self.seed, 12))[0])
+        u = unit_of(self.seed, 12, axis, k)
         return 1 if u < 0.15 else 2 if u < 0.3 else 3
 
     @functools.lru_cache(maxsize=4096)  # noqa: B019 - one world per map, bounded cache
@@ -222,8 +222,9 @@ class UrbanWorld:
                     cv.poly(self.to_world(b.corners), _DIRT if b.gone == d else lawn)
             paint = [self.to_world(line) for line, _w in blk.paint]
             cv.segments([(w[0], w[1]) for w in paint], (225, 228, 230), 0.15)
-            for poly, col in blk.cars:
-                cv.poly(self.to_world(poly), col)
+            if gsd_m <= 1.5:  # cars vanish into the lot's grey on coarse levels
+                for poly, col in blk.cars:
+                    cv.poly(self.to_world(poly), col)
         sun_e, sun_n = date.sun_dir()
         # Shadows of buildings and trees.
         for blk in blocks:
@@ -263,7 +264,7 @@ class UrbanWorld:
         px_m = 1.0 / gsd_m
         texture = 0.07 * fractal_noise(key, x0, y0, size, 8.0 * px_m, 3)
         veg_tex = 0.22 * fractal_noise(key + 5, x0, y0, size, 1.6 * px_m, 2)
-        grain = 7.0 * white_noise(key + 9, x0, y0, size)
+        grain = float(7.0 * min(1.0, 0.6 * px_m)) * white_noise(key + 9, x0, y0, size)
         return finish(cv, texture, grain, 0.5, veg_tex)
 
     def _draw_roads(
@@ -522,24 +523,21 @@ def _commercial(rng, b0, c0, b1, c1, buildings, trees, cars, paint) -> None:  # 
 
 def _stalls(rng, u0, v0, u1, v1, cars, paint) -> None:  # type: ignore[no-untyped-def]
     """A row of parking stalls 2.6 m wide, some occupied."""
-    u = u0
-    while u + 2.6 <= u1:
+    n = max(0, int((u1 - u0) // 2.6))
+    occupied = rng.random(n) < 0.55
+    colours = rng.integers(len(_CARS), size=n)
+    cm = (v0 + v1) / 2
+    for i in range(n):
+        u = u0 + 2.6 * i
         paint.append((((u, v0), (u, v1)), 0.15))
-        if rng.random() < 0.55:
-            col = _CARS[int(rng.integers(len(_CARS)))]
-            cm = (v0 + v1) / 2
-            cars.append(
-                (
-                    (
-                        (u + 0.45, cm - 2.2),
-                        (u + 2.15, cm - 2.2),
-                        (u + 2.15, cm + 2.2),
-                        (u + 0.45, cm + 2.2),
-                    ),
-                    col,
-                )
+        if occupied[i]:
+            corners = (
+                (u + 0.45, cm - 2.2),
+                (u + 2.15, cm - 2.2),
+                (u + 2.15, cm + 2.2),
+                (u + 0.45, cm + 2.2),
             )
-        u += 2.6
+            cars.append((corners, _CARS[int(colours[i])]))
 
 
 def _park(rng, b0, c0, b1, c1, grounds, trees) -> None:  # type: ignore[no-untyped-def]

@@ -1,0 +1,85 @@
+"""The real endpoint and a real flight in this process, with the truth recorded for comparison."""
+
+from __future__ import annotations
+
+import contextlib
+import queue
+import threading
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+
+from air_sitl.mavlink.links import parse_link
+from air_sitl.mavlink.vehicle import Job, VehicleEndpoint
+from air_sitl.mission.items import Mission
+from air_sitl.options import FlightOptions
+from air_sitl.runner import Flight, InboxItem, assemble_flight
+from air_sitl.sinks import NullSink
+from air_sitl.state import GeoPoint, SimSample, VehicleState
+
+
+class TruthSink(NullSink):
+    """Every truth state by simulated millisecond."""
+
+    def __init__(self) -> None:
+        self.by_ms: dict[int, VehicleState] = {}
+        self.states: list[VehicleState] = []
+
+    def on_sample(self, sample: SimSample) -> None:
+        self.by_ms[sample.state.sim_time_ns // 1_000_000] = sample.state
+        self.states.append(sample.state)
+
+
+@dataclass
+class Vehicle:
+    """A running vehicle: endpoint, flight and its simulation thread."""
+
+    endpoint: VehicleEndpoint
+    flight: Flight
+    truth: TruthSink
+    stop: threading.Event = field(default_factory=threading.Event)
+    thread: threading.Thread | None = None
+
+
+@contextlib.contextmanager
+def running_vehicle(
+    links: Sequence[str], home: GeoPoint, *, speed: float, mission: Mission | None = None
+) -> Iterator[Vehicle]:
+    """Serve a vehicle on ``links`` until the block ends."""
+    mission = mission or Mission(items=(), source="test")
+    inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
+
+    def post(job: Job) -> None:
+        inbox.put(lambda flight: job(flight.autopilot))
+
+    endpoint = VehicleEndpoint(
+        [parse_link(u) for u in links], home=home, mission=mission, post=post
+    )
+    endpoint.open()
+    truth = TruthSink()
+    flight, _home, _ = assemble_flight(
+        mission,
+        FlightOptions(speed=speed),
+        sinks=[endpoint.sink, truth],
+        home=home,
+        auto_start=False,
+    )
+    endpoint.attach(flight.autopilot, flight.autopilot.params)
+    endpoint.start()
+    vehicle = Vehicle(endpoint, flight, truth)
+    thread = threading.Thread(
+        target=flight.run,
+        kwargs={
+            "stop": lambda _s: vehicle.stop.is_set(),
+            "max_sim_time_ns": 10**15,
+            "inbox": inbox,
+        },
+        daemon=True,
+    )
+    vehicle.thread = thread
+    thread.start()
+    try:
+        yield vehicle
+    finally:
+        vehicle.stop.set()
+        thread.join(timeout=10)
+        endpoint.close()

@@ -1,0 +1,135 @@
+"""MAVSDK 4.x (native binding) flies the AIR line, rectangle and circle plans on our endpoint."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from gcs import free_udp_port
+from inproc import Vehicle, running_vehicle
+from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
+from mavsdk.asyncio.plugins.action import ActionAsync
+from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+
+from air_sitl.mission.items import MissionType
+from air_sitl.mission.plan_file import load_mission
+
+REPO = Path(__file__).resolve().parents[2]
+PLANS = {
+    "line": REPO / "missions" / "UL-300.plan",
+    "rectangle": REPO / "missions" / "UR-300.plan",
+    "circle": REPO / "missions" / "UC-300.plan",
+}
+SPEED = 100.0
+EARTH_RADIUS_M = 6_371_000.0
+pytestmark = pytest.mark.integration
+
+
+def _fields(item: object) -> tuple[object, ...]:
+    names = ("seq", "frame", "command", "autocontinue", "x", "y")
+    floats = ("param1", "param2", "param3", "param4", "z")
+    rounded = tuple(
+        None if math.isnan(getattr(item, n)) else round(getattr(item, n), 4) for n in floats
+    )
+    return tuple(getattr(item, n) for n in names) + rounded
+
+
+def _track_error(vehicle: Vehicle, received: tuple[float, float, float, int]) -> float:
+    """Distance from a received position to the nearest truth state sent before it arrived."""
+    lat, lon, alt, n = received
+    recent = vehicle.truth.states[max(0, n - 40_000) : n]
+    track = np.array([(s.lat_deg, s.lon_deg, s.alt_amsl_m) for s in recent])
+    north = np.radians(track[:, 0] - lat) * EARTH_RADIUS_M
+    east = np.radians(track[:, 1] - lon) * EARTH_RADIUS_M * math.cos(math.radians(lat))
+    up = track[:, 2] - alt
+    return float(np.min(np.sqrt(north**2 + east**2 + up**2)))
+
+
+async def _fly(plan: Path, port: int, vehicle: Vehicle) -> dict[str, float]:
+    config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
+    async with Mavsdk(config) as sdk:
+        await sdk.add_any_connection(f"udpin://127.0.0.1:{port}")
+        system = await sdk.first_autopilot(timeout_s=15)
+        assert system is not None, "MAVSDK found no autopilot"
+        mission = MissionRawAsync(system)
+        telemetry = TelemetryAsync(system)
+        action = ActionAsync(system)
+
+        imported = await mission.import_qgroundcontrol_mission(str(plan))
+        items = imported.mission_items
+        assert len(items) >= 5
+        t0 = time.monotonic()
+        await mission.upload_mission(items)
+        upload_s = time.monotonic() - t0
+        downloaded = await mission.download_mission()
+        assert [_fields(i) for i in downloaded] == [_fields(i) for i in items]
+        stored = vehicle.endpoint.protocol.items(MissionType.MISSION)
+        assert [i.command for i in stored] == [i.command for i in items]
+
+        # Wait until the vehicle reports a usable position (GPS fix, home), as apps do.
+        position = await asyncio.wait_for(anext(telemetry.subscribe_position()), 10)
+        assert math.isfinite(position.latitude_deg)
+
+        await action.arm()
+        await mission.start_mission()
+        checked = {"positions": 0, "attitudes": 0, "max_pos_err_m": 0.0, "max_att_err_deg": 0.0}
+
+        received: list[tuple[float, float, float, int]] = []
+
+        async def check_telemetry() -> None:
+            async for pos in telemetry.subscribe_position():
+                # Kept with how many truth states existed when it arrived (compared later).
+                where = (pos.latitude_deg, pos.longitude_deg, pos.absolute_altitude_m)
+                received.append((*where, len(vehicle.truth.states)))
+
+        async def check_attitude() -> None:
+            async for att in telemetry.subscribe_attitude_euler():
+                truth = vehicle.truth.by_ms.get(att.timestamp_us // 1000)
+                if truth is None:
+                    continue
+                d = [
+                    abs(math.remainder(att.roll_deg - math.degrees(truth.roll_rad), 360)),
+                    abs(math.remainder(att.pitch_deg - math.degrees(truth.pitch_rad), 360)),
+                    abs(math.remainder(att.yaw_deg - math.degrees(truth.yaw_rad), 360)),
+                ]
+                checked["attitudes"] += 1
+                checked["max_att_err_deg"] = max(checked["max_att_err_deg"], *d)
+
+        tasks = [asyncio.create_task(check_telemetry()), asyncio.create_task(check_attitude())]
+        progress_seen = []
+
+        async def follow() -> None:
+            async for progress in mission.subscribe_mission_progress():
+                progress_seen.append((progress.current, progress.total))
+                if progress.total > 0 and progress.current == progress.total:
+                    return
+
+        await asyncio.wait_for(follow(), timeout=120)
+        for task in tasks:
+            task.cancel()
+        assert await mission.is_mission_finished()
+        assert progress_seen[-1] == (len(items), len(items))
+        assert len({c for c, _ in progress_seen}) >= 4, progress_seen
+        checked["upload_s"] = upload_s
+        checked["positions"] = len(received)
+        checked["max_pos_err_m"] = max(_track_error(vehicle, r) for r in received[::5])
+        return checked
+
+
+@pytest.mark.parametrize("shape", sorted(PLANS))
+def test_mavsdk_uploads_and_flies_the_air_plans(shape: str) -> None:
+    plan = PLANS[shape]
+    home = load_mission(plan).planned_home
+    assert home is not None
+    port = free_udp_port()
+    with running_vehicle([f"udpout:127.0.0.1:{port}"], home, speed=SPEED) as vehicle:
+        result = asyncio.run(_fly(plan, port, vehicle))
+        assert vehicle.flight.autopilot.mission_completed
+    assert result["positions"] > 20 and result["attitudes"] > 20, result
+    assert result["max_pos_err_m"] < 0.5, result  # degE7 and mm: exact up to rounding
+    assert result["max_att_err_deg"] < 0.01, result

@@ -1,0 +1,47 @@
+"""``air-sitl serve`` refuses bad options with one line and exit code 2."""
+
+from __future__ import annotations
+
+import socket
+from pathlib import Path
+
+import pytest
+
+from air_sitl.cli import main
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--mavlink", "serial:/dev/ttyS0"], "--mavlink 'serial:/dev/ttyS0': expected udpout"),
+        (["--mavlink", "udpin::14550"], "give the address explicitly"),
+        (["--signing-key", "abc"], "--signing-key: expected 64 hex digits"),
+        (["--home", "91,0,0"], "--home '91,0,0': latitude must be in [-90, 90]"),
+        (["--home", "a,b"], "expected LAT,LON,ALT_AMSL"),
+        (["--plan", "no/such.plan"], "no/such.plan"),
+        (["--air-start"], "--air-start: serve starts on the ground"),
+        (["--speed", "-1"], "--speed"),
+    ],
+)
+def test_bad_options_exit_2_with_one_line(
+    args: list[str], expected: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["serve", "--mavlink", "udpin:127.0.0.1:0", *args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("air-sitl: error: ") and expected in err, err
+    assert err.count("\n") == 1
+
+
+def test_a_port_in_use_is_a_one_line_error(capsys: pytest.CaptureFixture[str]) -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        port = taken.getsockname()[1]
+        assert main(["serve", "--mavlink", f"udpin:127.0.0.1:{port}"]) == 2
+    err = capsys.readouterr().err
+    assert f"udpin:127.0.0.1:{port}: cannot open the UDP socket" in err
+
+
+def test_signing_key_file_is_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    missing = tmp_path / "nokey"
+    assert main(["serve", "--mavlink", "udpin:127.0.0.1:0", "--signing-key", f"@{missing}"]) == 2
+    assert "cannot read the key file" in capsys.readouterr().err

@@ -1,0 +1,304 @@
+"""``air-sitl serve`` with pymavlink as a plain ground station: what QGroundControl does by hand.
+
+Each test starts the real command (a process) on loopback and talks MAVLink to it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import pytest
+from gcs import PX4_MISSION, Gcs, serve
+from pymavlink import mavutil
+
+from air_sitl.mavlink.codec import (
+    Encoder,
+    ParseCounters,
+    Parser,
+    from_mission_message,
+    to_mission_message,
+)
+from air_sitl.mavlink.messages import MissionItemMessage
+from air_sitl.mavlink.mission_protocol import same_items
+from air_sitl.mavlink.telemetry import custom_mode
+from air_sitl.mission.items import MavCmd, MissionItem
+from air_sitl.mission.plan_file import load_mission
+from air_sitl.state import FlightMode
+
+REPO = Path(__file__).resolve().parents[2]
+UC200 = REPO / "missions" / "UC-200.plan"
+M = mavutil.mavlink
+pytestmark = pytest.mark.integration
+
+
+def fence_around(lat: float, lon: float, radius_m: float) -> list[MissionItem]:
+    return [
+        MissionItem(
+            command=MavCmd.NAV_FENCE_CIRCLE_INCLUSION,
+            param1=radius_m,
+            lat_deg=lat,
+            lon_deg=lon,
+        )
+    ]
+
+
+def same_wire_items(got: Sequence[MissionItem], sent: Sequence[MissionItem]) -> bool:
+    """Equal as MISSION_ITEM_INT carries them (degE7 positions, float32 params)."""
+    wire = []
+    encoder, parser = Encoder(1, 1), Parser(ParseCounters())
+    for seq, item in enumerate(sent):
+        frame = encoder.encode(from_mission_message(MissionItemMessage(seq=seq, item=item), 1, 1))
+        (decoded,) = parser.feed(frame, datagram=True)
+        msg = to_mission_message(decoded)
+        assert isinstance(msg, MissionItemMessage)
+        wire.append(msg.item)
+    return same_items(got, wire)
+
+
+def test_ci_smoke_flight_uc200_records_a_valid_archive(tmp_path: Path) -> None:
+    """Upload UC-200 by hand, fence, rally, parameters, QGC's mode + arm, fly it, check it."""
+    mission = load_mission(UC200)
+    home = mission.planned_home
+    assert home is not None
+    out = tmp_path / "rec"
+    t0 = time.monotonic()
+    with serve(
+        "--mavlink", "udpin:127.0.0.1:0",
+        "--home", f"{home.lat_deg},{home.lon_deg},{home.alt_amsl_m}",
+        "--speed", "100",
+        "--out", str(out),
+        "--camera-width", "160", "--camera-height", "120", "--noise-sigma", "0",
+    ) as served:  # fmt: skip
+        gcs = Gcs(f"udpout:127.0.0.1:{served.ports[0]}")
+        hb = gcs.connect()
+        assert (hb.type, hb.autopilot) == (M.MAV_TYPE_FIXED_WING, M.MAV_AUTOPILOT_PX4)
+        assert not hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
+
+        # Parameters: list, set, read back.
+        params = gcs.params()
+        assert {"FW_AIRSPD_TRIM", "NAV_LOITER_RAD", "RTL_RETURN_ALT", "FW_R_LIM"} <= set(params)
+        assert gcs.set_param("NAV_LOITER_RAD", 90.0) == pytest.approx(90.0)
+        assert gcs.set_param("FW_R_LIM", 500.0) == pytest.approx(params["FW_R_LIM"])  # refused
+        assert gcs.params()["NAV_LOITER_RAD"] == pytest.approx(90.0)
+
+        # Mission, fence and rally: upload, download, compare.
+        fence = fence_around(home.lat_deg, home.lon_deg, 5000.0)
+        rally = [
+            MissionItem(
+                command=MavCmd.NAV_RALLY_POINT,
+                lat_deg=home.lat_deg + 0.001,
+                lon_deg=home.lon_deg,
+                alt_m=50.0,
+            )
+        ]
+        assert gcs.upload(mission.items) == M.MAV_MISSION_ACCEPTED
+        assert gcs.upload(fence, mission_type=1) == M.MAV_MISSION_ACCEPTED
+        assert gcs.upload(rally, mission_type=2) == M.MAV_MISSION_ACCEPTED
+        assert same_wire_items(gcs.download(), mission.items)
+        assert same_wire_items(gcs.download(mission_type=1), fence)
+        assert same_wire_items(gcs.download(mission_type=2), rally)
+
+        # What QGroundControl does to start: DO_SET_MODE (1, 4, 4), then arm.
+        assert gcs.command(M.MAV_CMD_DO_SET_MODE, *PX4_MISSION) == M.MAV_RESULT_ACCEPTED
+        assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+        reached: list[int] = []
+        armed_in_mission = False
+        finished = False
+        while time.monotonic() - t0 < 55 and not finished:
+            msg = gcs.recv(["MISSION_ITEM_REACHED", "MISSION_CURRENT", "HEARTBEAT"], 1.0)
+            if msg is None:
+                continue
+            if msg.get_type() == "HEARTBEAT" and msg.get_srcSystem() == 1:
+                armed_in_mission |= bool(
+                    msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
+                    and msg.custom_mode == custom_mode(FlightMode.MISSION)
+                )
+            elif msg.get_type() == "MISSION_ITEM_REACHED":
+                reached.append(msg.seq)
+            elif msg.get_type() == "MISSION_CURRENT":
+                finished = msg.mission_state == 5  # MISSION_STATE_COMPLETE
+        assert finished, f"mission not finished in time; reached {reached}"
+        gcs.recv(["-"], 0.5)  # the STATUSTEXTs that follow
+        assert armed_in_mission
+        nav = [i for i, item in enumerate(mission.items) if item.is_nav]
+        assert set(nav) <= set(reached)
+        for text in ("Armed", "Takeoff", "Capture started", "Capture stopped", "Mission finished"):
+            assert any(text in t for t in gcs.texts), (text, gcs.texts)
+        gcs.close()
+        code, stdout = served.stop()
+    assert code == 0, stdout
+    assert "recorded" in stdout
+    check = subprocess.run(
+        [sys.executable, "-m", "air_sitl", "check", str(out / "1")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert check.returncode == 0, check.stdout + check.stderr
+    assert "VALID" in check.stdout
+    assert time.monotonic() - t0 < 60
+
+
+def test_geofence_breach_returns_to_launch() -> None:
+    mission = load_mission(UC200)
+    home = mission.planned_home
+    assert home is not None
+    with serve("--mavlink", "udpin:127.0.0.1:0", "--plan", str(UC200), "--speed", "100") as s:
+        gcs = Gcs(f"udpout:127.0.0.1:{s.ports[0]}")
+        gcs.connect()
+        fence = fence_around(home.lat_deg, home.lon_deg, 400.0)  # the plan goes 1-3 km away
+        assert gcs.upload(fence, mission_type=1) == M.MAV_MISSION_ACCEPTED
+        assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+        assert gcs.command(M.MAV_CMD_MISSION_START, 0, 0) == M.MAV_RESULT_ACCEPTED
+        deadline = time.monotonic() + 30
+        rtl = False
+        while time.monotonic() < deadline and not rtl:
+            hb = gcs.recv(["HEARTBEAT"], 1.0)
+            rtl = hb is not None and hb.custom_mode == custom_mode(FlightMode.RTL)
+        assert rtl, gcs.texts
+        assert any("Geofence" in t for t in gcs.texts), gcs.texts
+        pos = gcs.recv(["GLOBAL_POSITION_INT"])
+        assert pos is not None and pos.relative_alt > 20_000  # flying, not on the ground
+        gcs.close()
+
+
+def test_commands_prearm_takeoff_and_params_in_flight() -> None:
+    with serve("--mavlink", "udpin:127.0.0.1:0", "--speed", "50") as s:
+        gcs = Gcs(f"udpout:127.0.0.1:{s.ports[0]}")
+        gcs.connect()
+        # Bad items over the wire get their MAV_MISSION_RESULT; the (empty) mission stays.
+        good = MissionItem(command=MavCmd.NAV_WAYPOINT, lat_deg=47.4, lon_deg=8.5, alt_m=50)
+        bad_lat = dataclasses.replace(good, lat_deg=91.0)
+        unknown = dataclasses.replace(good, command=4242)
+        jump = MissionItem(command=MavCmd.DO_JUMP, frame=2, param1=9, param2=1)
+        assert gcs.upload([good, bad_lat]) == M.MAV_MISSION_INVALID_PARAM5_X
+        assert gcs.upload([unknown]) == M.MAV_MISSION_UNSUPPORTED
+        assert gcs.upload([good, jump]) == M.MAV_MISSION_INVALID_SEQUENCE
+        gcs.conn.mav.mission_count_send(1, 1, 65535, 0)
+        assert gcs.recv(["MISSION_ACK"]).type == M.MAV_MISSION_NO_SPACE
+        assert gcs.download() == []
+        # No mission: MISSION mode refused, with the reason as STATUSTEXT.
+        assert gcs.command(M.MAV_CMD_DO_SET_MODE, *PX4_MISSION) == M.MAV_RESULT_DENIED
+        time.sleep(0.2)
+        gcs.recv(["HEARTBEAT"])
+        assert any("no mission" in t for t in gcs.texts), gcs.texts
+        assert gcs.command(M.MAV_CMD_DO_SET_MODE, 1, 6, 0) == M.MAV_RESULT_UNSUPPORTED  # OFFBOARD
+        assert gcs.command(M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1) == M.MAV_RESULT_UNSUPPORTED
+        assert gcs.command(M.MAV_CMD_NAV_RETURN_TO_LAUNCH) == M.MAV_RESULT_DENIED  # on ground
+        # AUTOPILOT_VERSION with MISSION_INT, HOME_POSITION, CAMERA_INFORMATION on request.
+        assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, 148) == M.MAV_RESULT_ACCEPTED
+        version = gcs.recv(["AUTOPILOT_VERSION"])
+        assert version.capabilities & M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+        assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, 242) == M.MAV_RESULT_ACCEPTED
+        assert gcs.recv(["HOME_POSITION"]).latitude == round(47.397742 * 1e7)
+        assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, 259) == M.MAV_RESULT_ACCEPTED
+        assert gcs.recv(["CAMERA_INFORMATION"]).resolution_h == 640
+        assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, 9999) == M.MAV_RESULT_UNSUPPORTED
+        # TIMESYNC
+        gcs.conn.mav.timesync_send(0, 123456789)
+        sync = gcs.recv(["TIMESYNC"])
+        assert sync.ts1 == 123456789 and sync.tc1 > 0
+
+        # Arm and take off (PX4 style: NaN altitude = MIS_TAKEOFF_ALT).
+        assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+        nan = math.nan
+        assert gcs.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, nan, nan, nan, nan) == (
+            M.MAV_RESULT_ACCEPTED
+        )
+        deadline = time.monotonic() + 30
+        in_air = False
+        while time.monotonic() < deadline and not in_air:
+            ext = gcs.recv(["EXTENDED_SYS_STATE"], 1.0)
+            in_air = ext is not None and ext.landed_state == M.MAV_LANDED_STATE_IN_AIR
+        assert in_air
+        assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 0) == M.MAV_RESULT_DENIED  # in air
+        # A parameter changed in flight takes effect: trim airspeed 15 -> 20 m/s.
+        assert gcs.set_param("FW_AIRSPD_TRIM", 20.0) == pytest.approx(20.0)
+        deadline = time.monotonic() + 20
+        fast = False
+        while time.monotonic() < deadline and not fast:
+            hud = gcs.recv(["VFR_HUD"], 1.0)
+            fast = hud is not None and hud.airspeed > 18.5
+        assert fast, "FW_AIRSPD_TRIM had no effect"
+        assert gcs.command(M.MAV_CMD_DO_CHANGE_SPEED, 0, 16, -1) == M.MAV_RESULT_ACCEPTED
+        reposition = (-1, 1, 0, nan, 47.40, 8.55, nan)
+        assert gcs.command(M.MAV_CMD_DO_REPOSITION, *reposition) == M.MAV_RESULT_ACCEPTED
+        hb = gcs.recv(["HEARTBEAT"])
+        assert hb.custom_mode == custom_mode(FlightMode.LOITER)
+        assert gcs.command(M.MAV_CMD_IMAGE_START_CAPTURE, 0, 0.02) == M.MAV_RESULT_ACCEPTED
+        assert gcs.command(M.MAV_CMD_IMAGE_STOP_CAPTURE) == M.MAV_RESULT_ACCEPTED
+        assert gcs.command(M.MAV_CMD_NAV_RETURN_TO_LAUNCH) == M.MAV_RESULT_ACCEPTED
+        gcs.close()
+
+
+def _count(gcs: Gcs, kind: str, seconds: float) -> list[Any]:
+    out = []
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        msg = gcs.conn.recv_match(blocking=True, timeout=0.05)
+        if msg is not None and msg.get_type() == kind:
+            out.append(msg)
+    return out
+
+
+def test_stream_rates_in_sim_time_capped_in_wall_time() -> None:
+    with serve("--mavlink", "udpin:127.0.0.1:0", "--speed", "200") as s:
+        gcs = Gcs(f"udpout:127.0.0.1:{s.ports[0]}")
+        gcs.connect()
+        att = _count(gcs, "ATTITUDE", 2.0)
+        # 20 Hz of simulated time at 200x would be 4000 Hz: capped at 50 Hz of wall time.
+        assert 20 <= len(att) <= 2.0 * 50 * 1.2
+        sim_s = (att[-1].time_boot_ms - att[0].time_boot_ms) / 1000
+        assert sim_s > 2.0 * 20  # the simulation really runs fast
+        beats = _count(gcs, "HEARTBEAT", 3.0)
+        assert 2 <= len(beats) <= 6  # about 1 Hz of wall time, whatever the speed
+        gcs.close()
+    with serve("--mavlink", "udpin:127.0.0.1:0", "--speed", "1") as s:
+        gcs = Gcs(f"udpout:127.0.0.1:{s.ports[0]}")
+        gcs.connect()
+        assert gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 500_000) == M.MAV_RESULT_ACCEPTED
+        att = _count(gcs, "ATTITUDE", 3.0)
+        assert 4 <= len(att) <= 8  # 2 Hz
+        assert gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, -1) == M.MAV_RESULT_ACCEPTED
+        time.sleep(0.2)
+        assert len(_count(gcs, "ATTITUDE", 1.0)) == 0
+        assert gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 0) == M.MAV_RESULT_ACCEPTED
+        assert 25 <= len(_count(gcs, "ATTITUDE", 2.0)) <= 50  # default 20 Hz
+        gcs.close()
+
+
+def _fly_to_end(gcs: Gcs, timeout_s: float) -> list[int]:
+    reached: list[int] = []
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        msg = gcs.recv(["MISSION_CURRENT", "MISSION_ITEM_REACHED"], 1.0)
+        if msg is None:
+            continue
+        if msg.get_type() == "MISSION_ITEM_REACHED":
+            reached.append(msg.seq)
+        elif msg.mission_state == 5 and reached:
+            return reached
+    raise AssertionError(f"mission did not finish; reached {reached}")
+
+
+def test_the_preloaded_mission_flies_twice_without_restart() -> None:
+    with serve("--mavlink", "udpin:127.0.0.1:0", "--plan", str(UC200), "--speed", "150") as s:
+        gcs = Gcs(f"udpout:127.0.0.1:{s.ports[0]}")
+        gcs.connect()
+        assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+        assert gcs.command(M.MAV_CMD_MISSION_START, 0, 0) == M.MAV_RESULT_ACCEPTED  # MAVSDK way
+        assert _fly_to_end(gcs, 40) == [0, 2, 3, 5, 7]
+        # Again, from item 2 this time (still in the air, loitering at home).
+        assert gcs.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, 2) == M.MAV_RESULT_ACCEPTED
+        assert gcs.command(M.MAV_CMD_DO_SET_MISSION_CURRENT, 99) == M.MAV_RESULT_DENIED
+        assert gcs.command(M.MAV_CMD_DO_SET_MODE, *PX4_MISSION) == M.MAV_RESULT_ACCEPTED
+        assert _fly_to_end(gcs, 40) == [2, 3, 5, 7]
+        gcs.close()

@@ -1,0 +1,219 @@
+"""Robustness of the endpoint: garbage on the link, clients that never read, signing."""
+
+from __future__ import annotations
+
+import selectors
+import socket
+import struct
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from gcs import Gcs, serve
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import common as mavlink2
+
+from air_sitl.mavlink.codec import Encoder
+from air_sitl.mavlink.links import TCP_MAX_BUFFER_BYTES, TcpServerLink, parse_link
+from air_sitl.mission.plan_file import load_mission
+
+REPO = Path(__file__).resolve().parents[2]
+UC200 = REPO / "missions" / "UC-200.plan"
+M = mavutil.mavlink
+KEY_HEX = "42" * 32
+
+
+def fuzz_frames(count: int, seed: int) -> list[bytes]:
+    """Random and mutated frames: bad CRC, truncated, unknown ids, len 0/255, bad flags, v1/v2."""
+    rng = np.random.default_rng(seed)
+    v2 = mavlink2.MAVLink(None, 77, 1)
+    v1 = mavlink2.MAVLink(None, 78, 1)
+    templates = [
+        mavlink2.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3),
+        mavlink2.MAVLink_param_request_read_message(1, 1, b"NO_SUCH_PARAM", -1),
+        mavlink2.MAVLink_gps_raw_int_message(1, 3, 2, 3, 4, 5, 6, 7, 8, 9),
+        mavlink2.MAVLink_statustext_message(6, b"fuzz", 0, 0),
+    ]
+    frames: list[bytes] = []
+    while len(frames) < count:
+        kind = int(rng.integers(0, 8))
+        msg = templates[int(rng.integers(0, len(templates)))]
+        good = bytearray(msg.pack(v2))
+        if kind == 0:  # random bytes, sometimes starting with a magic byte
+            data = bytearray(rng.integers(0, 256, int(rng.integers(0, 300)), dtype=np.uint8))
+            if data and rng.random() < 0.5:
+                data[0] = 0xFD if rng.random() < 0.5 else 0xFE
+            frames.append(bytes(data))
+        elif kind == 1:  # bad CRC
+            good[-1] ^= 0xFF
+            frames.append(bytes(good))
+        elif kind == 2:  # truncated
+            frames.append(bytes(good[: int(rng.integers(1, len(good)))]))
+        elif kind == 3:  # unknown message id
+            good[7:10] = bytes(rng.integers(0, 256, 3, dtype=np.uint8)) + b""
+            good[9] = 0x7F
+            frames.append(bytes(good))
+        elif kind == 4:  # length 0 or 255
+            good[1] = 0 if rng.random() < 0.5 else 255
+            frames.append(bytes(good))
+        elif kind == 5:  # an incompatibility flag nobody knows
+            good[2] = int(rng.integers(2, 256))
+            frames.append(bytes(good))
+        elif kind == 6:  # MAVLink 1, mutated half of the time
+            one = bytearray(msg.pack(v1, force_mavlink1=True))
+            if rng.random() < 0.5:
+                one[int(rng.integers(1, len(one)))] ^= 0x21
+            frames.append(bytes(one))
+        else:  # a random payload byte flipped
+            good[int(rng.integers(10, len(good)))] ^= int(rng.integers(1, 256))
+            frames.append(bytes(good))
+    return frames
+
+
+class HeartbeatWatch(threading.Thread):
+    """Counts the vehicle's heartbeats and SYS_STATUS on a separate socket."""
+
+    def __init__(self, port: int) -> None:
+        super().__init__(daemon=True)
+        self.gcs = Gcs(f"udpout:127.0.0.1:{port}", system_id=250)
+        self.gcs.connect()
+        self.beats: list[float] = []
+        self.errors_comm = 0
+        self.stop = threading.Event()
+
+    def run(self) -> None:
+        while not self.stop.is_set():
+            msg = self.gcs.conn.recv_match(blocking=True, timeout=0.1)
+            if msg is None:
+                continue
+            if msg.get_type() == "HEARTBEAT" and msg.get_srcSystem() == 1:
+                self.beats.append(time.monotonic())
+            elif msg.get_type() == "SYS_STATUS":
+                self.errors_comm = msg.errors_comm
+
+
+@pytest.mark.integration
+def test_100k_bad_frames_then_a_normal_upload(tmp_path: Path) -> None:
+    frames = fuzz_frames(100_000, seed=5)
+    err_path = tmp_path / "stderr.txt"
+    with err_path.open("w") as err, serve("--mavlink", "udpin:127.0.0.1:0", stderr=err) as s:
+        port = s.ports[0]
+        watch = HeartbeatWatch(port)
+        watch.start()
+        fuzzer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        t0 = time.monotonic()
+        # Several frames per datagram, paced so most of them reach the parser.
+        i = 0
+        while i < len(frames):
+            n = 1 + i % 4
+            fuzzer.sendto(b"".join(frames[i : i + n]), ("127.0.0.1", port))
+            i += n
+            if i % 2000 < n:
+                time.sleep(0.02)
+        fuzz_s = time.monotonic() - t0
+        time.sleep(1.5)
+        gcs = Gcs(f"udpout:127.0.0.1:{port}")
+        gcs.connect()
+        items = load_mission(UC200).items
+        result = gcs.upload(items)
+        if result == M.MAV_MISSION_DENIED:  # a random frame may have begun an upload
+            time.sleep(2.0)
+            result = gcs.upload(items)
+        assert result == M.MAV_MISSION_ACCEPTED
+        assert len(gcs.download()) == len(items)
+        watch.stop.set()
+        watch.join()
+        beats = np.diff([t for t in watch.beats if t >= t0])
+        assert len(beats) >= int(fuzz_s) - 1, (len(beats), fuzz_s)
+        assert beats.max() < 2.0, beats.max()  # ~1 Hz all along
+        assert watch.errors_comm > 10_000  # parse errors counted (SYS_STATUS.errors_comm)
+        assert s.proc.poll() is None
+        code, out = s.stop()
+    assert code == 0
+    assert "Traceback" not in err_path.read_text()
+    counts = out.splitlines()[-1]
+    assert "parse errors" in counts
+
+
+@pytest.mark.integration
+def test_a_tcp_client_that_never_reads_does_not_stall_the_simulation() -> None:
+    with serve(
+        "--mavlink", "tcpin:127.0.0.1:0", "--mavlink", "udpin:127.0.0.1:0", "--speed", "50"
+    ) as s:  # fmt: skip
+        tcp_port, udp_port = s.ports
+        stuck = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        stuck.connect(("127.0.0.1", tcp_port))
+        reader = Gcs(f"tcp:127.0.0.1:{tcp_port}", system_id=251)  # a second TCP client
+        assert reader.connect().get_srcSystem() == 1
+        gcs = Gcs(f"udpout:127.0.0.1:{udp_port}")
+        gcs.connect()
+        assert gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 1000) == M.MAV_RESULT_ACCEPTED
+        first = gcs.recv(["ATTITUDE"])
+        t0 = time.monotonic()
+        time.sleep(6.0)
+        gcs.conn.recv_match(blocking=False)  # drop what queued up meanwhile
+        while gcs.conn.recv_match(blocking=False) is not None:
+            pass
+        last = gcs.recv(["ATTITUDE"])
+        wall = time.monotonic() - t0
+        sim = (last.time_boot_ms - first.time_boot_ms) / 1000
+        assert sim > 0.5 * 50 * wall, (sim, wall)  # at least half the asked speed
+        assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, 148) == M.MAV_RESULT_ACCEPTED
+        assert reader.recv(["HEARTBEAT"]) is not None
+        stuck.close()
+        reader.close()
+        gcs.close()
+
+
+def test_tcp_link_send_never_blocks_and_drops_for_a_full_client() -> None:
+    link = TcpServerLink(parse_link("tcpin:127.0.0.1:0"), Encoder(1, 1), lambda *a: None, object)
+    sel = selectors.DefaultSelector()
+    link.register(sel)
+    client = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    client.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    client.connect(link.local_address)
+    for key, mask in sel.select(1.0):
+        link.on_ready(sel, key, mask)
+    (ch,) = link.channels.values()
+    t0 = time.monotonic()
+    frame = b"\xfd" + bytes(279)
+    for _ in range(20_000):  # 5.6 MB to a client that reads nothing
+        link.send(frame)
+    assert time.monotonic() - t0 < 2.0
+    assert ch.dropped_frames > 0
+    assert len(ch.outbuf) <= TCP_MAX_BUFFER_BYTES
+    client.close()
+    link.close()
+    sel.close()
+
+
+@pytest.mark.integration
+def test_signing_rejects_unsigned_and_accepts_signed() -> None:
+    with serve("--mavlink", "udpin:127.0.0.1:0", "--signing-key", KEY_HEX) as s:
+        port = s.ports[0]
+        unsigned = Gcs(f"udpout:127.0.0.1:{port}", system_id=201)
+        hb = unsigned.connect()  # telemetry is sent signed; unsigned readers still parse it
+        assert hb.get_header().incompat_flags & 0x01
+        unsigned.conn.mav.command_long_send(
+            1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0
+        )
+        assert unsigned.recv(["COMMAND_ACK"], 1.5) is None
+        signed = Gcs(f"udpout:127.0.0.1:{port}", system_id=202)
+        signed.conn.setup_signing(bytes.fromhex(KEY_HEX), sign_outgoing=True)
+        signed.connect()
+        assert signed.command(M.MAV_CMD_REQUEST_MESSAGE, 148) == M.MAV_RESULT_ACCEPTED
+        status = signed.recv(["SYS_STATUS"], 3.0)
+        assert status.errors_comm >= 2  # the unsigned heartbeats and command were dropped
+        unsigned.close()
+        signed.close()
+        code, out = s.stop()
+    assert code == 0
+    assert "signature rejected" in out and " 0 signature rejected" not in out
+
+
+def test_fuzz_frames_are_deterministic() -> None:
+    assert fuzz_frames(500, seed=1) == fuzz_frames(500, seed=1)
+    assert len({struct.pack("<I", len(f)) for f in fuzz_frames(500, seed=2)}) > 50
