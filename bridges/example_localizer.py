@@ -142,7 +142,7 @@ class Localizer:
         self.bus = bus
         self.keys = keys
         self.key_out = keys.estimate(name)
-        self._lock = threading.Lock()
+        self._lock = threading.Condition()
         self._imu: deque[tuple[int, Quat]] = deque(maxlen=2000)
         self._last_fix: tuple[float, float, float] | None = None
         self._fix_fresh = False
@@ -185,6 +185,7 @@ class Localizer:
         imu = codec.decode_imu(message.payload)
         with self._lock:
             self._imu.append((imu.sim_time_ns, imu.q_ahrs_body_to_ned_wxyz))
+            self._lock.notify_all()
 
     def _on_gps(self, message: Message) -> None:
         m = codec.loads(message.payload, message.key)
@@ -194,7 +195,10 @@ class Localizer:
             self._fix_fresh = True
 
     def _attitude_at(self, t_ns: int) -> Quat | None:
+        """The AHRS attitude at the exposure (the IMU sample of that step comes first, but on
+        another subscriber's thread: give it a moment)."""
         with self._lock:
+            self._lock.wait_for(lambda: bool(self._imu) and self._imu[-1][0] >= t_ns, 0.1)
             best = None
             for t, q in reversed(self._imu):
                 best = q

@@ -124,6 +124,9 @@ class GeoTiffMap(TiledMap):
         return tile
 
     def _make_tile(self, tx: int, ty: int) -> Image:
+        with self._lock:
+            if self._src.closed:  # closed by a finished camera bridge, used again: reopen
+                self._src = rasterio.open(self.path)
         return self._read(self._src, tx * TILE_PX, ty * TILE_PX)
 
     def _native_tile(self, level: int, tx: int, ty: int) -> Image | None:

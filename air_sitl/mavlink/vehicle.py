@@ -120,6 +120,7 @@ class TelemetrySink:
         self._last_key: tuple[FlightMode, bool] | None = None
         self._last_seq = -2
         self._last_completed = False
+        self._last_reached = -1
         self._fence_latched = False
         self.zones: tuple[Zone, ...] = ()
         self.last_fix: GpsFix | None = None
@@ -133,7 +134,7 @@ class TelemetrySink:
         ap = sample.autopilot
         t = sample.state.sim_time_ns
         if ap.reached_seq >= 0:
-            seq = ap.reached_seq
+            seq = self._last_reached = ap.reached_seq
             ep.to_io(lambda: ep.broadcast(mav.MAVLink_mission_item_reached_message(seq)))
         key = (ap.mode, ap.armed)
         if key != self._last_key:
@@ -143,7 +144,8 @@ class TelemetrySink:
             if ap.mission_completed and not self._last_completed:
                 # MAVSDK counts a mission done when the last item is reached, DO items included.
                 last = len(ep.protocol.items(MissionType.MISSION)) - 1
-                if last >= 0 and ap.reached_seq != last:
+                if last >= 0 and self._last_reached != last:
+                    self._last_reached = last
                     ep.to_io(lambda: ep.broadcast(mav.MAVLink_mission_item_reached_message(last)))
             self._last_seq, self._last_completed = ap.current_seq, ap.mission_completed
             ep.to_io(lambda: ep.send_stream(mav.MAVLINK_MSG_ID_MISSION_CURRENT, sample, None))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import subprocess
 import sys
 from pathlib import Path
@@ -22,9 +23,7 @@ pytestmark = pytest.mark.integration
 def test_air_start_flight_meets_the_paper_and_the_tracking_bounds(scenario: str) -> None:
     mission = load_mission(REPO / "missions" / f"{scenario}.plan")
     flight, _, _ = assemble_flight(mission, FlightOptions(air_start=True))
-    result = flight.run(
-        stop=lambda s: s.autopilot.mission_completed, max_sim_time_ns=3600 * 10**9
-    )
+    result = flight.run(stop=lambda s: s.autopilot.mission_completed, max_sim_time_ns=3600 * 10**9)
     s = result.summary
     images, distance_m = PAPER[scenario]
     assert s["mission_completed"] is True
@@ -55,7 +54,7 @@ def test_fly_is_deterministic_and_seeds_matter_only_where_they_should(tmp_path: 
     rows = a.decode().splitlines()
     assert len(rows) > 1000
     times = [int(r.split(",")[0]) for r in rows[1:6]]
-    assert [t2 - t1 for t1, t2 in zip(times, times[1:], strict=False)] == [20_000_000] * 4
+    assert [t2 - t1 for t1, t2 in itertools.pairwise(times)] == [20_000_000] * 4
 
 
 def test_a_wheel_aircraft_flies_a_plan_inside_its_own_speed_envelope(tmp_path: Path) -> None:

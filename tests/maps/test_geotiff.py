@@ -187,3 +187,11 @@ def test_default_map_for_plan() -> None:
     assert default_map_for_plan("UL-200") == "urban"
     assert default_map_for_plan("missions/FC-300.plan") == "forest"
     assert default_map_for_plan("mine") == "urban"
+
+
+def test_reads_after_close_reopen(texture_tif) -> None:  # type: ignore[no-untyped-def]
+    path, img, _crs, _transform = texture_tif
+    tif = open_map(str(path), HOME)
+    tif.close()  # type: ignore[attr-defined]
+    tile = tif.read_level(0, 0, 0, 16, 16)
+    assert np.array_equal(tile[:, :, :3], img[:16, :16])

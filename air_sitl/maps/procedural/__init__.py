@@ -6,7 +6,8 @@ pixels. Nominal level-0 pixel grid (what MapX/MapY count): ``gsd_m`` metres per 
 0.6), pixel edges on multiples of ``gsd_m`` in UTM, origin ``NOMINAL_HALF_PX`` pixels west and
 north of the 256-pixel lattice cell that holds home; so home lies at pixel
 (5120 + a, 5120 + b) with 0 <= a, b < 256, and ``air-sitl map make`` with its default size and
-``--origin`` = home writes exactly that grid (10240 x 10240 pixels).
+``--origin`` = home writes exactly that grid (10240 x 10240 pixels). One exception to "the
+world ignores home": the forest keeps lakes 2 km away from home, so flights start over land.
 """
 
 from __future__ import annotations
@@ -74,11 +75,11 @@ class ProceduralMap(TiledMap):
         self.kind = kind
         self.seed = int(seed)
         self.date = parse_date(date)
-        self._world: UrbanWorld | ForestWorld = (
-            UrbanWorld(self.seed) if kind == "urban" else ForestWorld(self.seed)
-        )
         self.zone = utm_zone_of(home.lat_deg, home.lon_deg)
         e, n = latlon2utm(home.lat_deg, home.lon_deg, self.zone)
+        self._world: UrbanWorld | ForestWorld = (
+            UrbanWorld(self.seed) if kind == "urban" else ForestWorld(self.seed, (e, n))
+        )
         # Absolute lattice: pixel k spans [k, k+1) * gsd east and [-k-1, -k) * gsd north.
         cell_x = math.floor(e / gsd_m / TILE_PX) * TILE_PX
         cell_y = math.floor(-n / gsd_m / TILE_PX) * TILE_PX

@@ -124,7 +124,7 @@ class Canvas:
 
     def line(self, pts: Sequence[Point], color: Color, width_m: float) -> None:
         """A polyline of a given width in metres (thin lines become 1 px, anti-aliased)."""
-        if width_m < 0.3 * self.gsd_m:
+        if width_m < 0.2 * self.gsd_m:
             return  # far thinner than a pixel: averages out (direct coarse levels)
         thick = max(1, round(width_m / self.gsd_m))
         p = self._px(pts)
@@ -135,7 +135,7 @@ class Canvas:
 
     def segments(self, segs: Sequence[tuple[Point, Point]], color: Color, width_m: float) -> None:
         """Many separate two-point lines in one call (dashes, stall lines)."""
-        if not segs or width_m < 0.3 * self.gsd_m:
+        if not segs or width_m < 0.2 * self.gsd_m:
             return
         thick = max(1, round(width_m / self.gsd_m))
         flat = self._px([p for seg in segs for p in seg])

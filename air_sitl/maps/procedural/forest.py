@@ -30,11 +30,15 @@ ROAD_PITCH_M = 1700.0
 CUT_CELL_M = 170.0
 
 
-class ForestWorld:
-    """The forest generator for one seed."""
+DRY_RADIUS_M = 2000.0  # no lake this close to home: flights start over land, not water
 
-    def __init__(self, seed: int) -> None:
+
+class ForestWorld:
+    """The forest generator for one seed; ``home_en_m`` (UTM) keeps lakes away from home."""
+
+    def __init__(self, seed: int, home_en_m: tuple[float, float] | None = None) -> None:
         self.seed = seed
+        self.home_en_m = home_en_m
 
     def draw(
         self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook
@@ -111,6 +115,8 @@ class ForestWorld:
             k + 9, x0, y0, size, 150.0 * pm
         )
         water_a = np.clip((-water_n - 1.7) * 8.0, 0.0, 1.0)
+        if self.home_en_m is not None and float(water_a.max()) > 0.0:
+            water_a *= self._dry_near_home(x0, y0, size, gsd_m)
         if float(water_a.max()) > 0.0:
             # Lakes last: tracks and roads end at the shore.
             ripple = 1.0 + 0.06 * value_noise(k + 10, x0, y0, size, 4.0 * pm)
@@ -121,6 +127,15 @@ class ForestWorld:
             )
         out += float(5.0 * min(1.0, 0.6 * pm)) * white_noise(k + 11, x0, y0, size)[:, :, None]
         return np.clip(out, 0, 255).astype(np.uint8)
+
+    def _dry_near_home(self, x0: int, y0: int, size: int, gsd_m: float) -> npt.NDArray[np.float32]:
+        """0 within DRY_RADIUS_M of home, rising to 1 over the next 500 m."""
+        assert self.home_en_m is not None
+        he, hn = self.home_en_m
+        e = (x0 + np.arange(size, dtype=np.float64) + 0.5) * gsd_m - he
+        n = -(y0 + np.arange(size, dtype=np.float64) + 0.5) * gsd_m - hn
+        dist = np.hypot(e[None, :], n[:, None])
+        return np.clip((dist - DRY_RADIUS_M) / 500.0, 0.0, 1.0).astype(np.float32)
 
     def _cuts(
         self, x0: int, y0: int, size: int, gsd_m: float, d: int

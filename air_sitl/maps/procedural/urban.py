@@ -141,20 +141,20 @@ class UrbanWorld:
                 key_of(self.seed, 22), (u0 + u1) / 2 / 1500.0, (v0 + v1) / 2 / 1500.0, 1, 1.0
             )[0, 0]
         )
-        kind = float(np.clip(rng.random() + 0.18 * zone, 0.0, 0.999))
+        kind = float(np.clip(rng.random() + 0.12 * zone, 0.0, 0.999))
         grounds: list[tuple[tuple[Point, ...], str]] = [(tuple(_box(u0, v0, u1, v1)), "sidewalk")]
         b0, b1, c0, c1 = u0 + 2.5, u1 - 2.5, v0 + 2.5, v1 - 2.5
         buildings: list[Building] = []
         trees: list[tuple[Point, float, int, int]] = []
         cars: list[tuple[tuple[Point, ...], Color]] = []
         paint: list[tuple[tuple[Point, ...], float]] = []
-        if kind < 0.55:
+        if kind < 0.62:
             grounds.append((tuple(_box(b0, c0, b1, c1)), "lawn"))
             _residential(rng, b0, c0, b1, c1, grounds, buildings, trees, cars)
-        elif kind < 0.78:
+        elif kind < 0.8:
             grounds.append((tuple(_box(b0, c0, b1, c1)), "parking"))
             _commercial(rng, b0, c0, b1, c1, buildings, trees, cars, paint)
-        elif kind < 0.9:
+        elif kind < 0.93:
             grounds.append((tuple(_box(b0, c0, b1, c1)), "lawn"))
             _park(rng, b0, c0, b1, c1, grounds, trees)
         else:
@@ -524,7 +524,7 @@ def _commercial(rng, b0, c0, b1, c1, buildings, trees, cars, paint) -> None:  # 
 def _stalls(rng, u0, v0, u1, v1, cars, paint) -> None:  # type: ignore[no-untyped-def]
     """A row of parking stalls 2.6 m wide, some occupied."""
     n = max(0, int((u1 - u0) // 2.6))
-    occupied = rng.random(n) < 0.55
+    occupied = rng.random(n) < 0.4
     colours = rng.integers(len(_CARS), size=n)
     cm = (v0 + v1) / 2
     for i in range(n):
