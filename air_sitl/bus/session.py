@@ -72,6 +72,8 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
         # Room for bursts of frames (the camera threads deliver several at once): a slow
         # reader still loses samples (drop on congestion), a merely busy one does not.
         _insert(conf, "transport/link/tx/queue/size/data", TX_QUEUE_BATCHES)
+        # A program started before the simulator connects within a second of it coming up.
+        _insert(conf, "connect/retry", {"period_init_ms": 100, "period_max_ms": 1000})
         listen, connect = cfg.listen, cfg.connect
         if listen is None and connect is None:
             listen, connect = ((DEFAULT_ENDPOINT,), ()) if cfg.serves else ((), (DEFAULT_ENDPOINT,))

@@ -72,7 +72,8 @@ def test_marks_land_within_half_a_pixel(marks_map, roll_deg: float, pitch_deg: f
         x, y = _centroid(gray, p[0], p[1], radius)
         errors.append(math.hypot(x - p[0], y - p[1]))
     print(
-        f"{alt:.0f} m roll {roll_deg} pitch {pitch_deg}: {len(errors)} marks, max {max(errors):.3f} px"
+        f"{alt:.0f} m roll {roll_deg} pitch {pitch_deg}: "
+        f"{len(errors)} marks, max {max(errors):.3f} px"
     )
     assert len(errors) >= 12, f"only {len(errors)} marks in view"
     assert max(errors) <= 0.5, (

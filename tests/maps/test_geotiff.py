@@ -195,3 +195,16 @@ def test_reads_after_close_reopen(texture_tif) -> None:  # type: ignore[no-untyp
     tif.close()  # type: ignore[attr-defined]
     tile = tif.read_level(0, 0, 0, 16, 16)
     assert np.array_equal(tile[:, :, :3], img[:16, :16])
+
+
+def test_read_ground_picks_level_and_window(texture_tif) -> None:  # type: ignore[no-untyped-def]
+    path, img, _crs, transform = texture_tif
+    tif = open_map(str(path), HOME)
+    x0, y0 = transform[0] + 100.0, transform[3] - 100.0  # 100 m in from the corner
+    patch = tif.read_ground(x0, y0, x0 + 400.0, y0 - 300.0, gsd_m=4.2)
+    assert patch.level == 2  # 4 m pixels: the coarsest level not coarser than 4.2 m
+    assert (patch.x0_px, patch.y0_px) == (24, 24)
+    assert patch.image.shape[1] >= 100 and patch.image.shape[0] >= 75
+    full = tif.read_ground(x0, y0, x0 + 40.0, y0 - 30.0, gsd_m=0.5)
+    assert full.level == 0
+    assert np.array_equal(full.image[1:31, 1:41, :3], img[100:130, 100:140])
