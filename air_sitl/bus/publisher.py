@@ -192,8 +192,9 @@ class BusPublisher(NullSink):
             width_px=frame.width_px,
             height_px=frame.height_px,
         )
-        self._image.put(frame.jpeg, codec.encode_frame_meta(meta))
+        # Recorded before the put: an estimate may come back before put() returns.
         self.ledger.record(frame.index, frame.sim_time_ns)
+        self._image.put(frame.jpeg, codec.encode_frame_meta(meta))
         self.frames_published += 1
 
     def close(self, result: FlightResult) -> None:

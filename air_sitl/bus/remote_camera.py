@@ -125,6 +125,8 @@ class RemoteCamera:
         self._ask(index, sample, time.monotonic() + self.timeout_s)
 
     def _ask(self, index: int, sample: SimSample, deadline: float) -> None:
+        if self._closed:
+            return
         payload = codec.encode_truth(sample.state, index)
 
         def on_answer(message: Message | None, error: str | None) -> None:
@@ -145,9 +147,12 @@ class RemoteCamera:
                 self._finish(index, f"camera bridge, frame {index}: {error}")
 
         left = max(0.1, deadline - time.monotonic())
-        self.bus.query_async(
-            self.keys.render, payload, on_answer, attachment=self._settings, timeout_s=left
-        )
+        try:
+            self.bus.query_async(
+                self.keys.render, payload, on_answer, attachment=self._settings, timeout_s=left
+            )
+        except BusError as err:
+            self._finish(index, str(err))
 
     def _accept(self, index: int, message: Message) -> None:
         try:

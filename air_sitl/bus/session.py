@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import re
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -98,8 +99,10 @@ def _insert(conf: zenoh.Config, key: str, value: Any) -> None:
 
 
 def _one_line(err: BaseException) -> str:
-    text = str(err).strip().splitlines()
-    return text[0] if text else type(err).__name__
+    """The first line of a zenoh error, without its Rust source locations."""
+    lines = str(err).strip().splitlines()
+    text = lines[0] if lines else type(err).__name__
+    return re.sub(r"\s+at \S+\.rs:\d+\.?", "", text).strip()
 
 
 class Publisher:
@@ -247,6 +250,9 @@ class Bus:
         """Send a query; ``on_answer(message, None)`` on the first good reply,
         ``on_answer(None, error)`` on an error reply or when none came within ``timeout_s``.
         """
+        if self._closed:
+            msg = f"{key}: the zenoh session is closed"
+            raise BusError(msg)
         done = threading.Event()
 
         def on_reply(reply: zenoh.Reply) -> None:
@@ -343,7 +349,10 @@ def open_bus(cfg: BusConfig) -> Bus:
     try:
         session = zenoh.open(conf)
     except zenoh.ZError as err:
-        where = ", ".join((*(cfg.listen or ()), *(cfg.connect or ()))) or "default endpoints"
+        listen = cfg.listen
+        if listen is None and cfg.connect is None and cfg.config_file is None and cfg.serves:
+            listen = (DEFAULT_ENDPOINT,)
+        where = ", ".join((*(listen or ()), *(cfg.connect or ()))) or "default endpoints"
         msg = f"cannot open the zenoh session ({cfg.mode}, {where}): {_one_line(err)}"
         raise BusError(msg) from None
     return Bus(session, cfg)

@@ -172,7 +172,9 @@ def test_remote_camera_frames_are_byte_identical_to_the_local_camera(
     plan: Path, tmp_path: Path
 ) -> None:
     endpoint = free_endpoint()
-    bridge = start(cli("camera-bridge", "--map", "urban", "--zenoh-connect", endpoint))
+    # The standalone entry point (bridges/camera_bridge.py runs `air-sitl camera-bridge`).
+    bridge = start([sys.executable, str(REPO / "bridges" / "camera_bridge.py"), "--map", "urban",
+                    "--zenoh-connect", endpoint])  # fmt: skip
     try:
         wait_for_line(bridge, "serving")
         remote = fly(plan, tmp_path / "remote", "--camera", "remote", "--zenoh-listen", endpoint)

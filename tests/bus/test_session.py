@@ -51,6 +51,7 @@ def test_a_port_in_use_is_a_one_line_error() -> None:
     ):
         open_bus(BusConfig(listen=(endpoint,), connect=(), serves=True))
     assert endpoint in str(info.value) and "\n" not in str(info.value)
+    assert "Address already in use" in str(info.value) and ".rs:" not in str(info.value)
 
 
 def test_a_broken_config_file_names_the_file(tmp_path: Path) -> None:
