@@ -29,6 +29,7 @@ from air_sitl.frames import ned2geodetic
 from air_sitl.maps.open import open_map
 from air_sitl.state import AutopilotStatus, FlightMode, GeoPoint, ImuSample, SimSample, VehicleState
 
+REPEATS = 3
 HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
 
 
@@ -87,7 +88,10 @@ def sample_of(state: VehicleState) -> SimSample:
 def one_core(frames: int) -> None:
     """Per-frame cost of the pipeline vs JPEG only, same frames, same run."""
     cv2.setNumThreads(1)
-    print("1) one core, urban map, 640x480, q90, noise sigma 1.8 (median CPU ms per frame)")
+    print(
+        "1) one core, urban map, 640x480, q90, noise sigma 1.8 "
+        f"(median CPU ms per frame, best of {REPEATS} passes)"
+    )
     print("   'flying': first pass, generating the new ground's tiles; then the same frames warm")
     print(
         f"{'alt m':>6} {'flying':>7} {'render':>7} {'noise':>6} {'jpeg':>6} {'whole':>7}"
@@ -101,21 +105,26 @@ def one_core(frames: int) -> None:
         for i, s in enumerate(states):  # in flight: new ground (tiles) arrives at 15 m/s
             renderer.encode(renderer.add_noise(renderer.render(s), i))
         cold = (time.thread_time() - t0) / frames * 1e3
-        # Warm pass; JPEG-only is timed right after each frame's pipeline, on the same frame.
+        # Warm passes; JPEG-only is timed right after each frame's pipeline, on the same frame.
         # CPU time of this thread (cv2 runs single-threaded in it): other processes sharing
-        # the 2 cores stretch wall time, not the cost measured here.
-        parts = np.zeros((frames, 4))
-        for i, s in enumerate(states):
-            a = time.thread_time()
-            img = renderer.render(s)
-            b = time.thread_time()
-            img = renderer.add_noise(img, i)
-            c = time.thread_time()
-            renderer.encode(img)
-            d = time.thread_time()
-            renderer.encode(img)
-            e = time.thread_time()
-            parts[i] = (b - a, c - b, d - c, e - d)
+        # the 2 cores stretch wall time, not the cost measured here. The host's noise only
+        # ever adds time, so each figure is the best of REPEATS medians (as timeit does).
+        runs = []
+        for _ in range(REPEATS):
+            parts = np.zeros((frames, 4))
+            for i, s in enumerate(states):
+                a = time.thread_time()
+                img = renderer.render(s)
+                b = time.thread_time()
+                img = renderer.add_noise(img, i)
+                c = time.thread_time()
+                renderer.encode(img)
+                d = time.thread_time()
+                renderer.encode(img)
+                e = time.thread_time()
+                parts[i] = (b - a, c - b, d - c, e - d)
+            runs.append(parts)
+        parts = min(runs, key=lambda p: float(np.median(p[:, :3].sum(axis=1))))
         med = np.median(parts, axis=0) * 1e3
         whole = float(np.median(parts[:, :3].sum(axis=1))) * 1e3
         print(

@@ -93,7 +93,12 @@ class Autopilot:
                 ex.set_mode(FlightMode.MISSION)
                 ex.arm()
         nav = ex.update(state)
-        self._target = nav.target
+        params = ex.params
+        self._target = dataclasses.replace(
+            nav.target,
+            pitch_max_rad=math.radians(params.get("FW_P_LIM_MAX")),
+            pitch_min_rad=math.radians(params.get("FW_P_LIM_MIN")),
+        )
         self._status = AutopilotStatus(
             mode=ex.mode,
             armed=ex.armed,

@@ -169,6 +169,8 @@ class Controller:
         self.dt_s = dt_s
         self._roll_i = 0.0
         self._pitch_i = 0.0
+        self._pitch_lo = self.gains.min_pitch_rad
+        self._pitch_hi = self.gains.max_pitch_rad
         self._throttle_i = 0.0
         self._balance_i = 0.0
         self._vdot = 0.0
@@ -199,6 +201,8 @@ class Controller:
     def update(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
         """One step of the control law of ``target.phase``."""
         phase = target.phase
+        self._pitch_lo = max(self.gains.min_pitch_rad, target.pitch_min_rad)
+        self._pitch_hi = min(self.gains.max_pitch_rad, target.pitch_max_rad)
         if phase is ControlPhase.IDLE:
             self.reset()  # parked: nothing to remember
             return ActuatorCommand(brake=1.0)
@@ -242,7 +246,7 @@ class Controller:
 
     def _elevator(self, state: VehicleState, pitch_cmd_rad: float, scale: float) -> float:
         g = self.gains
-        pitch_cmd = _clamp(pitch_cmd_rad, g.min_pitch_rad, g.max_pitch_rad)
+        pitch_cmd = _clamp(pitch_cmd_rad, self._pitch_lo, self._pitch_hi)
         err = pitch_cmd - state.pitch_rad
         # Steady pitch rate of a level turn: g/V * sin^2(phi) / cos(phi).
         v = max(state.airspeed_m_s, g.min_airspeed_m_s)

@@ -12,6 +12,8 @@ import os
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 
+import cv2
+
 from air_sitl.camera.render import Renderer, render_camera_frame
 from air_sitl.state import CameraFrame, SimSample
 
@@ -32,6 +34,9 @@ class CameraBridge:
         self.max_pending = max(1, max_pending)
         self._pool: ThreadPoolExecutor | None = None
         if self.workers > 0:
+            # Our workers are the parallelism: OpenCV's own pool would oversubscribe the cores
+            # and spin (sched_yield) waiting for work, costing more CPU than it saves.
+            cv2.setNumThreads(1)
             self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="camera")
         self._pending: deque[Future[CameraFrame]] = deque()
         self._done_sync: list[CameraFrame] = []

@@ -64,6 +64,8 @@ class Renderer:
         self._noise_pos: Image | None = None
         self._noise_neg: Image | None = None
         self._local = threading.local()
+        self._jacobians: dict[tuple[float, float], tuple[float, float, float, float]] = {}
+        self._border = _border_points(camera.width_px, camera.height_px)
         if camera.noise_sigma > 0:
             rng = np.random.default_rng(key_of(seed, 0x4E01))
             n = camera.height_px * camera.width_px * 3 * _NOISE_BANK_FACTOR
@@ -75,6 +77,19 @@ class Renderer:
     def ground_affine(self, lat_deg: float, lon_deg: float) -> Mat3:
         """3x3 affine taking local ground (north_m, east_m, 1) at a point to level-0 map px."""
         x0, y0 = self.map.latlon_to_map_px(lat_deg, lon_deg)
+        j = self._jacobian(round(lat_deg, 3), round(lon_deg, 3))
+        return np.array([[j[0], j[1], x0], [j[2], j[3], y0], [0.0, 0.0, 1.0]])
+
+    def _jacobian(self, lat_deg: float, lon_deg: float) -> tuple[float, float, float, float]:
+        """d(map px)/d(north_m, east_m) near a point, cached on a 0.001 degree grid.
+
+        Scale and grid convergence change by about 1e-6 over the 100 m of a grid cell, far
+        below a pixel across any frame, so frames of a flight share a few evaluations.
+        """
+        key = (lat_deg, lon_deg)
+        cached = self._jacobians.get(key)
+        if cached is not None:
+            return cached
         d = 50.0
         cols = []
         for dn, de in ((d, 0.0), (0.0, d)):
@@ -83,9 +98,11 @@ class Renderer:
             xp, yp = self.map.latlon_to_map_px(la_p, lo_p)
             xm, ym = self.map.latlon_to_map_px(la_m, lo_m)
             cols.append(((xp - xm) / (2 * d), (yp - ym) / (2 * d)))
-        return np.array(
-            [[cols[0][0], cols[1][0], x0], [cols[0][1], cols[1][1], y0], [0.0, 0.0, 1.0]]
-        )
+        jac = (cols[0][0], cols[1][0], cols[0][1], cols[1][1])
+        if len(self._jacobians) > 4096:  # bounded: a long flight crosses many cells
+            self._jacobians.clear()
+        self._jacobians[key] = jac
+        return jac
 
     def geometry(self, state: VehicleState) -> FrameGeometry:
         """The frame's homography and pyramid level for a pose."""
@@ -171,18 +188,7 @@ class Renderer:
 
     def _footprint(self, h_lvl: Mat3, g: FrameGeometry) -> tuple[int, int, int, int]:
         """Bounding box (inclusive, level pixels, 1 px margin) of the image on the map."""
-        cam = self.camera
-        n = 9
-        us = np.linspace(0, cam.width_px - 1, n)
-        vs = np.linspace(0, cam.height_px - 1, n)
-        border = np.concatenate(
-            [
-                np.stack([us, np.zeros(n), np.ones(n)], 1),
-                np.stack([us, np.full(n, cam.height_px - 1.0), np.ones(n)], 1),
-                np.stack([np.zeros(n), vs, np.ones(n)], 1),
-                np.stack([np.full(n, cam.width_px - 1.0), vs, np.ones(n)], 1),
-            ]
-        )
+        border = self._border
         p = border @ h_lvl.T
         ok = p[:, 2] > 1e-12
         xs, ys = p[ok, 0] / p[ok, 2], p[ok, 1] / p[ok, 2]
@@ -249,6 +255,20 @@ def render_camera_frame(renderer: Renderer, sample: SimSample, index: int) -> Ca
         height_px=renderer.camera.height_px,
         sample=sample,
         map_xy_px=xy,
+    )
+
+
+def _border_points(width_px: int, height_px: int, n: int = 9) -> npt.NDArray[np.float64]:
+    """Homogeneous image points along the four edges (n per edge)."""
+    us = np.linspace(0, width_px - 1, n)
+    vs = np.linspace(0, height_px - 1, n)
+    return np.concatenate(
+        [
+            np.stack([us, np.zeros(n), np.ones(n)], 1),
+            np.stack([us, np.full(n, height_px - 1.0), np.ones(n)], 1),
+            np.stack([np.zeros(n), vs, np.ones(n)], 1),
+            np.stack([np.full(n, width_px - 1.0), vs, np.ones(n)], 1),
+        ]
     )
 
 

@@ -270,3 +270,23 @@ def test_take_off_in_a_5_m_s_crosswind_stays_near_the_runway_heading() -> None:
     assert all(abs(s.pos_ned_m[1]) < 2.0 for s in on_ground)  # stays on a 4 m wide strip
     assert states[-1].alt_agl_m > 60.0
     assert all(abs(s.roll_rad) < math.radians(8.0) for s in states)
+
+
+def test_the_targets_pitch_limits_bound_the_climb_attitude() -> None:
+    """FW_P_LIM_MAX reaches the controller through ControlTarget and caps a climb."""
+
+    def climb(limit_deg: float) -> float:
+        model = JSBSimModel()
+        state, controller = _air_start(model)
+        target = ControlTarget(
+            phase=ControlPhase.CRUISE,
+            altitude_amsl_m=CRUISE_ALT_M + 150.0,
+            airspeed_m_s=15.0,
+            climb_rate_limit_m_s=6.0,
+            pitch_max_rad=math.radians(limit_deg),
+        )
+        states = _fly(model, controller, state, lambda _s: target, 15.0)
+        return max(math.degrees(s.pitch_rad) for s in states)
+
+    assert climb(90.0) > 8.0  # unconstrained, the climb pitches up well beyond 4 degrees
+    assert climb(4.0) < 4.5
