@@ -127,12 +127,7 @@ def _options_dict(options: FlightOptions) -> dict[str, Any]:
 
 def _camera_dict(camera: CameraModel) -> dict[str, Any]:
     return {
-        "width_px": camera.width_px,
-        "height_px": camera.height_px,
-        "hfov_deg": camera.hfov_deg,
-        "mount_rpy_deg": list(camera.mount_rpy_deg),
-        "noise_sigma": camera.noise_sigma,
-        "jpeg_quality": camera.jpeg_quality,
+        **camera.settings(),
         "fx_px": camera.fx_px,
         "fy_px": camera.fy_px,
         "cx_px": camera.cx_px,

@@ -17,29 +17,17 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+from air_sitl.dataset.scenarios import PAPER_TABLE
+
 REPO = Path(__file__).resolve().parent.parent
-PAPER = {  # scenario: (images at 50 Hz, distance m) -- AIR paper, Table 2
-    "FL-200": (11837, 2936),
-    "FL-300": (9020, 2736),
-    "FR-200": (16056, 4748),
-    "FR-300": (15307, 4541),
-    "FC-200": (3601, 1065),
-    "FC-300": (3450, 1028),
-    "UL-200": (8735, 2592),
-    "UL-300": (8416, 2496),
-    "UR-200": (14997, 4418),
-    "UR-300": (15361, 4542),
-    "UC-200": (3422, 1016),
-    "UC-300": (3272, 970),
-}
+PAPER = PAPER_TABLE  # scenario: (images at 50 Hz, distance m) -- AIR paper, Table 2
 
 
 def fly(name: str, air_start: bool) -> dict[str, Any]:
     """Fly one scenario and return its figures."""
-    from air_sitl.mission.plan_file import load_mission
-
     from air_sitl.frames import geodetic2ned
     from air_sitl.mission.items import MavCmd
+    from air_sitl.mission.plan_file import load_mission
     from air_sitl.options import FlightOptions
     from air_sitl.runner import assemble_flight
     from air_sitl.sinks import NullSink

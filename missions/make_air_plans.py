@@ -22,6 +22,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from air_sitl.dataset.scenarios import PAPER_TABLE
 from air_sitl.frames import GRAVITY_M_S2, ned2geodetic
 from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
 from air_sitl.mission.plan_file import write_plan
@@ -63,21 +64,7 @@ SITES = {
     ),
 }
 
-# AIR paper, Table 2: scenario -> (images at 50 Hz, distance of the captured part in m).
-PAPER: dict[str, tuple[int, float]] = {
-    "FL-200": (11837, 2936.0),
-    "FL-300": (9020, 2736.0),
-    "FR-200": (16056, 4748.0),
-    "FR-300": (15307, 4541.0),
-    "FC-200": (3601, 1065.0),
-    "FC-300": (3450, 1028.0),
-    "UL-200": (8735, 2592.0),
-    "UL-300": (8416, 2496.0),
-    "UR-200": (14997, 4418.0),
-    "UR-300": (15361, 4542.0),
-    "UC-200": (3422, 1016.0),
-    "UC-300": (3272, 970.0),
-}
+PAPER = PAPER_TABLE  # scenario -> (images at 50 Hz, distance of the captured part in m)
 
 
 @dataclass(frozen=True, slots=True)

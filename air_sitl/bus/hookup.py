@@ -230,14 +230,7 @@ def gps_denial_record(windows: tuple[tuple[int, int], ...]) -> list[dict[str, An
 
 def camera_fields(camera: CameraModel) -> dict[str, Any]:
     """CameraModel fields as JSON values (what a remote render request carries)."""
-    return {
-        "width_px": camera.width_px,
-        "height_px": camera.height_px,
-        "hfov_deg": camera.hfov_deg,
-        "mount_rpy_deg": list(camera.mount_rpy_deg),
-        "noise_sigma": camera.noise_sigma,
-        "jpeg_quality": camera.jpeg_quality,
-    }
+    return camera.settings()
 
 
 def camera_info_of(camera: CameraModel) -> Any:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -59,6 +60,17 @@ class CameraModel:
         if len(self.mount_rpy_deg) != 3 or not all(math.isfinite(a) for a in self.mount_rpy_deg):
             msg = f"--camera-mount-rpy-deg {self.mount_rpy_deg}: expected 3 finite angles"
             raise CameraError(msg)
+
+    def settings(self) -> dict[str, Any]:
+        """The configuration as JSON values: ``CameraModel(**settings())`` rebuilds it."""
+        return {
+            "width_px": self.width_px,
+            "height_px": self.height_px,
+            "hfov_deg": self.hfov_deg,
+            "mount_rpy_deg": list(self.mount_rpy_deg),
+            "noise_sigma": self.noise_sigma,
+            "jpeg_quality": self.jpeg_quality,
+        }
 
     @property
     def fx_px(self) -> float:

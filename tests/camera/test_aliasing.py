@@ -7,12 +7,11 @@ import math
 import cv2
 import numpy as np
 import pytest
+from georef_helpers import HOME, utm_grid
 
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
 from air_sitl.maps.array import ArrayMap
-
-from .helpers import HOME, utm_grid
 
 ALT_M = 3000.0
 GSD_M = 2.0

@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from georef_helpers import HOME
+
 from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state, render_camera_frame
@@ -12,8 +14,6 @@ from air_sitl.camera.sink import JpegFolderSink
 from air_sitl.frames import ned2geodetic
 from air_sitl.maps.open import open_map
 from air_sitl.state import AutopilotStatus, FlightMode, ImuSample, SimSample
-
-from .helpers import HOME
 
 
 def _samples(n: int) -> list[SimSample]:

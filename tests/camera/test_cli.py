@@ -9,10 +9,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from georef_helpers import HOME
 
 from air_sitl.cli import main
-
-from .helpers import HOME
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:

@@ -7,13 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from georef_helpers import HOME, latlon_to_px, marks_image, px_to_latlon, utm_grid, write_tif
 
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
 from air_sitl.frames import geodetic2ned, ned2geodetic
 from air_sitl.maps.open import open_map
-
-from .helpers import HOME, latlon_to_px, marks_image, px_to_latlon, utm_grid, write_tif
 
 CASES = {
     200.0: {"gsd_m": 0.25, "sigma_m": 1.2, "spacing_m": 12.0, "half_m": 330.0},

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rasterio
+from georef_helpers import HOME, utm_grid, write_tif
 from rasterio.transform import Affine
 
 from air_sitl.camera.model import CameraModel
@@ -18,8 +19,6 @@ from air_sitl.frames import ned2geodetic
 from air_sitl.maps.array import ArrayMap
 from air_sitl.maps.open import default_map_for_plan, open_map
 from air_sitl.state import GeoPoint
-
-from .helpers import HOME, utm_grid, write_tif
 
 
 def _texture(size: int, seed: int) -> np.ndarray:

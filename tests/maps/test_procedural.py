@@ -8,6 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from georef_helpers import HOME
 
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
@@ -15,8 +16,6 @@ from air_sitl.cli import main
 from air_sitl.frames import ned2geodetic
 from air_sitl.maps.open import open_map
 from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
-
-from .helpers import HOME
 
 
 def _state(

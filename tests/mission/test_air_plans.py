@@ -9,26 +9,14 @@ from pathlib import Path
 
 import pytest
 
+from air_sitl.dataset.scenarios import PAPER_TABLE
 from air_sitl.frames import geodetic2ned
 from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
 from air_sitl.mission.plan_file import load_mission
 
 REPO = Path(__file__).resolve().parents[2]
 MISSIONS = REPO / "missions"
-PAPER = {  # AIR paper, Table 2: (images at 50 Hz, captured distance m)
-    "FL-200": (11837, 2936),
-    "FL-300": (9020, 2736),
-    "FR-200": (16056, 4748),
-    "FR-300": (15307, 4541),
-    "FC-200": (3601, 1065),
-    "FC-300": (3450, 1028),
-    "UL-200": (8735, 2592),
-    "UL-300": (8416, 2496),
-    "UR-200": (14997, 4418),
-    "UR-300": (15361, 4542),
-    "UC-200": (3422, 1016),
-    "UC-300": (3272, 970),
-}
+PAPER = PAPER_TABLE  # AIR paper, Table 2: (images at 50 Hz, captured distance m)
 NAMES = sorted(PAPER)
 
 

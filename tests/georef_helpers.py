@@ -1,4 +1,4 @@
-"""Shared fixtures of the camera and map tests: synthetic georeferenced maps with marks."""
+"""Shared by the map and camera tests: a synthetic UTM grid, GeoTIFF writing, surveyed marks."""
 
 from __future__ import annotations
 
