@@ -43,6 +43,8 @@ ALIGN_RAD = math.radians(15.0)  # a leg from "here" is fixed once the course poi
 ESTABLISHED_COURSE_RAD = math.radians(30.0)  # on a circle: course within this of its tangent
 FLARE_PHASE_AGL_M = 8.0  # below this height a landing hands over to the controller's LAND law
 WIND_FILTER_GAIN = 0.02  # per 50 Hz guidance update: about a 1 s time constant
+# Mission start refused when its first positioned item is farther than this from home.
+MAX_FIRST_WAYPOINT_DISTANCE_M = 100_000.0
 _NAN = math.nan
 _LOITERS = frozenset(
     {
@@ -964,6 +966,8 @@ class MissionExecutor:
             return False, "not on the ground"
         if self.mode is FlightMode.MISSION and self._last_nav_seq < 0:
             return False, "no mission"
+        if self.mode is FlightMode.MISSION and (far := self._too_far_to_fly()):
+            return False, far
         self.armed = True
         self._emit("Armed")
         if self.mode is FlightMode.MISSION:
@@ -1016,6 +1020,8 @@ class MissionExecutor:
         """Fly the mission from the current item (from the start when it was completed)."""
         if self._last_nav_seq < 0:
             return False, "no mission"
+        if self.on_ground and (far := self._too_far_to_fly()):
+            return False, far
         if self.mission_completed or not (0 <= self.current_seq < len(self._items)):
             self.current_seq = 0
             self._jump_counts = {}
@@ -1027,6 +1033,24 @@ class MissionExecutor:
             return True, ""
         self._enter_item(self.current_seq)
         return True, ""
+
+    def _too_far_to_fly(self) -> str:
+        """Why the mission cannot start from the ground here ('' when it can).
+
+        A plan uploaded for another place (a common slip: the vehicle still at its default
+        home) would otherwise send the aircraft on a flight of hours toward it.
+        """
+        for point in self._points:
+            if math.isfinite(point[0]):
+                distance_m = math.hypot(point[0], point[1])
+                if distance_m > MAX_FIRST_WAYPOINT_DISTANCE_M:
+                    return (
+                        f"first waypoint is {distance_m / 1000:.0f} km from home (limit "
+                        f"{MAX_FIRST_WAYPOINT_DISTANCE_M / 1000:.0f} km): move home (--home, "
+                        "--plan) or plan near the vehicle"
+                    )
+                break
+        return ""
 
     def _begin_mission(self) -> None:
         if self._state is None:  # a command before the first update: start at the first one

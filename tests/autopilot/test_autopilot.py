@@ -4,6 +4,7 @@ and just after take-off): arming, modes, refusals, status and events."""
 from __future__ import annotations
 
 import math
+import re
 
 import pytest
 
@@ -119,3 +120,19 @@ def test_commands_before_the_first_update_take_effect() -> None:
     assert v.ap.arm() == (True, "")
     state = v.run(20.0)
     assert not state.on_ground and v.ap.mode is FlightMode.MISSION
+
+
+def test_a_mission_planned_for_another_place_is_refused_on_the_ground() -> None:
+    # The vehicle at HOME, a plan about 500 km north: starting it would fly for hours.
+    far = mission(wp(500_000, 0, 40, MavCmd.NAV_TAKEOFF), wp(501_000, 0, 50), rtl())
+    v = Vehicle(far, auto_start=False)
+    v.run(0.5)
+    ok, reason = v.ap.set_mode(FlightMode.MISSION)  # QGC's DO_SET_MODE to MISSION
+    assert not ok
+    assert re.fullmatch(r"first waypoint is 49\d km from home \(limit 100 km\): .*", reason)
+    assert v.ap.start_mission()[0] is False  # MAVSDK's MISSION_START
+    v.run(0.5)
+    assert v.ap.mode is FlightMode.IDLE and v.state.on_ground
+    v.ap.set_mission(_mission())  # a plan near home flies
+    assert v.ap.set_mode(FlightMode.MISSION) == (True, "")
+    assert v.ap.arm() == (True, "")
