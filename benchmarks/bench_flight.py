@@ -17,9 +17,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def main() -> None:
-    from air_sitl.mission.plan_file import load_mission
-
     from air_sitl.clock import NS_PER_S
+    from air_sitl.mission.plan_file import load_mission
     from air_sitl.options import FlightOptions
     from air_sitl.runner import assemble_flight
     from air_sitl.state import ActuatorCommand
