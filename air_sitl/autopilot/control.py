@@ -26,6 +26,7 @@ Surface gains are scheduled with dynamic pressure: effectiveness goes as airspee
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -92,55 +93,48 @@ class ControlGains:
     touchdown_pitch_rad: float = math.radians(4.0)
 
 
+# Light aircraft from the jsbsim package: one rough set (not tuned) with their own speeds.
+_LIGHT_AIRCRAFT = ControlGains(
+    trim_throttle=0.65,
+    trim_elevator=0.0,
+    trim_pitch_rad=0.0,
+    roll_kp=1.2,
+    roll_kd=0.3,
+    pitch_kp=2.0,
+    pitch_kd=0.8,
+    yaw_ky=0.02,
+    height_k=0.15,
+    speed_k=0.2,
+    throttle_ff=1.5,
+    rotate_pitch_rad=math.radians(6.0),
+    climb_pitch_rad=math.radians(8.0),
+    climb_speed_k=0.03,
+    steer_k=0.5,
+)
+_GAINS = {
+    "c172p": dataclasses.replace(
+        _LIGHT_AIRCRAFT,
+        ref_airspeed_m_s=50.0,
+        min_airspeed_m_s=30.0,
+        max_airspeed_m_s=60.0,
+        rotate_airspeed_m_s=28.0,
+        flare_height_m=5.0,
+    ),
+    "J3Cub": dataclasses.replace(
+        _LIGHT_AIRCRAFT,
+        ref_airspeed_m_s=35.0,
+        trim_throttle=0.6,
+        min_airspeed_m_s=22.0,
+        max_airspeed_m_s=45.0,
+        rotate_airspeed_m_s=20.0,
+        flare_height_m=4.0,
+    ),
+}
+
+
 def gains_for(aircraft: str) -> ControlGains:
     """Default gains for a known aircraft; the airsitl_uav set for any other."""
-    if aircraft == "c172p":
-        return ControlGains(
-            ref_airspeed_m_s=50.0,
-            trim_throttle=0.65,
-            trim_elevator=0.0,
-            trim_pitch_rad=0.0,
-            min_airspeed_m_s=30.0,
-            max_airspeed_m_s=60.0,
-            roll_kp=1.2,
-            roll_kd=0.3,
-            pitch_kp=2.0,
-            pitch_kd=0.8,
-            yaw_ky=0.02,
-            height_k=0.15,
-            speed_k=0.2,
-            throttle_ff=1.5,
-            rotate_airspeed_m_s=28.0,
-            rotate_pitch_rad=math.radians(6.0),
-            climb_pitch_rad=math.radians(8.0),
-            climb_speed_k=0.03,
-            steer_k=0.5,
-            flare_height_m=5.0,
-        )
-    if aircraft == "J3Cub":
-        return ControlGains(
-            ref_airspeed_m_s=35.0,
-            trim_throttle=0.6,
-            trim_elevator=0.0,
-            trim_pitch_rad=0.0,
-            min_airspeed_m_s=22.0,
-            max_airspeed_m_s=45.0,
-            roll_kp=1.2,
-            roll_kd=0.3,
-            pitch_kp=2.0,
-            pitch_kd=0.8,
-            yaw_ky=0.02,
-            height_k=0.15,
-            speed_k=0.2,
-            throttle_ff=1.5,
-            rotate_airspeed_m_s=20.0,
-            rotate_pitch_rad=math.radians(6.0),
-            climb_pitch_rad=math.radians(8.0),
-            climb_speed_k=0.03,
-            steer_k=0.5,
-            flare_height_m=4.0,
-        )
-    return ControlGains()
+    return _GAINS.get(aircraft, ControlGains())
 
 
 def _clamp(x: float, lo: float, hi: float) -> float:

@@ -218,18 +218,12 @@ def item_from_int(
 ) -> MissionItem:
     """A MissionItem from MISSION_ITEM_INT fields (x, y in degE7 for global frames)."""
     scale = 1e-7 if frame in GLOBAL_FRAMES else 1.0
-    return MissionItem(
-        command=command,
-        frame=frame,
-        param1=p[0],
-        param2=p[1],
-        param3=p[2],
-        param4=p[3],
-        lat_deg=xyz[0] * scale,
-        lon_deg=xyz[1] * scale,
-        alt_m=xyz[2],
+    return MissionItem.from_params(
+        command,
+        frame,
+        (*p, xyz[0] * scale, xyz[1] * scale, xyz[2]),
         autocontinue=bool(autocontinue),
-        do_jump_id=seq + 1,
+        seq=seq,
     )
 
 
@@ -255,18 +249,12 @@ def to_mission_message(msg: Message) -> MissionMessage | None:
             seq=msg.seq, item=item, mission_type=mission_type, current=bool(msg.current)
         )
     if name == "MISSION_ITEM":
-        item = MissionItem(
-            command=msg.command,
-            frame=msg.frame,
-            param1=msg.param1,
-            param2=msg.param2,
-            param3=msg.param3,
-            param4=msg.param4,
-            lat_deg=msg.x,
-            lon_deg=msg.y,
-            alt_m=msg.z,
+        item = MissionItem.from_params(
+            msg.command,
+            msg.frame,
+            (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z),
             autocontinue=bool(msg.autocontinue),
-            do_jump_id=msg.seq + 1,
+            seq=msg.seq,
         )
         return MissionItemMessage(
             seq=msg.seq, item=item, mission_type=mission_type, current=bool(msg.current),

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from air_sitl.state import GeoPoint
@@ -118,6 +119,32 @@ class MissionItem:
     alt_m: float = 0.0
     autocontinue: bool = True
     do_jump_id: int = 0
+
+    @classmethod
+    def from_params(
+        cls,
+        command: int,
+        frame: int,
+        params: Sequence[float],
+        *,
+        autocontinue: bool,
+        seq: int,
+    ) -> MissionItem:
+        """An item from MAVLink's seven params (5..7 = x/lat, y/lon, z/alt) at index ``seq``."""
+        p1, p2, p3, p4, x, y, z = params
+        return cls(
+            command=command,
+            frame=frame,
+            param1=p1,
+            param2=p2,
+            param3=p3,
+            param4=p4,
+            lat_deg=x,
+            lon_deg=y,
+            alt_m=z,
+            autocontinue=autocontinue,
+            do_jump_id=seq + 1,
+        )
 
     @property
     def is_nav(self) -> bool:

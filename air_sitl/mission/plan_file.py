@@ -336,19 +336,7 @@ def _simple_item(raw: object, index: int, path: PathLike) -> MissionItem:
         params = item.numbers("params", 7, expected, nulls=True)
     if item.has("doJumpId"):
         item.integer("doJumpId")
-    return MissionItem(
-        command=command,
-        frame=frame,
-        param1=params[0],
-        param2=params[1],
-        param3=params[2],
-        param4=params[3],
-        lat_deg=params[4],
-        lon_deg=params[5],
-        alt_m=params[6],
-        autocontinue=autocontinue,
-        do_jump_id=index + 1,
-    )
+    return MissionItem.from_params(command, frame, params, autocontinue=autocontinue, seq=index)
 
 
 def _resolve_jumps(
@@ -559,18 +547,8 @@ def _wpl_from_text(text: str, path: PathLike) -> tuple[Mission, list[str]]:
                 raise PlanError(msg)
             param1 -= 1.0
         items.append(
-            MissionItem(
-                command=command,
-                frame=frame,
-                param1=param1,
-                param2=p[1],
-                param3=p[2],
-                param4=p[3],
-                lat_deg=p[4],
-                lon_deg=p[5],
-                alt_m=p[6],
-                autocontinue=autocontinue,
-                do_jump_id=index + 1,
+            MissionItem.from_params(
+                command, frame, (param1, *p[1:7]), autocontinue=autocontinue, seq=index
             )
         )
         labels.append(f"item {index} (line {number})")

@@ -18,14 +18,12 @@ import time
 from pathlib import Path
 
 import pytest
+from short_plans import write_short_plan
 
 from air_sitl.bus import codec
 from air_sitl.bus.keys import KeySpace
 from air_sitl.bus.publisher import BusPublisher, PublishOptions
 from air_sitl.bus.session import BusConfig, Message, open_bus
-from air_sitl.frames import ned2geodetic
-from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
-from air_sitl.mission.plan_file import write_plan
 from air_sitl.state import CameraFrame
 
 from .helpers import (
@@ -47,22 +45,7 @@ LOCALIZER = str(REPO / "bridges" / "example_localizer.py")
 
 def write_plan_file(path: Path, leg_m: float = 100.0) -> Path:
     """Air start at 200 m, a capture leg of ``leg_m`` east (about 330 frames per 100 m)."""
-
-    def wp(n: float, e: float) -> MissionItem:
-        lat, lon, _ = ned2geodetic(n, e, 0.0, HOME.lat_deg, HOME.lon_deg, 0.0)
-        return MissionItem(command=MavCmd.NAV_WAYPOINT, lat_deg=lat, lon_deg=lon, alt_m=200.0)
-
-    items = (
-        MissionItem(command=MavCmd.NAV_TAKEOFF, param1=15.0, lat_deg=HOME.lat_deg,
-                    lon_deg=HOME.lon_deg, alt_m=200.0),
-        wp(300.0, 0.0),
-        MissionItem(command=MavCmd.IMAGE_START_CAPTURE, frame=MavFrame.MISSION, param2=0.02),
-        wp(300.0, leg_m),
-        MissionItem(command=MavCmd.IMAGE_STOP_CAPTURE, frame=MavFrame.MISSION),
-        wp(300.0, leg_m + 60.0),
-    )  # fmt: skip
-    write_plan(Mission(items=items, planned_home=HOME, cruise_speed_m_s=15.0, name="UB"), path)
-    return path
+    return write_short_plan(path, HOME, leg_m=leg_m, name="UB")
 
 
 @pytest.fixture(scope="module")

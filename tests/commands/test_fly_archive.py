@@ -23,14 +23,13 @@ from typing import Any
 import cv2
 import numpy as np
 import pytest
+import short_plans
 
 import air_sitl.dataset
 from air_sitl.cli import main
 from air_sitl.dataset.check import check_archive
 from air_sitl.frames import ned2geodetic
 from air_sitl.maps.open import open_map
-from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
-from air_sitl.mission.plan_file import write_plan
 from air_sitl.state import GeoPoint
 
 pytestmark = pytest.mark.integration
@@ -41,29 +40,8 @@ WALL_CLOCK = {"summary.json", "manifest.json"}
 
 
 def write_short_plan(path: Path, *, alt_m: float = 200.0, leg_m: float = LEG_M) -> Path:
-    """Take-off, waypoint, IMAGE_START, a leg east, IMAGE_STOP, one more waypoint."""
-
-    def wp(n: float, e: float) -> MissionItem:
-        lat, lon, _ = ned2geodetic(n, e, 0.0, HOME.lat_deg, HOME.lon_deg, 0.0)
-        return MissionItem(command=MavCmd.NAV_WAYPOINT, lat_deg=lat, lon_deg=lon, alt_m=alt_m)
-
-    items = (
-        MissionItem(
-            command=MavCmd.NAV_TAKEOFF,
-            param1=15.0,
-            lat_deg=HOME.lat_deg,
-            lon_deg=HOME.lon_deg,
-            alt_m=alt_m,
-        ),
-        wp(300.0, 0.0),
-        MissionItem(command=MavCmd.IMAGE_START_CAPTURE, frame=MavFrame.MISSION, param2=0.02),
-        wp(300.0, leg_m),
-        MissionItem(command=MavCmd.IMAGE_STOP_CAPTURE, frame=MavFrame.MISSION),
-        wp(300.0, leg_m + 60.0),
-    )
-    mission = Mission(items=items, planned_home=HOME, cruise_speed_m_s=15.0, name=path.stem)
-    write_plan(mission, path)
-    return path
+    """The shared short capture flight, east of HOME."""
+    return short_plans.write_short_plan(path, HOME, alt_m=alt_m, leg_m=leg_m)
 
 
 def fly_args(plan: Path, out: Path, *extra: str) -> list[str]:

@@ -11,13 +11,11 @@ import time
 from pathlib import Path
 
 import pytest
+from short_plans import write_short_plan
 
 import air_sitl.dataset
 from air_sitl.cli import main
 from air_sitl.dataset.check import check_archive
-from air_sitl.frames import ned2geodetic
-from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
-from air_sitl.mission.plan_file import write_plan
 from air_sitl.state import GeoPoint
 
 pytestmark = pytest.mark.integration
@@ -26,27 +24,8 @@ HOME = GeoPoint(lat_deg=47.3769, lon_deg=8.5417, alt_amsl_m=400.0)
 
 
 def write_plan_file(path: Path, leg_m: float, alt_m: float) -> None:
-    """Take-off, waypoint, IMAGE_START, a leg north, IMAGE_STOP, one more waypoint."""
-
-    def wp(n: float, e: float) -> MissionItem:
-        lat, lon, _ = ned2geodetic(n, e, 0.0, HOME.lat_deg, HOME.lon_deg, 0.0)
-        return MissionItem(command=MavCmd.NAV_WAYPOINT, lat_deg=lat, lon_deg=lon, alt_m=alt_m)
-
-    items = (
-        MissionItem(
-            command=MavCmd.NAV_TAKEOFF,
-            param1=15.0,
-            lat_deg=HOME.lat_deg,
-            lon_deg=HOME.lon_deg,
-            alt_m=alt_m,
-        ),
-        wp(0.0, 300.0),
-        MissionItem(command=MavCmd.IMAGE_START_CAPTURE, frame=MavFrame.MISSION, param2=0.02),
-        wp(leg_m, 300.0),
-        MissionItem(command=MavCmd.IMAGE_STOP_CAPTURE, frame=MavFrame.MISSION),
-        wp(leg_m + 60.0, 300.0),
-    )
-    write_plan(Mission(items=items, planned_home=HOME, name=path.stem), path)
+    """The shared short capture flight, its leg north."""
+    write_short_plan(path, HOME, leg_m=leg_m, alt_m=alt_m, leg="north")
 
 
 @pytest.fixture(scope="module")

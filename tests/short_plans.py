@@ -1,0 +1,44 @@
+"""A short capture flight for tests: seconds of CPU, a few hundred frames with --air-start."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from air_sitl.frames import ned2geodetic
+from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
+from air_sitl.mission.plan_file import write_plan
+from air_sitl.state import GeoPoint
+
+
+def write_short_plan(
+    path: Path,
+    home: GeoPoint,
+    *,
+    leg_m: float = 100.0,
+    alt_m: float = 200.0,
+    leg: Literal["east", "north"] = "east",
+    name: str | None = None,
+) -> Path:
+    """Take-off, a waypoint 300 m out, IMAGE_START, a capture leg, IMAGE_STOP, one more waypoint.
+
+    The capture leg of ``leg_m`` runs ``leg`` (about 330 frames per 100 m at 15 m/s).
+    """
+
+    def wp(along_m: float, out_m: float) -> MissionItem:
+        n, e = (out_m, along_m) if leg == "east" else (along_m, out_m)
+        lat, lon, _ = ned2geodetic(n, e, 0.0, home.lat_deg, home.lon_deg, 0.0)
+        return MissionItem(command=MavCmd.NAV_WAYPOINT, lat_deg=lat, lon_deg=lon, alt_m=alt_m)
+
+    items = (
+        MissionItem(command=MavCmd.NAV_TAKEOFF, param1=15.0, lat_deg=home.lat_deg,
+                    lon_deg=home.lon_deg, alt_m=alt_m),
+        wp(0.0, 300.0),
+        MissionItem(command=MavCmd.IMAGE_START_CAPTURE, frame=MavFrame.MISSION, param2=0.02),
+        wp(leg_m, 300.0),
+        MissionItem(command=MavCmd.IMAGE_STOP_CAPTURE, frame=MavFrame.MISSION),
+        wp(leg_m + 60.0, 300.0),
+    )  # fmt: skip
+    mission = Mission(items=items, planned_home=home, cruise_speed_m_s=15.0, name=name or path.stem)
+    write_plan(mission, path)
+    return path
