@@ -161,18 +161,9 @@ class Controller:
     ) -> None:
         self.gains = gains if gains is not None else ControlGains()
         self.dt_s = dt_s
-        self._roll_i = 0.0
-        self._pitch_i = 0.0
         self._pitch_lo = self.gains.min_pitch_rad
         self._pitch_hi = self.gains.max_pitch_rad
-        self._throttle_i = 0.0
-        self._balance_i = 0.0
-        self._vdot = 0.0
-        self._hdot_dem = 0.0
-        self._h_dem_prev = math.nan
-        self._h_dem_rate = 0.0
-        self._prev_phase = ControlPhase.IDLE
-        self.reset(trim)
+        self.reset(trim)  # the integrators and filters
 
     def reset(self, trim: ActuatorCommand | None = None) -> None:
         """Clear the integrators and filters; seed them from ``trim`` (an air start) if given."""
@@ -185,7 +176,9 @@ class Controller:
         self._h_dem_prev = math.nan
         self._h_dem_rate = 0.0
         # An air start (trim given) is already cruising; otherwise the aircraft is parked.
-        self._prev_phase = ControlPhase.CRUISE if trim is not None else ControlPhase.IDLE
+        self._prev_phase: ControlPhase = (
+            ControlPhase.CRUISE if trim is not None else ControlPhase.IDLE
+        )
         if trim is not None:
             self._pitch_i = trim.elevator
             self._throttle_i = trim.throttle - self.gains.trim_throttle
