@@ -16,7 +16,6 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass
-from typing import cast
 
 import cv2
 import numpy as np
@@ -29,12 +28,14 @@ from air_sitl.maps.procedural.noise import key_of
 from air_sitl.state import CameraFrame, SimSample, VehicleState
 
 Mat3 = npt.NDArray[np.float64]
+Mat9 = tuple[float, float, float, float, float, float, float, float, float]
 Image = npt.NDArray[np.uint8]
 
 FILL_BGR: tuple[int, int, int] = FILL_BGRX[:3]
 MAX_MOSAIC_HALF_PX = 2048  # limit of the map area read for one frame, per side, at its level
 _MIN_DOWN = 1e-6  # rays flatter than this (horizon) count as missing the ground
 _NOISE_BANK_FACTOR = 2
+_STRIP_BYTES = 320 * 1024  # 4-channel warp output per strip: well inside a core's L2 cache
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,8 +56,8 @@ class Renderer:
         self.map = map_source
         self.camera = camera
         self.seed = seed
-        self._k_inv = np.linalg.inv(camera.intrinsics())
-        self._r_c2b = camera.r_cam_to_body()
+        c2b_kinv = camera.r_cam_to_body() @ np.linalg.inv(camera.intrinsics())
+        self._c2b_kinv = _tuple9(c2b_kinv)  # image (u, v, 1) -> body-frame ray
         # Noise: a pre-drawn bank split into its positive and negative parts (uint8), so a
         # frame costs two saturating adds (clip(img + n) exactly, as only one part is non-zero
         # per element). A frame takes a contiguous slice at an offset drawn from
@@ -66,6 +67,10 @@ class Renderer:
         self._local = threading.local()
         self._jacobians: dict[tuple[float, float], tuple[float, float, float, float]] = {}
         self._border = _border_points(camera.width_px, camera.height_px)
+        w1, h1 = camera.width_px - 1.0, camera.height_px - 1.0
+        self._corners = ((0.0, 0.0), (w1, 0.0), (0.0, h1), (w1, h1))
+        strips = max(1, math.ceil(camera.width_px * camera.height_px * 4 / _STRIP_BYTES))
+        self._strip_rows = math.ceil(camera.height_px / strips)
         if camera.noise_sigma > 0:
             rng = np.random.default_rng(key_of(seed, 0x4E01))
             n = camera.height_px * camera.width_px * 3 * _NOISE_BANK_FACTOR
@@ -74,12 +79,6 @@ class Renderer:
             self._noise_neg = np.clip(-bank, 0, 255).astype(np.uint8)
 
     # -- geometry -----------------------------------------------------------------------------
-    def ground_affine(self, lat_deg: float, lon_deg: float) -> Mat3:
-        """3x3 affine taking local ground (north_m, east_m, 1) at a point to level-0 map px."""
-        x0, y0 = self.map.latlon_to_map_px(lat_deg, lon_deg)
-        j = self._jacobian(round(lat_deg, 3), round(lon_deg, 3))
-        return np.array([[j[0], j[1], x0], [j[2], j[3], y0], [0.0, 0.0, 1.0]])
-
     def _jacobian(self, lat_deg: float, lon_deg: float) -> tuple[float, float, float, float]:
         """d(map px)/d(north_m, east_m) near a point, cached on a 0.001 degree grid.
 
@@ -105,68 +104,114 @@ class Renderer:
         return jac
 
     def geometry(self, state: VehicleState) -> FrameGeometry:
-        """The frame's homography and pyramid level for a pose."""
+        """The frame's homography and pyramid level for a pose.
+
+        Scalar arithmetic on 3x3 tuples: a frame needs a few dozen products, for which
+        NumPy's per-call overhead would cost more than the arithmetic (this runs 50 times a
+        simulated second, beside a warp of under a millisecond).
+        """
         cam = self.camera
         height = state.alt_amsl_m - self.map.ground_elevation_m
-        r_b2n = _quat_matrix(state.q_body_to_ned_wxyz)
-        rays = r_b2n @ self._r_c2b @ self._k_inv  # image (u, v, 1) -> NED ray
-        m = np.vstack([rays[0] * height, rays[1] * height, rays[2]])  # -> (n, e, 1) homog
-        h0 = self.ground_affine(state.lat_deg, state.lon_deg) @ m
-        w, h = cam.width_px, cam.height_px
-        corners = np.array([[0, 0, 1], [w - 1, 0, 1], [0, h - 1, 1], [w - 1, h - 1, 1]], float)
-        down = corners @ rays[2]
-        sees_horizon = bool((down <= _MIN_DOWN).any()) or height <= 0
-        centre = np.array([cam.cx_px, cam.cy_px, 1.0])
+        r = _mul3(_quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)  # (u, v, 1) -> NED ray
+        x0, y0 = self.map.latlon_to_map_px(state.lat_deg, state.lon_deg)
+        j = self._jacobian(round(state.lat_deg, 3), round(state.lon_deg, 3))
+        ground = (j[0], j[1], x0, j[2], j[3], y0, 0.0, 0.0, 1.0)  # (north, east, 1) -> map px
+        to_ground = (r[0] * height, r[1] * height, r[2] * height,
+                     r[3] * height, r[4] * height, r[5] * height,
+                     r[6], r[7], r[8])  # fmt: skip
+        h = _mul3(ground, to_ground)
+        corners = self._corners
+        downs = [r[6] * u + r[7] * v + r[8] for u, v in corners]
+        sees_horizon = height <= 0 or min(downs) <= _MIN_DOWN
+        cx, cy = cam.cx_px, cam.cy_px
         centre_px: tuple[float, float] | None = None
-        if height > 0 and centre @ rays[2] > _MIN_DOWN:
-            c = h0 @ centre
-            centre_px = (float(c[0] / c[2]), float(c[1] / c[2]))
         level = 0
-        if height > 0 and centre @ rays[2] > _MIN_DOWN:
-            pts = np.vstack([centre, corners[down > _MIN_DOWN]])
-            steps = _steps(h0, pts)
-            effective = math.sqrt(steps[0] * steps.max())
+        if height > 0 and r[6] * cx + r[7] * cy + r[8] > _MIN_DOWN:
+            cw = h[6] * cx + h[7] * cy + h[8]
+            centre_px = ((h[0] * cx + h[1] * cy + h[2]) / cw, (h[3] * cx + h[4] * cy + h[5]) / cw)
+            centre_step = _step(h, cx, cy)
+            widest = max(
+                [centre_step]
+                + [
+                    _step(h, u, v)
+                    for (u, v), d in zip(corners, downs, strict=True)
+                    if d > _MIN_DOWN
+                ]
+            )
+            effective = math.sqrt(centre_step * widest)
             level = self.map.level_for_gsd(effective * self.map.georef.gsd_m)
-        return FrameGeometry(h0, level, centre_px, sees_horizon, height)
+        return FrameGeometry(_mat(h), level, centre_px, sees_horizon, height)
 
     def map_xy_px(self, state: VehicleState) -> tuple[float, float] | None:
         """Continuous level-0 map pixel of the image-centre ground point (None: no ground)."""
         return self.geometry(state).center_map_px
 
     # -- pixels -------------------------------------------------------------------------------
-    def render(self, state: VehicleState, geometry: FrameGeometry | None = None) -> Image:
-        """The noiseless BGR image seen from ``state`` (``geometry`` if already computed)."""
+    def render(
+        self,
+        state: VehicleState,
+        geometry: FrameGeometry | None = None,
+        *,
+        noise_index: int | None = None,
+    ) -> Image:
+        """The BGR image seen from ``state`` (``geometry`` if already computed).
+
+        Noiseless unless ``noise_index`` is given: then the frame's noise is added as well,
+        exactly as :meth:`add_noise` would. The image is made in horizontal strips whose
+        4-channel warp output stays in the core's cache until it is converted to BGR and
+        noised, instead of passing the whole frame through memory three times (the warp
+        and the noise are memory-bound; what the strips save shows most when the machine's
+        shared cache is busy).
+        """
         cam = self.camera
         g = geometry if geometry is not None else self.geometry(state)
-        out_shape = (cam.height_px, cam.width_px, 3)
+        out = np.empty((cam.height_px, cam.width_px, 3), dtype=np.uint8)
+        noise = self._noise_of(noise_index, out.shape) if noise_index is not None else None
         if g.height_m <= 0:
-            out = np.empty(out_shape, dtype=np.uint8)
             out[:] = FILL_BGR
-            return out
-        s = 1 << g.level
-        off = (s - 1) / 2.0
-        to_level = np.array([[1.0 / s, 0.0, -off / s], [0.0, 1.0 / s, -off / s], [0, 0, 1.0]])
-        h_lvl = to_level @ g.h_img_to_map0
+            return out if noise is None else self._noised(out, noise, 0, cam.height_px)
+        h_lvl = _to_level(_tuple9(g.h_img_to_map0), g.level)
         x0, y0, x1, y1 = self._footprint(h_lvl, g)
         mosaic, x0, y0 = self._mosaic(g.level, x0, y0, x1, y1)
-        shift = np.array([[1.0, 0.0, -x0], [0.0, 1.0, -y0], [0.0, 0.0, 1.0]])
-        warped = cv2.warpPerspective(
-            mosaic,
-            shift @ h_lvl,
-            (cam.width_px, cam.height_px),
-            flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-            borderMode=cv2.BORDER_CONSTANT,
-            borderValue=FILL_BGRX,
-        )
-        img = cast(Image, cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR))
-        if g.sees_horizon:
-            r_b2n = _quat_matrix(state.q_body_to_ned_wxyz)
-            down_row = (r_b2n @ self._r_c2b @ self._k_inv)[2]
-            u = np.arange(cam.width_px, dtype=np.float64)[None, :]
-            v = np.arange(cam.height_px, dtype=np.float64)[:, None]
-            sky = down_row[0] * u + down_row[1] * v + down_row[2] <= _MIN_DOWN
-            img[sky] = FILL_BGR
-        return img
+        a0, a1, a2, a3, a4, a5, a6, a7, a8 = h_lvl
+        sky = self._sky(state) if g.sees_horizon else None
+        rows = self._strip_rows
+        scratch = getattr(self._local, "strip", None)
+        if scratch is None:
+            scratch = np.empty((rows, cam.width_px, 4), dtype=np.uint8)
+            self._local.strip = scratch
+        for v0 in range(0, cam.height_px, rows):
+            v1 = min(cam.height_px, v0 + rows)
+            # Output row v of the strip is image row v0 + v; the mosaic starts at (x0, y0).
+            b2, b5, b8 = a1 * v0 + a2, a4 * v0 + a5, a7 * v0 + a8
+            strip_h = (a0 - x0 * a6, a1 - x0 * a7, b2 - x0 * b8,
+                       a3 - y0 * a6, a4 - y0 * a7, b5 - y0 * b8,
+                       a6, a7, b8)  # fmt: skip
+            warped = cv2.warpPerspective(
+                mosaic,
+                _mat(strip_h),
+                (cam.width_px, v1 - v0),
+                dst=scratch[: v1 - v0],
+                flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                borderMode=cv2.BORDER_CONSTANT,
+                borderValue=FILL_BGRX,
+            )
+            part = out[v0:v1]
+            cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR, dst=part)
+            if sky is not None:
+                part[sky[v0:v1]] = FILL_BGR
+            if noise is not None:
+                self._noised(part, noise, v0, v1)
+        return out
+
+    def _sky(self, state: VehicleState) -> npt.NDArray[np.bool_]:
+        """Image pixels whose ray misses the ground (at or above the horizon)."""
+        cam = self.camera
+        r = _mul3(_quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)
+        u = np.arange(cam.width_px, dtype=np.float64)[None, :]
+        v = np.arange(cam.height_px, dtype=np.float64)[:, None]
+        sky: npt.NDArray[np.bool_] = r[6] * u + r[7] * v + r[8] <= _MIN_DOWN
+        return sky
 
     def _mosaic(self, level: int, x0: int, y0: int, x1: int, y1: int) -> tuple[Image, int, int]:
         """Map pixels covering [x0, x1] x [y0, y1] of a level, snapped out to whole tiles.
@@ -186,27 +231,39 @@ class Renderer:
         self._local.mosaic = (key, img)
         return img, ax0, ay0
 
-    def _footprint(self, h_lvl: Mat3, g: FrameGeometry) -> tuple[int, int, int, int]:
-        """Bounding box (inclusive, level pixels, 1 px margin) of the image on the map."""
-        border = self._border
-        p = border @ h_lvl.T
-        ok = p[:, 2] > 1e-12
-        xs, ys = p[ok, 0] / p[ok, 2], p[ok, 1] / p[ok, 2]
+    def _footprint(self, h_lvl: Mat9, g: FrameGeometry) -> tuple[int, int, int, int]:
+        """Bounding box (inclusive, level pixels, 1 px margin) of the image on the map.
+
+        A homography maps straight edges to straight edges, so with the whole image on the
+        ground (no horizon) the four corners bound the footprint; with the horizon in view,
+        points along the edges that meet the ground are used.
+        """
+        if g.sees_horizon:
+            p = self._border @ _mat(h_lvl).T
+            ok = p[:, 2] > 1e-12
+            xs = (p[ok, 0] / p[ok, 2]).tolist()
+            ys = (p[ok, 1] / p[ok, 2]).tolist()
+        else:
+            xs, ys = [], []
+            for u, v in self._corners:
+                w = h_lvl[6] * u + h_lvl[7] * v + h_lvl[8]
+                xs.append((h_lvl[0] * u + h_lvl[1] * v + h_lvl[2]) / w)
+                ys.append((h_lvl[3] * u + h_lvl[4] * v + h_lvl[5]) / w)
         # Anchor of the clipping square: the image-centre ground point.
         s = 1 << g.level
         if g.center_map_px is not None:
             ax = (g.center_map_px[0] - (s - 1) / 2.0) / s
             ay = (g.center_map_px[1] - (s - 1) / 2.0) / s
-        elif xs.size:
+        elif xs:
             ax, ay = float(np.median(xs)), float(np.median(ys))
         else:
             ax = ay = 0.0
         lim = MAX_MOSAIC_HALF_PX
-        if g.sees_horizon or not xs.size:
+        if g.sees_horizon or not xs:
             x_lo, x_hi, y_lo, y_hi = ax - lim, ax + lim, ay - lim, ay + lim
         else:
-            x_lo, x_hi = max(xs.min(), ax - lim), min(xs.max(), ax + lim)
-            y_lo, y_hi = max(ys.min(), ay - lim), min(ys.max(), ay + lim)
+            x_lo, x_hi = max(min(xs), ax - lim), min(max(xs), ax + lim)
+            y_lo, y_hi = max(min(ys), ay - lim), min(max(ys), ay + lim)
         return (
             math.floor(x_lo) - 1,
             math.floor(y_lo) - 1,
@@ -216,16 +273,29 @@ class Renderer:
 
     def add_noise(self, img: Image, index: int) -> Image:
         """Gaussian noise of the camera's sigma, the same for the same (seed, frame index)."""
-        if self._noise_pos is None or self._noise_neg is None:
+        noise = self._noise_of(index, img.shape)
+        if noise is None:
             return img
-        size = img.size
+        return self._noised(img.copy(), noise, 0, img.shape[0])
+
+    def _noise_of(self, index: int, shape: tuple[int, ...]) -> tuple[Image, Image] | None:
+        """The frame's noise as (positive part, negative part) of image shape; None: none."""
+        if self._noise_pos is None or self._noise_neg is None:
+            return None
+        size = math.prod(shape)
         rng = np.random.default_rng(key_of(self.seed, 0x4E02, index))
         offset = int(rng.integers(0, self._noise_pos.size - size + 1))
-        pos = self._noise_pos[offset : offset + size].reshape(img.shape)
-        neg = self._noise_neg[offset : offset + size].reshape(img.shape)
-        out = cast(Image, cv2.add(img, pos))
-        cv2.subtract(out, neg, dst=out)
-        return out
+        pos = self._noise_pos[offset : offset + size].reshape(shape)
+        neg = self._noise_neg[offset : offset + size].reshape(shape)
+        return pos, neg
+
+    @staticmethod
+    def _noised(rows: Image, noise: tuple[Image, Image], v0: int, v1: int) -> Image:
+        """Add noise rows [v0, v1) to ``rows`` in place: clip(pixel + noise) to 0..255."""
+        pos, neg = noise
+        cv2.add(rows, pos[v0:v1], dst=rows)
+        cv2.subtract(rows, neg[v0:v1], dst=rows)
+        return rows
 
     def encode(self, img: Image) -> bytes:
         """JPEG bytes at the camera's quality."""
@@ -238,7 +308,7 @@ class Renderer:
     def frame_jpeg(self, state: VehicleState, index: int) -> tuple[bytes, tuple[int, int]]:
         """Render, add noise, encode: (jpeg, MapX/MapY rounded; (-1, -1) without ground)."""
         g = self.geometry(state)
-        img = self.add_noise(self.render(state, g), index)
+        img = self.render(state, g, noise_index=index)
         c = g.center_map_px
         xy = (-1, -1) if c is None else (round(c[0]), round(c[1]))
         return self.encode(img), xy
@@ -272,30 +342,63 @@ def _border_points(width_px: int, height_px: int, n: int = 9) -> npt.NDArray[np.
     )
 
 
-def _quat_matrix(q: tuple[float, float, float, float]) -> Mat3:
+def _quat_rows(q: tuple[float, float, float, float]) -> Mat9:
+    """Rotation matrix (row-major 9-tuple) of a unit quaternion (w, x, y, z), normalised."""
     w, x, y, z = q
     n = math.sqrt(w * w + x * x + y * y + z * z)
     w, x, y, z = w / n, x / n, y / n, z / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    return (
+        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+    )  # fmt: skip
 
 
-def _steps(h: Mat3, pts: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-    """Largest map-pixel step per image pixel of homography ``h`` at image points (rows)."""
-    q = pts @ h.T
-    w = q[:, 2:3]
-    jx = (h[None, :2, 0] * w - q[:, :2] * h[2, 0]) / w**2  # d(map x, map y)/d(image u)
-    jy = (h[None, :2, 1] * w - q[:, :2] * h[2, 1]) / w**2  # d(map x, map y)/d(image v)
-    ssum = (jx**2).sum(axis=1) + (jy**2).sum(axis=1)
-    det = jx[:, 0] * jy[:, 1] - jx[:, 1] * jy[:, 0]
-    disc = np.sqrt(np.maximum(ssum**2 - 4.0 * det**2, 0.0))
-    out: npt.NDArray[np.float64] = np.sqrt((ssum + disc) / 2.0)
-    return out
+def _mul3(a: Mat9, b: Mat9) -> Mat9:
+    """Product of two 3x3 matrices given as row-major 9-tuples."""
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
+    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
+    return (
+        a0 * b0 + a1 * b3 + a2 * b6, a0 * b1 + a1 * b4 + a2 * b7, a0 * b2 + a1 * b5 + a2 * b8,
+        a3 * b0 + a4 * b3 + a5 * b6, a3 * b1 + a4 * b4 + a5 * b7, a3 * b2 + a4 * b5 + a5 * b8,
+        a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8,
+    )  # fmt: skip
+
+
+def _tuple9(m: Mat3) -> Mat9:
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = (float(x) for x in m.ravel())
+    return (a0, a1, a2, a3, a4, a5, a6, a7, a8)
+
+
+def _mat(m: Mat9) -> Mat3:
+    return np.array(m, dtype=np.float64).reshape(3, 3)
+
+
+def _to_level(h0: Mat9, level: int) -> Mat9:
+    """Homography to level-0 map px -> to level-``level`` px (x_L = (x0 - (s - 1) / 2) / s)."""
+    s = float(1 << level)
+    off = (s - 1.0) / 2.0
+    a0, a1, a2, a3, a4, a5, a6, a7, a8 = h0
+    return ((a0 - off * a6) / s, (a1 - off * a7) / s, (a2 - off * a8) / s,
+            (a3 - off * a6) / s, (a4 - off * a7) / s, (a5 - off * a8) / s,
+            a6, a7, a8)  # fmt: skip
+
+
+def _step(h: Mat9, u: float, v: float) -> float:
+    """Largest map-pixel step per image pixel of homography ``h`` at image point (u, v).
+
+    The largest singular value of the 2x2 Jacobian d(map x, map y)/d(u, v).
+    """
+    qx = h[0] * u + h[1] * v + h[2]
+    qy = h[3] * u + h[4] * v + h[5]
+    w = h[6] * u + h[7] * v + h[8]
+    w2 = w * w
+    xu, yu = (h[0] * w - qx * h[6]) / w2, (h[3] * w - qy * h[6]) / w2
+    xv, yv = (h[1] * w - qx * h[7]) / w2, (h[4] * w - qy * h[7]) / w2
+    ssum = xu * xu + yu * yu + xv * xv + yv * yv
+    det = xu * yv - yu * xv
+    disc = math.sqrt(max(ssum * ssum - 4.0 * det * det, 0.0))
+    return math.sqrt((ssum + disc) / 2.0)
 
 
 def pose_state(

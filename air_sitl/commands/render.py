@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
         pitch_rad=math.radians(args.pitch),
         yaw_rad=math.radians(args.yaw),
     )
-    img = renderer.add_noise(renderer.render(state), args.frame_index)
+    img = renderer.render(state, noise_index=args.frame_index)
     if out.suffix.lower() == ".png":
         _ok, buf = cv2.imencode(".png", img)
         data = bytes(buf)
