@@ -97,7 +97,7 @@ def one_core(frames: int) -> None:
     print("   'flying': first pass, generating the new ground's tiles; then the same frames warm")
     print(
         f"{'alt m':>6} {'flying':>7} {'geometry':>8} {'pixels':>7} {'jpeg':>6} {'whole':>7}"
-        f" {'jpeg-only':>9} {'ratio':>6}"
+        f" {'jpeg-only':>9} {'ratio':>6} {'passes':>11}"
     )
     print("   (pixels: the warp with the noise added strip by strip, as Renderer.frame_jpeg runs)")
     renderers, paths, cold = [], [], []
@@ -137,10 +137,12 @@ def one_core(frames: int) -> None:
         parts = min(alt_runs, key=lambda p: float(np.median(p[:, :3].sum(axis=1))))
         med = np.median(parts, axis=0) * 1e3
         whole = float(np.median(parts[:, :3].sum(axis=1))) * 1e3
+        each = sorted(float(np.median(p[:, :3].sum(axis=1)) / np.median(p[:, 3])) for p in alt_runs)
         print(
-            f"{alt:6.0f} {flying:7.2f} {med[0]:7.2f} {med[1]:6.2f} {med[2]:6.2f} {whole:7.2f}"
-            f" {med[3]:9.2f} {whole / med[3]:6.2f}"
+            f"{alt:6.0f} {flying:7.2f} {med[0]:8.2f} {med[1]:7.2f} {med[2]:6.2f} {whole:7.2f}"
+            f" {med[3]:9.2f} {whole / med[3]:6.2f} {each[0]:5.2f}-{each[-1]:<5.2f}"
         )
+    print("   (passes: the ratio of each pass, lowest to highest: the host's effect on this run)")
 
 
 def threaded(frames: int) -> None:

@@ -36,6 +36,7 @@ MAX_MOSAIC_HALF_PX = 2048  # limit of the map area read for one frame, per side,
 _MIN_DOWN = 1e-6  # rays flatter than this (horizon) count as missing the ground
 _NOISE_BANK_FACTOR = 2
 _STRIP_BYTES = 320 * 1024  # 4-channel warp output per strip: well inside a core's L2 cache
+_STRIP_SOURCE_BYTES = 640 * 1024  # largest map window copied for one strip (see _strip_source)
 
 
 @dataclass(frozen=True, slots=True)
@@ -182,13 +183,17 @@ class Renderer:
             self._local.strip = scratch
         for v0 in range(0, cam.height_px, rows):
             v1 = min(cam.height_px, v0 + rows)
-            # Output row v of the strip is image row v0 + v; the mosaic starts at (x0, y0).
+            # Output row v of the strip is image row v0 + v.
             b2, b5, b8 = a1 * v0 + a2, a4 * v0 + a5, a7 * v0 + a8
-            strip_h = (a0 - x0 * a6, a1 - x0 * a7, b2 - x0 * b8,
-                       a3 - y0 * a6, a4 - y0 * a7, b5 - y0 * b8,
+            strip_lvl = (a0, a1, b2, a3, a4, b5, a6, a7, b8)
+            source, sx0, sy0 = mosaic, x0, y0
+            if sky is None:
+                source, sx0, sy0 = self._strip_source(strip_lvl, v1 - v0, mosaic, x0, y0)
+            strip_h = (a0 - sx0 * a6, a1 - sx0 * a7, b2 - sx0 * b8,
+                       a3 - sy0 * a6, a4 - sy0 * a7, b5 - sy0 * b8,
                        a6, a7, b8)  # fmt: skip
             warped = cv2.warpPerspective(
-                mosaic,
+                source,
                 _mat(strip_h),
                 (cam.width_px, v1 - v0),
                 dst=scratch[: v1 - v0],
@@ -203,6 +208,38 @@ class Renderer:
             if noise is not None:
                 self._noised(part, noise, v0, v1)
         return out
+
+    def _strip_source(
+        self, h_strip: Mat9, rows: int, mosaic: Image, mx: int, my: int
+    ) -> tuple[Image, int, int]:
+        """The mosaic pixels one strip samples, copied into a small per-thread buffer.
+
+        The warp gathers source pixels along several rows at once, which the hardware
+        prefetcher does not follow: when the machine's shared cache is busy each access
+        waits on memory (measured here: the warp of a 3000 m frame from 0.9 to 2.0 ms).
+        Copying the strip's window first reads it row by row, at streaming speed, into a
+        buffer the warp then finds in the core's own cache. Returns (pixels, level x0, y0).
+        """
+        xs, ys = [], []
+        w1 = self.camera.width_px - 1.0
+        for u, v in ((0.0, 0.0), (w1, 0.0), (0.0, rows - 1.0), (w1, rows - 1.0)):
+            w = h_strip[6] * u + h_strip[7] * v + h_strip[8]
+            xs.append((h_strip[0] * u + h_strip[1] * v + h_strip[2]) / w)
+            ys.append((h_strip[3] * u + h_strip[4] * v + h_strip[5]) / w)
+        # Bilinear sampling at x reads columns floor(x) and floor(x) + 1.
+        x0 = max(mx, math.floor(min(xs)) - 1)
+        y0 = max(my, math.floor(min(ys)) - 1)
+        x1 = min(mx + mosaic.shape[1], math.floor(max(xs)) + 3)
+        y1 = min(my + mosaic.shape[0], math.floor(max(ys)) + 3)
+        if x1 <= x0 or y1 <= y0 or (x1 - x0) * (y1 - y0) * 4 > _STRIP_SOURCE_BYTES:
+            return mosaic, mx, my  # off the mosaic, or too large to gain from the copy
+        buf = getattr(self._local, "strip_source", None)
+        if buf is None:
+            buf = np.empty(_STRIP_SOURCE_BYTES, dtype=np.uint8)
+            self._local.strip_source = buf
+        window = buf[: (x1 - x0) * (y1 - y0) * 4].reshape(y1 - y0, x1 - x0, 4)
+        np.copyto(window, mosaic[y0 - my : y1 - my, x0 - mx : x1 - mx])
+        return window, x0, y0
 
     def _sky(self, state: VehicleState) -> npt.NDArray[np.bool_]:
         """Image pixels whose ray misses the ground (at or above the horizon)."""
