@@ -338,7 +338,10 @@ def _check_map(job: Job) -> None:
 def _run_pool(jobs: list[Job], n: int, display: Display) -> list[Outcome]:
     from air_sitl.dataset.scenarios import PAPER_TABLE
 
-    ctx = multiprocessing.get_context("fork")
+    # Spawned, not forked: a fork copies the parent's threads' locks (OpenCV's thread pool,
+    # zenoh) in whatever state they are, and a worker can hang on one; a caller that had
+    # rendered in-process before running a pool hung this way.
+    ctx = multiprocessing.get_context("spawn")
     progress = ctx.Queue()
     outcomes: dict[str, Outcome] = {}
     with ProcessPoolExecutor(

@@ -1,8 +1,10 @@
 """``air-sitl map make``: write a procedural map as a Cloud-Optimized GeoTIFF.
 
-The file uses the UTM zone of ``--origin`` and the procedural map's own pixel lattice; with the
-default size and ``--origin`` equal to a flight's home, its pixel grid is exactly the grid
-MapX/MapY count in when flying that procedural map.
+The file uses the UTM zone of ``--origin`` and the procedural map's own pixel lattice. With
+``--size-m`` the window is centred on ``--origin`` (to the nearest pixel). Without it, the file
+is the procedural map's nominal 10240-pixel window: with ``--origin`` equal to a flight's home,
+its pixel grid is exactly the grid MapX/MapY count in when flying that procedural map (home
+then lies up to 256 pixels south-east of the centre).
 """
 
 from __future__ import annotations
@@ -42,7 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--origin",
         default=None,
         metavar="LAT,LON",
-        help=f"centre (the flight's home) (default {DEFAULT_ORIGIN[0]},{DEFAULT_ORIGIN[1]})",
+        help="the flight's home: the centre of a --size-m window; without --size-m, the "
+        "procedural map's nominal window around it, in the pixels MapX/MapY count "
+        f"(default {DEFAULT_ORIGIN[0]},{DEFAULT_ORIGIN[1]})",
     )
     make.add_argument(
         "--lossless", action="store_true", help="DEFLATE instead of JPEG q90 compression"
@@ -98,8 +102,11 @@ def run(args: argparse.Namespace) -> int:
             raise OptionError(msg)
     home = GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=0.0)
     pmap = ProceduralMap(args.kind, home, seed=args.seed, date=args.date, gsd_m=gsd)
-    c0 = NOMINAL_HALF_PX - w_px // 2
-    r0 = NOMINAL_HALF_PX - h_px // 2
+    if args.size_m is None:
+        c0 = r0 = 0
+    else:
+        x, y = pmap.latlon_to_map_px(lat, lon)
+        c0, r0 = round(x) - w_px // 2, round(y) - h_px // 2
     t0, t1, t2, t3, t4, t5 = pmap.georef.transform
     transform = (t0 + c0 * t1, t1, t2, t3 + r0 * t5, t4, t5)
 

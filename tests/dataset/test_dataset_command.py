@@ -156,3 +156,31 @@ def test_killing_a_parallel_run_leaves_no_worker_and_resume_matches_a_serial_run
         a.pop("summary.json")
         b.pop("summary.json")
         assert a == b, name
+
+
+def test_a_parallel_run_after_rendering_in_process_does_not_hang(
+    missions: Path, tmp_path: Path
+) -> None:
+    """A script that rendered frames itself (OpenCV's thread pool running) then runs a pool.
+
+    Forked workers inherited that pool's locks mid-use and could hang for ever; spawned ones
+    start clean. Run in a subprocess so that a hang is a failed test, not a stuck suite.
+    """
+    script = f"""
+import cv2, numpy
+from air_sitl.cli import main
+cv2.setNumThreads(2)
+img = numpy.zeros((2000, 2000, 4), numpy.uint8)
+for _ in range(20):
+    cv2.warpAffine(img, numpy.eye(2, 3), (2000, 2000))  # parallel: the pool's threads run
+raise SystemExit(main(["dataset", "--missions", {str(missions)!r}, "--scenarios",
+                       "UC-200,FC-300", "--air-start", "--quiet", "-j", "2",
+                       "--out", {str(tmp_path / "out")!r}]))
+"""
+    r = subprocess.run(
+        [sys.executable, "-c", script], check=False, capture_output=True, text=True, timeout=60
+    )
+    assert r.returncode == 0, r.stderr
+    for name in ("UC-200", "FC-300"):
+        with air_sitl.dataset.open(tmp_path / "out" / name) as archive:
+            assert check_archive(archive).valid

@@ -15,7 +15,7 @@ from air_sitl.camera.render import Renderer, pose_state
 from air_sitl.cli import main
 from air_sitl.frames import ned2geodetic
 from air_sitl.maps.open import open_map
-from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
+from air_sitl.maps.procedural import ProceduralMap
 
 
 def _state(
@@ -112,10 +112,11 @@ def test_map_make_writes_the_procedural_pixels(tmp_path: Path) -> None:
     tif = open_map(str(out), home0)
     proc = ProceduralMap("urban", home0, seed=4, date=1)
     assert tif.georef.crs == proc.georef.crs == "EPSG:32635"
-    # Same lattice: pixel grids differ by a whole number of pixels.
-    c0, r0 = NOMINAL_HALF_PX - 1000 // 2, NOMINAL_HALF_PX - 750 // 2
+    # Centred on the origin, on the same lattice: the grids differ by whole pixels.
     x_t, y_t = tif.latlon_to_map_px(HOME.lat_deg, HOME.lon_deg)
     x_p, y_p = proc.latlon_to_map_px(HOME.lat_deg, HOME.lon_deg)
+    assert abs(x_t - 500) <= 0.5 and abs(y_t - 375) <= 0.5
+    c0, r0 = round(x_p - x_t), round(y_p - y_t)
     assert abs(x_t + c0 - x_p) < 1e-6 and abs(y_t + r0 - y_p) < 1e-6
     assert np.array_equal(
         tif.read_level(0, 0, 0, 1000, 750)[:, :, :3], proc.read_bgr(c0, r0, 1000, 750)
