@@ -167,6 +167,17 @@ def camera_yaml_for(camera: CameraModel) -> str:
     return camera_yaml_text(content)
 
 
+def manifest_inputs(options: FlightOptions, camera: CameraModel, home: GeoPoint) -> dict[str, Any]:
+    """What every archive's manifest records of the software, home, flight and camera."""
+    return {
+        "software": {"name": "air-sitl", "version": __version__},
+        "home": _home_dict(home),
+        "flight": _options_dict(options),
+        "sensor_noise": _sensor_noise_dict(options.sensor_noise),
+        "camera": _camera_dict(camera),
+    }
+
+
 def _home_dict(home: GeoPoint) -> dict[str, float]:
     return {"lat_deg": home.lat_deg, "lon_deg": home.lon_deg, "alt_amsl_m": home.alt_amsl_m}
 
@@ -240,13 +251,9 @@ def archive_info_for(
         }
     )
     manifest = {
-        "software": {"name": "air-sitl", "version": __version__},
+        **manifest_inputs(options, camera, home),
         "plan_sha256": plan_sha256,
-        "home": _home_dict(home),
-        "flight": _options_dict(options),
-        "sensor_noise": _sensor_noise_dict(options.sensor_noise),
         "map": map_info,
-        "camera": _camera_dict(camera),
     }
     return ArchiveInfo(
         scenario=scenario,

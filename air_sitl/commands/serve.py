@@ -140,11 +140,12 @@ def run(args: argparse.Namespace) -> int:
             from air_sitl.camera.options import camera_bridge_from_args, camera_from_args
 
             camera = camera_bridge_from_args(args, home, mission.name, seed=options.seed)
+            model = camera_from_args(args)
             recorder = CaptureRecorder(
                 Path(args.out),
-                camera_from_args(args),
+                model,
                 home,
-                _manifest(args, options, home) | hookup.manifest_extra(),
+                _manifest(args, options, model, home) | hookup.manifest_extra(),
             )
             sinks.append(recorder)
         if camera is None and hookup.needs_camera:
@@ -216,31 +217,16 @@ def _max_sim_ns(args: argparse.Namespace, max_sim_time_s: float) -> int:
     return int(max_sim_time_s * 1e9)
 
 
-def _manifest(args: argparse.Namespace, options: FlightOptions, home: GeoPoint) -> dict[str, Any]:
+def _manifest(
+    args: argparse.Namespace, options: FlightOptions, camera: CameraModel, home: GeoPoint
+) -> dict[str, Any]:
     """What every archive of this serve run records about its inputs."""
-    return {
-        "home": {"lat_deg": home.lat_deg, "lon_deg": home.lon_deg, "alt_amsl_m": home.alt_amsl_m},
+    from air_sitl.recording import manifest_inputs
+
+    return manifest_inputs(options, camera, home) | {
         "map": args.map or "default",
-        "aircraft": options.aircraft,
-        "seed": options.seed,
         "recorded_by": "air-sitl serve",
     }
-
-
-def _camera_yaml(camera: CameraModel) -> str:
-    from air_sitl.dataset.camera_info import camera_yaml_dict, camera_yaml_text, matrix_to_quat
-
-    return camera_yaml_text(
-        camera_yaml_dict(
-            width_px=camera.width_px,
-            height_px=camera.height_px,
-            fx_px=camera.fx_px,
-            fy_px=camera.fy_px,
-            cx_px=camera.cx_px,
-            cy_px=camera.cy_px,
-            q_camera_to_body_wxyz=matrix_to_quat(camera.r_cam_to_body().tolist()),
-        )
-    )
 
 
 @dataclass(slots=True)
@@ -269,7 +255,9 @@ class CaptureRecorder:
         self, root: Path, camera: CameraModel, home: GeoPoint, manifest: dict[str, Any]
     ) -> None:
         self.root = root
-        self.camera_yaml = _camera_yaml(camera)
+        from air_sitl.recording import camera_yaml_for
+
+        self.camera_yaml = camera_yaml_for(camera)
         self.home = home
         self.manifest = manifest
         self.autopilot: Autopilot | None = None

@@ -6,6 +6,7 @@ Each test starts the real command (a process) on loopback and talks MAVLink to i
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import subprocess
 import sys
@@ -18,6 +19,7 @@ import pytest
 from gcs import PX4_MISSION, Gcs, serve
 from pymavlink import mavutil
 
+from air_sitl.camera.model import CameraModel
 from air_sitl.mavlink.codec import (
     Encoder,
     ParseCounters,
@@ -30,6 +32,7 @@ from air_sitl.mavlink.mission_protocol import same_items
 from air_sitl.mavlink.telemetry import custom_mode
 from air_sitl.mission.items import MavCmd, MissionItem
 from air_sitl.mission.plan_file import load_mission
+from air_sitl.recording import camera_yaml_for
 from air_sitl.state import FlightMode
 
 REPO = Path(__file__).resolve().parents[2]
@@ -144,6 +147,13 @@ def test_ci_smoke_flight_uc200_records_a_valid_archive(tmp_path: Path) -> None:
     )
     assert check.returncode == 0, check.stdout + check.stderr
     assert "VALID" in check.stdout
+    # The archive describes its camera as `fly` archives do: in camera.yaml and the manifest.
+    served_camera = CameraModel(width_px=160, height_px=120, noise_sigma=0.0)
+    assert (out / "1" / "camera.yaml").read_text() == camera_yaml_for(served_camera)
+    manifest = json.loads((out / "1" / "manifest.json").read_text())
+    assert manifest["camera"]["width_px"] == 160 and manifest["camera"]["noise_sigma"] == 0.0
+    assert manifest["home"]["lat_deg"] == pytest.approx(home.lat_deg)
+    assert manifest["recorded_by"] == "air-sitl serve"
     assert time.monotonic() - t0 < 60
 
 
