@@ -122,6 +122,30 @@ class SimSample:
     gps: GpsFix | None  # None between GPS updates or while GPS is denied
 
 
+def mission_sample(
+    state: VehicleState, *, capturing: bool = True, current_seq: int = 1
+) -> SimSample:
+    """A SimSample of ``state`` armed in a mission, with an ideal IMU and no GPS update
+    (previews, tests, benchmarks: what the camera and the sinks need around a pose)."""
+    return SimSample(
+        state=state,
+        autopilot=AutopilotStatus(
+            mode=FlightMode.MISSION,
+            armed=True,
+            current_seq=current_seq,
+            capturing=capturing,
+            mission_completed=False,
+        ),
+        imu=ImuSample(
+            sim_time_ns=state.sim_time_ns,
+            gyro_frd_rad_s=state.rate_frd_rad_s,
+            accel_frd_m_s2=state.specific_force_frd_m_s2,
+            q_ahrs_body_to_ned_wxyz=state.q_body_to_ned_wxyz,
+        ),
+        gps=None,
+    )
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class CameraFrame:
     """One rendered camera frame with the pose it was taken from."""

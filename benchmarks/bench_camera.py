@@ -28,7 +28,7 @@ from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
 from air_sitl.frames import ned2geodetic
 from air_sitl.maps.open import open_map
-from air_sitl.state import AutopilotStatus, FlightMode, GeoPoint, ImuSample, SimSample, VehicleState
+from air_sitl.state import GeoPoint, VehicleState, mission_sample
 
 REPEATS = 5
 HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
@@ -63,27 +63,6 @@ def path_states(
             )
         )
     return out
-
-
-def sample_of(state: VehicleState) -> SimSample:
-    """A SimSample around a state (the bridge takes samples)."""
-    return SimSample(
-        state=state,
-        autopilot=AutopilotStatus(
-            mode=FlightMode.MISSION,
-            armed=True,
-            current_seq=1,
-            capturing=True,
-            mission_completed=False,
-        ),
-        imu=ImuSample(
-            sim_time_ns=state.sim_time_ns,
-            gyro_frd_rad_s=(0.0, 0.0, 0.0),
-            accel_frd_m_s2=(0.0, 0.0, -9.8),
-            q_ahrs_body_to_ned_wxyz=state.q_body_to_ned_wxyz,
-        ),
-        gps=None,
-    )
 
 
 def one_core(frames: int) -> None:
@@ -150,7 +129,7 @@ def threaded(frames: int) -> None:
     cv2.setNumThreads(1)
     print("2) camera bridge (FrameSource), 300 m, tiles warm")
     renderer = Renderer(open_map("urban", HOME, seed=0), CameraModel(), seed=0)
-    samples = [sample_of(s) for s in path_states(300.0, frames)]
+    samples = [mission_sample(s) for s in path_states(300.0, frames)]
     for s in samples[:: max(1, frames // 50)]:
         renderer.render(s.state)
     for workers in (1, 2):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import signal
@@ -15,13 +16,11 @@ from pathlib import Path
 from air_sitl.bus.session import Bus, BusConfig, open_bus
 from air_sitl.frames import euler2quat, ned2geodetic
 from air_sitl.state import (
-    AutopilotStatus,
-    FlightMode,
     GeoPoint,
     GpsFix,
-    ImuSample,
     SimSample,
     VehicleState,
+    mission_sample,
 )
 
 REPO = Path(__file__).resolve().parents[2]
@@ -84,19 +83,6 @@ def make_sample(
         airspeed_m_s=15.0,
         on_ground=False,
     )
-    status = AutopilotStatus(
-        mode=FlightMode.MISSION,
-        armed=True,
-        current_seq=2,
-        capturing=capturing,
-        mission_completed=False,
-    )
-    imu = ImuSample(
-        sim_time_ns=t_ns,
-        gyro_frd_rad_s=(0.0, 0.0, 0.0),
-        accel_frd_m_s2=(0.0, 0.0, -9.80665),
-        q_ahrs_body_to_ned_wxyz=q,
-    )
     fix = None
     if gps:
         fix = GpsFix(
@@ -110,7 +96,7 @@ def make_sample(
             eph_m=1.5,
             epv_m=3.0,
         )
-    return SimSample(state=state, autopilot=status, imu=imu, gps=fix)
+    return dataclasses.replace(mission_sample(state, capturing=capturing, current_seq=2), gps=fix)
 
 
 def cli(*args: str) -> list[str]:

@@ -13,7 +13,7 @@ from air_sitl.camera.render import Renderer, pose_state, render_camera_frame
 from air_sitl.camera.sink import JpegFolderSink
 from air_sitl.frames import ned2geodetic
 from air_sitl.maps.open import open_map
-from air_sitl.state import AutopilotStatus, FlightMode, ImuSample, SimSample
+from air_sitl.state import SimSample, mission_sample
 
 
 def _samples(n: int) -> list[SimSample]:
@@ -28,25 +28,7 @@ def _samples(n: int) -> list[SimSample]:
             roll_rad=0.2 * math.sin(i / 5),
             sim_time_ns=20_000_000 * i,
         )
-        out.append(
-            SimSample(
-                state=state,
-                autopilot=AutopilotStatus(
-                    mode=FlightMode.MISSION,
-                    armed=True,
-                    current_seq=1,
-                    capturing=True,
-                    mission_completed=False,
-                ),
-                imu=ImuSample(
-                    sim_time_ns=state.sim_time_ns,
-                    gyro_frd_rad_s=(0, 0, 0),
-                    accel_frd_m_s2=(0, 0, -9.8),
-                    q_ahrs_body_to_ned_wxyz=state.q_body_to_ned_wxyz,
-                ),
-                gps=None,
-            )
-        )
+        out.append(mission_sample(state))
     return out
 
 
