@@ -1,0 +1,77 @@
+"""Baseline localizers behind one protocol (:mod:`air_sitl.localize.base`), run offline over an
+archive (:func:`localize_archive`) or online on the zenoh bus by the same code.
+
+Methods are registered in :data:`METHODS`: name -> factory. The drivers call the factory with
+no arguments (``METHODS[name]()``) and give everything a flight provides (home, camera, map,
+reference map and date, seed, manifest) through :class:`LocalizerContext` in ``reset``; keyword
+options are for callers tuning a method. Adding a method is one line: a factory (import its
+module inside, so ``air-sitl --help`` stays fast) and its entry in :data:`METHODS`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from air_sitl.localize.base import (
+    Estimate,
+    GnssFix,
+    ImuReading,
+    Localizer,
+    LocalizerContext,
+    Observation,
+)
+
+
+def _deadreckon(**options: Any) -> Localizer:
+    from air_sitl.localize.deadreckon import DeadReckoning
+
+    return DeadReckoning(**options)
+
+
+def _vo(**options: Any) -> Localizer:
+    from air_sitl.localize.vo import VisualOdometry
+
+    return VisualOdometry(**options)
+
+
+# method name -> factory(**options) -> Localizer
+METHODS: dict[str, Callable[..., Localizer]] = {
+    "deadreckon": _deadreckon,
+    "vo": _vo,
+}
+
+
+def localize_archive(
+    archive: Path,
+    method: str,
+    *,
+    name: str | None = None,
+    reference_map: str | None = None,
+    reference_date: int | None = None,
+    seed: int = 0,
+) -> Path:
+    """Run ``method`` over an archive folder; write and return ``ARCHIVE/estimates/NAME.csv``."""
+    from air_sitl.localize.archive import run_archive
+
+    return run_archive(
+        Path(archive),
+        method,
+        name=name,
+        reference_map=reference_map,
+        reference_date=reference_date,
+        seed=seed,
+    ).path
+
+
+__all__ = [
+    "METHODS",
+    "Estimate",
+    "GnssFix",
+    "ImuReading",
+    "Localizer",
+    "LocalizerContext",
+    "Observation",
+    "localize_archive",
+]
