@@ -212,41 +212,52 @@ def _spawn_fly(plan: Path, out: Path, **kw: object) -> subprocess.Popen[bytes]:
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, **kw)
 
 
-def _wait_for_first_frame(out: Path, proc: subprocess.Popen[bytes], timeout_s: float) -> None:
-    end = time.monotonic() + timeout_s
-    while time.monotonic() < end and proc.poll() is None:
-        if (out / "frame_000000.jpg").exists():
-            return
-        time.sleep(0.005)
+def _signal_when(out: Path, proc: subprocess.Popen[bytes], marker: str, sig: int) -> bool:
+    """Send ``sig`` to ``proc`` as soon as ``out/marker`` exists (an event, not a delay).
+
+    Returns False when the flight ended by itself before the marker was seen.
+    """
+    target = out / marker
+    while proc.poll() is None:
+        if target.exists():
+            proc.send_signal(sig)
+            return True
+        time.sleep(0.001)
+    return False
+
+
+def _kill_when(out: Path, proc: subprocess.Popen[bytes], marker: str) -> bool:
+    """SIGKILL ``proc`` when ``out/marker`` appears; True when the kill ended the flight."""
+    _signal_when(out, proc, marker, signal.SIGKILL)
+    proc.wait()
+    return proc.returncode == -signal.SIGKILL
 
 
 def test_sigkill_at_random_moments_then_check_and_resume(
     plan: Path, clean: Path, tmp_path: Path
 ) -> None:
+    total = len(minimal_read(clean))
     rng = np.random.default_rng(20261122)
-    # Three kills at random moments of the capture, one at a random moment of the start-up.
-    moments = [(True, float(d)) for d in sorted(rng.uniform(0.0, 1.2, size=3))]
-    moments.append((False, float(rng.uniform(0.3, 1.5))))
+    # Three kills when a random frame of the capture has just been written, one as soon as the
+    # output folder exists (start-up). Moments are frames, so a busy machine moves none of them.
+    frames = sorted(int(n) for n in rng.integers(1, total * 2 // 3, size=3))
+    markers = [f"frame_{n:06d}.jpg" for n in frames] + [""]
     kept: list[int] = []
-    for k, (after_first_frame, delay) in enumerate(moments):
+    for k, marker in enumerate(markers):
         out = tmp_path / f"k{k}"
         proc = _spawn_fly(plan, out)
-        if after_first_frame:
-            _wait_for_first_frame(out, proc, 60.0)
-        time.sleep(delay)
-        proc.send_signal(signal.SIGKILL)
-        proc.wait()
-        what = f"killed {delay:.3f} s after {'the first frame' if after_first_frame else 'start'}"
+        landed = _kill_when(out, proc, marker)
+        what = f"killed when {marker or 'the folder'} appeared (landed: {landed})"
         if out.is_dir() and any(out.iterdir()):
             assert main(["check", str(out)]) == 0, what
-            if (out / "metadata.csv").exists():
+            if landed and (out / "metadata.csv").exists():
                 with air_sitl.dataset.open(out) as archive:
                     kept.append(len(archive))
         assert main([*fly_args(plan, out), "--resume"]) == 0, what
         assert manifest_hashes(out) == manifest_hashes(clean), what
         assert data_files(out) == data_files(clean), what
     print("frames kept at each kill:", kept)
-    assert any(0 < n < len(minimal_read(clean)) for n in kept), kept
+    assert any(0 < n < total for n in kept), kept
 
 
 def test_resume_of_a_complete_archive_does_nothing(plan: Path, clean: Path, tmp_path: Path) -> None:
@@ -308,9 +319,12 @@ def test_a_folder_turning_read_only_stops_with_one_line_and_resumes(
     _chattr("-i", out)
     proc = _spawn_fly(plan, out)
     try:
-        _wait_for_first_frame(out, proc, 60.0)
-        assert _chattr("+i", out)  # no new file can appear: the next image fails
-        _, err = proc.communicate(timeout=120)
+        # Paused at its first frame, so the folder turns read-only mid-flight however busy the
+        # machine is; then the next image fails.
+        assert _signal_when(out, proc, "frame_000000.jpg", signal.SIGSTOP)
+        assert _chattr("+i", out)
+        proc.send_signal(signal.SIGCONT)
+        _, err = proc.communicate()
     finally:
         _chattr("-i", out)
     assert proc.returncode == 2
