@@ -1,0 +1,69 @@
+"""Run the test suite with busy loops beside it: a test that waits on wall-clock time fails here.
+
+    python benchmarks/stress_suite.py --busy 4 --runs 3 [-- PYTEST ARGS]
+
+Starts ``--busy`` processes that spin on the CPU (this VM has 2 cores, so 4 loops leave the
+suite a fraction of a core), runs ``python -m pytest -q`` ``--runs`` times in a row and prints
+each run's outcome and wall time beside the same suite's time with no load when ``--baseline``
+is given. Exit 0 only when every loaded run passed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _spin() -> None:
+    x = 0
+    while True:
+        x = (x * 1103515245 + 12345) & 0x7FFFFFFF
+
+
+def _run_suite(args: list[str]) -> tuple[int, float, str]:
+    t0 = time.monotonic()
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    tail = (proc.stdout.strip().splitlines() or [""])[-1]
+    return proc.returncode, time.monotonic() - t0, tail
+
+
+def main(busy: int, runs: int, baseline: bool, pytest_args: list[str]) -> int:
+    if baseline:
+        rc, wall, tail = _run_suite(pytest_args)
+        print(f"no load      : exit {rc}, {wall:7.1f} s  {tail}", flush=True)
+    loops = [mp.Process(target=_spin, daemon=True) for _ in range(busy)]
+    for p in loops:
+        p.start()
+    failed = 0
+    try:
+        for k in range(runs):
+            rc, wall, tail = _run_suite(pytest_args)
+            failed += rc != 0
+            print(f"{busy} busy, run {k + 1}: exit {rc}, {wall:7.1f} s  {tail}", flush=True)
+    finally:
+        for p in loops:
+            p.terminate()
+    print(f"{runs - failed} of {runs} loaded runs passed")
+    return 0 if failed == 0 else 1
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--busy", type=int, default=4, help="busy-loop processes (default 4)")
+    parser.add_argument("--runs", type=int, default=3, help="suite runs in a row (default 3)")
+    parser.add_argument("--baseline", action="store_true", help="first run once without load")
+    parser.add_argument("pytest_args", nargs="*", help="passed to pytest (after --)")
+    ns = parser.parse_args()
+    sys.exit(main(ns.busy, ns.runs, ns.baseline, ns.pytest_args))
