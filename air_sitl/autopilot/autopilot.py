@@ -11,19 +11,14 @@ import dataclasses
 import math
 from typing import Protocol
 
-from air_sitl.autopilot.executor import (
-    MissionExecutor,
-    first_flown_item,
-    item_point,
-    loiter_geometry,
-    next_nav_index,
-    validate_mission,
-)
+from air_sitl.autopilot.executor import MissionExecutor
 from air_sitl.autopilot.params import ParamStore
 from air_sitl.autopilot.target import ControlPhase, ControlTarget
 from air_sitl.errors import PlanError
 from air_sitl.frames import ned2geodetic
-from air_sitl.mission.items import MavCmd, Mission
+from air_sitl.mission.geometry import first_flown_item, item_point, loiter_geometry, next_nav_index
+from air_sitl.mission.items import LOITER_COMMANDS, MavCmd, Mission
+from air_sitl.mission.validate import require_flyable
 from air_sitl.state import ActuatorCommand, AutopilotStatus, FlightMode, GeoPoint, VehicleState
 
 GUIDANCE_PERIOD_NS = 20_000_000  # 50 Hz
@@ -252,7 +247,7 @@ def air_start_pose(
     the next positioned item; tangent to a loiter circle that passes through the point), at the
     mission speed (DO_CHANGE_SPEED before that point, else the plan's cruise speed).
     """
-    validate_mission(mission)
+    require_flyable(mission)
     params = params or ParamStore()
     items = mission.items
     first = first_flown_item(mission)
@@ -289,12 +284,7 @@ def air_start_pose(
             nn, ne, _ = item_point(items[nxt], home)
             if not math.isnan(nn) and math.hypot(nn - n, ne - e) > 1.0:
                 heading = math.atan2(ne - e, nn - n)
-                if items[nxt].command in (
-                    MavCmd.NAV_LOITER_UNLIM,
-                    MavCmd.NAV_LOITER_TURNS,
-                    MavCmd.NAV_LOITER_TIME,
-                    MavCmd.NAV_LOITER_TO_ALT,
-                ):
+                if items[nxt].command in LOITER_COMMANDS:
                     radius, direction = loiter_geometry(items[nxt], default_radius)
                     dist = math.hypot(nn - n, ne - e)
                     if dist < 1.5 * radius:

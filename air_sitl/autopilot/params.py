@@ -245,3 +245,52 @@ class ParamStore:
     def items(self) -> Iterable[tuple[str, float]]:
         """(name, value) pairs in index order."""
         return ((spec.name, self._values[spec.name]) for spec in PARAMS)
+
+
+@dataclass(frozen=True, slots=True)
+class NavParams:
+    """The parameters guidance needs, converted to SI units once per change."""
+
+    trim_m_s: float
+    min_m_s: float
+    max_m_s: float
+    bank_limit_rad: float
+    l1_period_s: float
+    l1_damping: float
+    acc_radius_m: float
+    alt_acc_m: float
+    loiter_radius_m: float
+    climb_max_m_s: float
+    sink_max_m_s: float
+    climbout_diff_m: float
+    takeoff_alt_m: float
+    rtl_alt_m: float
+    land_angle_rad: float
+    land_airspeed_m_s: float
+
+    @classmethod
+    def from_store(cls, p: ParamStore) -> NavParams:
+        """Snapshot of the store."""
+        lo = p.get("FW_AIRSPD_MIN")
+        return cls(
+            trim_m_s=p.get("FW_AIRSPD_TRIM"),
+            min_m_s=lo,
+            max_m_s=max(lo, p.get("FW_AIRSPD_MAX")),
+            bank_limit_rad=math.radians(p.get("FW_R_LIM")),
+            l1_period_s=p.get("NAV_L1_PERIOD"),
+            l1_damping=p.get("NAV_L1_DAMPING"),
+            acc_radius_m=p.get("NAV_ACC_RAD"),
+            alt_acc_m=p.get("NAV_FW_ALT_RAD"),
+            loiter_radius_m=p.get("NAV_LOITER_RAD"),
+            climb_max_m_s=p.get("FW_T_CLMB_MAX"),
+            sink_max_m_s=p.get("FW_T_SINK_MAX"),
+            climbout_diff_m=p.get("FW_CLMBOUT_DIFF"),
+            takeoff_alt_m=p.get("MIS_TAKEOFF_ALT"),
+            rtl_alt_m=p.get("RTL_RETURN_ALT"),
+            land_angle_rad=math.radians(p.get("FW_LND_ANG")),
+            land_airspeed_m_s=p.get("FW_LND_AIRSPD"),
+        )
+
+    def clamp_speed(self, speed_m_s: float) -> float:
+        """Airspeed within [FW_AIRSPD_MIN, FW_AIRSPD_MAX]."""
+        return min(self.max_m_s, max(self.min_m_s, speed_m_s))

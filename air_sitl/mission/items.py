@@ -68,6 +68,14 @@ DO_COMMANDS = frozenset(
     }
 )
 MISSION_COMMANDS = NAV_COMMANDS | DO_COMMANDS
+LOITER_COMMANDS = frozenset(
+    {
+        MavCmd.NAV_LOITER_UNLIM,
+        MavCmd.NAV_LOITER_TURNS,
+        MavCmd.NAV_LOITER_TIME,
+        MavCmd.NAV_LOITER_TO_ALT,
+    }
+)
 FENCE_COMMANDS = frozenset(
     {
         MavCmd.NAV_FENCE_RETURN_POINT,
@@ -77,6 +85,12 @@ FENCE_COMMANDS = frozenset(
         MavCmd.NAV_FENCE_CIRCLE_EXCLUSION,
     }
 )
+# (inclusion, exclusion): fence polygon vertices and fence circles.
+FENCE_POLYGON_COMMANDS = (
+    MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION,
+    MavCmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+)
+FENCE_CIRCLE_COMMANDS = (MavCmd.NAV_FENCE_CIRCLE_INCLUSION, MavCmd.NAV_FENCE_CIRCLE_EXCLUSION)
 RALLY_COMMANDS = frozenset({MavCmd.NAV_RALLY_POINT})
 
 

@@ -17,12 +17,15 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from air_sitl.errors import PlanError
 from air_sitl.mission.items import (
     FENCE_COMMANDS,
+    FENCE_POLYGON_COMMANDS,
     MISSION_COMMANDS,
     RALLY_COMMANDS,
     MavCmd,
     MavFrame,
+    Mission,
     MissionItem,
     MissionType,
 )
@@ -325,14 +328,10 @@ def _check_mission_list(items: Sequence[MissionItem], *, allow_empty: bool) -> I
 
 
 def _check_fence_list(items: Sequence[MissionItem]) -> ItemProblem | None:
-    polygon = (
-        MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION,
-        MavCmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
-    )
     index = 0
     while index < len(items):
         first = items[index]
-        if first.command not in polygon:
+        if first.command not in FENCE_POLYGON_COMMANDS:
             index += 1
             continue
         count = int(first.param1)
@@ -352,3 +351,12 @@ def _check_fence_list(items: Sequence[MissionItem]) -> ItemProblem | None:
                 )
         index += count
     return None
+
+
+def require_flyable(mission: Mission) -> None:
+    """Raise :class:`PlanError` when the executor cannot fly ``mission`` (empty is allowed)."""
+    problem = check_mission(mission.items, MissionType.MISSION, allow_empty=True)
+    if problem is not None:
+        where = "mission" if problem.index < 0 else f"item {problem.index}"
+        msg = f"{mission.source}: {where}: {problem.message}"
+        raise PlanError(msg)

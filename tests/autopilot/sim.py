@@ -10,8 +10,9 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from air_sitl.autopilot.executor import MissionExecutor, NavOutput
+from air_sitl.autopilot.executor import MissionExecutor
 from air_sitl.autopilot.target import ControlPhase, ControlTarget
+from air_sitl.autopilot.tasks import NavOutput
 from air_sitl.frames import euler2quat, geodetic2ned, ned2geodetic
 from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
 from air_sitl.state import GeoPoint, VehicleState

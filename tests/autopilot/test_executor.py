@@ -8,9 +8,10 @@ import math
 import pytest
 
 from air_sitl.autopilot.autopilot import air_start_pose
-from air_sitl.autopilot.executor import LoiterTask, MissionExecutor, NavOutput
+from air_sitl.autopilot.executor import MissionExecutor
 from air_sitl.autopilot.params import ParamStore
 from air_sitl.autopilot.target import ControlPhase
+from air_sitl.autopilot.tasks import LoiterTask, NavOutput
 from air_sitl.errors import PlanError
 from air_sitl.mission.items import MavCmd
 from air_sitl.state import FlightMode, VehicleState

@@ -1,0 +1,484 @@
+"""The mission state machine: modes, mission items, capture window, and what to fly now.
+
+:class:`MissionSequencer` turns a :class:`~air_sitl.mission.items.Mission` and the vehicle state
+into a :class:`~air_sitl.autopilot.target.ControlTarget`. It runs one navigation *task* at a
+time (:mod:`air_sitl.autopilot.tasks`: take-off, leg, loiter, landing, idle on the ground).
+Sequencing follows PX4: DO_* items run when reached, DO_JUMP's counter is on the jump item
+(taken while ``count < repeat``), the aircraft loiters at the last waypoint when a mission ends,
+RTL climbs (never descends) to RTL_RETURN_ALT and loiters at home.
+
+- ``mission_completed``: the last navigation item is done (a final RTL or LOITER_UNLIM once the
+  aircraft is established on its circle; a final NAV_LAND once stopped on the ground).
+- Capture window: IMAGE_START_CAPTURE .. IMAGE_STOP_CAPTURE when the plan has either; otherwise
+  (AIR's rule) from reaching the first positioned item after take-off, at its altitude, to
+  ``mission_completed``.
+- Airspeed: DO_CHANGE_SPEED (an airspeed, or a ground speed flown with the estimated wind),
+  else the plan's cruise speed in MISSION mode, else FW_AIRSPD_TRIM; always within
+  FW_AIRSPD_MIN..MAX.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Callable
+
+from air_sitl.autopilot.params import NavParams, ParamStore
+from air_sitl.autopilot.tasks import (
+    IdleTask,
+    LandTask,
+    LegTask,
+    LoiterKind,
+    LoiterTask,
+    NavOutput,
+    TakeoffTask,
+    Task,
+    Tick,
+)
+from air_sitl.mission.geometry import (
+    MAX_DO_STEPS,
+    Point,
+    first_flown_item,
+    item_point,
+    loiter_geometry,
+    next_nav_index,
+)
+from air_sitl.mission.items import LOITER_COMMANDS, MavCmd, Mission
+from air_sitl.mission.validate import require_flyable
+from air_sitl.state import FlightMode, GeoPoint, VehicleState
+
+WIND_FILTER_GAIN = 0.02  # per 50 Hz guidance update: about a 1 s time constant
+MAX_PENDING = 1000  # events and reached items kept for a reader that does not come
+
+
+class MissionSequencer:
+    """Modes, mission sequencing and the capture window; one :class:`Task` at a time.
+
+    Everything runs on the simulation thread. The commands that change modes live in the
+    subclass :class:`~air_sitl.autopilot.executor.MissionExecutor`.
+    """
+
+    def __init__(self, mission: Mission, home: GeoPoint, params: ParamStore) -> None:
+        self.home = home
+        self.params = params
+        self._np_version = -1
+        self._np = NavParams.from_store(params)
+        self.mode = FlightMode.IDLE
+        self.armed = False
+        self.capturing = False
+        self.mission_completed = False
+        self.current_seq = -1
+        self._task: Task = IdleTask()
+        self._tick: Tick | None = None
+        self._state: VehicleState | None = None
+        self._events: list[str] = []
+        self._reached: list[int] = []
+        # Reached items not yet shown in an AutopilotStatus (the facade shows one per step).
+        self.reached_queue: deque[int] = deque()
+        self._speed_override: float | None = None
+        self._ground_speed_mode = False  # DO_CHANGE_SPEED asked for a ground speed
+        self._wind_ne = (0.0, 0.0)  # wind estimate (ground minus air velocity), low-passed
+        self._after_takeoff_seq = -1  # mission item to enter after an implicit take-off
+        self._in_mission = False  # flying mission items (as opposed to waiting on the ground)
+        self._deferred: Callable[[], None] | None = None  # a command that needs a state first
+        self._set_mission_fields(mission)
+
+    # ----------------------------------------------------------------------------- mission
+    def _set_mission_fields(self, mission: Mission) -> None:
+        require_flyable(mission)
+        self.mission = mission
+        self._items = mission.items
+        self._points = [item_point(item, self.home) for item in mission.items]
+        self._jump_counts: dict[int, int] = {}
+        self._prev_point: Point | None = None
+        self._has_capture_items = any(
+            item.command in (MavCmd.IMAGE_START_CAPTURE, MavCmd.IMAGE_STOP_CAPTURE)
+            for item in mission.items
+        )
+        self._first_flown = first_flown_item(mission)
+        self._default_capture_pending = False
+        self._default_capture_done = False
+        self._last_nav_seq = max(
+            (i for i, item in enumerate(mission.items) if item.is_nav), default=-1
+        )
+        self.current_seq = 0 if mission.items else -1
+        self.mission_completed = False
+
+    def set_mission(self, mission: Mission) -> None:
+        """Replace the mission (PX4-like: allowed on the ground and in flight).
+
+        In MISSION mode in the air the new mission is flown from its first item.
+        """
+        self._set_mission_fields(mission)
+        self._speed_override = None  # the new plan's speeds apply
+        self._ground_speed_mode = False
+        self._emit(f"Mission replaced: {len(mission.items)} items")
+        if self.mode is FlightMode.MISSION and self._in_mission and self._state is not None:
+            if mission.items:
+                self._enter_item(0)
+            else:
+                self._hold_here("Mission cleared: holding")
+
+    # ------------------------------------------------------------------------------ events
+    def _emit(self, text: str) -> None:
+        self._events.append(text)
+        if len(self._events) > MAX_PENDING:
+            del self._events[0]  # nobody is reading them (the fly command)
+
+    def pop_events(self) -> list[str]:
+        """STATUSTEXT-style messages since the last call, oldest first."""
+        events, self._events = self._events, []
+        return events
+
+    def _mark_reached(self, seq: int) -> None:
+        self._reached.append(seq)
+        if len(self._reached) > MAX_PENDING:
+            del self._reached[0]
+        self.reached_queue.append(seq)
+
+    def pop_reached(self) -> list[int]:
+        """Navigation items reached since the last call (MISSION_ITEM_REACHED), oldest first."""
+        reached, self._reached = self._reached, []
+        return reached
+
+    # ------------------------------------------------------------------------------ update
+    @property
+    def nav_params(self) -> NavParams:
+        """Current parameters, re-read when the store changed."""
+        if self.params.version != self._np_version:
+            self._np = NavParams.from_store(self.params)
+            self._np_version = self.params.version
+        return self._np
+
+    def _speed(self, p: NavParams, course_rad: float = 0.0) -> float:
+        if self._speed_override is not None:
+            if not self._ground_speed_mode:
+                return p.clamp_speed(self._speed_override)
+            # Airspeed that makes the ground speed along the current course the one asked for.
+            wn, we = self._wind_ne
+            c, s = math.cos(course_rad), math.sin(course_rad)
+            along = wn * c + we * s
+            across = we * c - wn * s
+            return p.clamp_speed(math.hypot(self._speed_override - along, across))
+        plan = self.mission.cruise_speed_m_s
+        if self.mode is FlightMode.MISSION and math.isfinite(plan) and plan > 0.0:
+            return p.clamp_speed(plan)
+        return p.clamp_speed(p.trim_m_s)
+
+    def _estimate_wind(self, state: VehicleState) -> None:
+        """Wind = ground velocity - air velocity (truth airspeed along the heading), low-passed."""
+        if state.on_ground:
+            return
+        v_air = state.airspeed_m_s * math.cos(state.pitch_rad)
+        wn = state.vel_ned_m_s[0] - v_air * math.cos(state.yaw_rad)
+        we = state.vel_ned_m_s[1] - v_air * math.sin(state.yaw_rad)
+        k = WIND_FILTER_GAIN
+        self._wind_ne = (
+            self._wind_ne[0] + k * (wn - self._wind_ne[0]),
+            self._wind_ne[1] + k * (we - self._wind_ne[1]),
+        )
+
+    def update(self, state: VehicleState) -> NavOutput:
+        """Advance the state machine and return guidance for ``state``."""
+        self._state = state
+        p = self.nav_params
+        if self._deferred is not None:
+            deferred, self._deferred = self._deferred, None
+            deferred()
+        if self._ground_speed_mode:
+            self._estimate_wind(state)
+        tick = self._tick = self._tick_now()
+        out = self._task.update(tick)
+        # Tasks may finish several in a row (a waypoint, then DO items): bounded by the items.
+        for _ in range(len(self._items) + 4):
+            if not self._task.done:
+                break
+            self._task_done()
+            tick.speed = self._speed(p, tick.course)
+            out = self._task.update(tick)
+        task = self._task
+        if isinstance(task, LoiterTask) and task.established and not task.announced:
+            self._on_established(task)
+        if self._default_capture_pending and (
+            abs(state.alt_amsl_m - self._points[self._first_flown][2]) <= p.alt_acc_m
+        ):
+            self._default_capture_pending = False
+            self._set_capture(True)
+        return out
+
+    def _tick_now(self) -> Tick:
+        """A tick for the last state (commands create tasks between updates)."""
+        assert self._state is not None
+        p = self.nav_params
+        tick = Tick(self._state, p, 0.0)
+        tick.speed = self._speed(p, tick.course)
+        return tick
+
+    # ------------------------------------------------------------------------- sequencing
+    def _enter_item(self, seq: int) -> None:
+        """Make ``seq`` current: run DO items from there, then start the next navigation item."""
+        self._in_mission = True
+        self.mission_completed = False
+        steps = 0
+        items = self._items
+        while 0 <= seq < len(items):
+            item = items[seq]
+            if item.is_nav:
+                self.current_seq = seq
+                self._start_nav_item(seq)
+                return
+            steps += 1
+            if steps > MAX_DO_STEPS:
+                self._emit("Mission: DO_JUMP loop without navigation items")
+                break
+            self.current_seq = seq
+            seq = self._run_do_item(seq)
+        self._finish_mission()
+
+    def _run_do_item(self, seq: int) -> int:
+        """Execute one DO item; return the index to continue with."""
+        item = self._items[seq]
+        cmd = item.command
+        if cmd == MavCmd.DO_JUMP:
+            count = self._jump_counts.get(seq, 0)
+            if count < item.param2:
+                self._jump_counts[seq] = count + 1
+                target = int(item.param1)
+                self._emit(f"Jump to item {target} ({count + 1}/{int(item.param2)})")
+                return target
+            return seq + 1
+        if cmd == MavCmd.DO_CHANGE_SPEED:
+            if item.param1 in (0.0, 1.0) and item.param2 > 0.0:
+                self._speed_override = item.param2
+                self._ground_speed_mode = item.param1 == 1.0
+                kind = "ground" if self._ground_speed_mode else "air"
+                self._emit(f"Speed set to {item.param2:g} m/s ({kind})")
+        elif cmd == MavCmd.IMAGE_START_CAPTURE:
+            self._set_capture(True)
+        elif cmd == MavCmd.IMAGE_STOP_CAPTURE:
+            self._set_capture(False)
+        return seq + 1
+
+    def _start_nav_item(self, seq: int) -> None:
+        item = self._items[seq]
+        t = self._tick_now()
+        p = t.p
+        here: Point = (t.pn, t.pe, t.alt)
+        n, e, alt = self._points[seq]
+        if math.isnan(n):
+            n, e = t.pn, t.pe
+        if math.isnan(alt):
+            alt = t.alt
+        point: Point = (n, e, alt)
+        cmd = item.command
+        if cmd == MavCmd.NAV_TAKEOFF:
+            self._task = TakeoffTask(t, alt, self._runway_course(seq, t))
+            self._emit(f"Takeoff to {alt - self.home.alt_amsl_m:.0f} m")
+        elif cmd == MavCmd.NAV_WAYPOINT:
+            if t.state.on_ground:
+                self._implicit_takeoff(seq)
+                return
+            acc = (
+                item.param2 if math.isfinite(item.param2) and item.param2 > 0.0 else p.acc_radius_m
+            )
+            prev = self._prev_point if self._prev_point is not None else here
+            self._task = LegTask(
+                t, prev, point, acc, self._course_out(seq, point),
+                from_here=self._prev_point is None,
+            )  # fmt: skip
+        elif cmd in LOITER_COMMANDS:
+            if t.state.on_ground:
+                self._implicit_takeoff(seq)
+                return
+            radius, direction = loiter_geometry(item, p.loiter_radius_m)
+            kind = {
+                MavCmd.NAV_LOITER_UNLIM: LoiterKind.UNLIMITED,
+                MavCmd.NAV_LOITER_TURNS: LoiterKind.TURNS,
+                MavCmd.NAV_LOITER_TIME: LoiterKind.TIME,
+                MavCmd.NAV_LOITER_TO_ALT: LoiterKind.TO_ALT,
+            }[MavCmd(cmd)]
+            amount = item.param1 if kind in (LoiterKind.TURNS, LoiterKind.TIME) else 0.0
+            self._task = LoiterTask(t, point, radius, direction, kind, amount)
+        elif cmd == MavCmd.NAV_RETURN_TO_LAUNCH:
+            if t.state.on_ground:
+                self._complete_item(seq)
+                return
+            self._start_rtl(t)
+        elif cmd == MavCmd.NAV_LAND:
+            if t.state.on_ground:
+                self._complete_item(seq)
+                return
+            ground = self.home.alt_amsl_m
+            if math.isnan(self._points[seq][0]):
+                self._task = self._land_ahead(t)
+            else:
+                prev = self._prev_point if self._prev_point is not None else here
+                self._task = LandTask(prev, (n, e, max(ground, min(alt, ground + 1.0))))
+            self._emit("Landing")
+
+    def _implicit_takeoff(self, seq: int) -> None:
+        """A mission started on the ground without a take-off item climbs out first."""
+        t = self._tick_now()
+        self._after_takeoff_seq = seq
+        alt = self.home.alt_amsl_m + t.p.takeoff_alt_m
+        self._task = TakeoffTask(t, alt, self._runway_course(seq - 1, t))
+        self._emit(f"Takeoff to {t.p.takeoff_alt_m:.0f} m")
+
+    def _runway_course(self, seq: int, t: Tick) -> float:
+        """Take-off course: toward the next positioned item if it is away from here."""
+        nxt = next_nav_index(self._items, seq + 1, dict(self._jump_counts))
+        if nxt >= 0:
+            n, e, _ = self._points[nxt]
+            if not math.isnan(n) and math.hypot(n - t.pn, e - t.pe) > 50.0:
+                return math.atan2(e - t.pe, n - t.pn)
+        return t.state.yaw_rad
+
+    def _course_out(self, seq: int, point: Point) -> float | None:
+        """Course of the leg after waypoint ``seq`` (for turn anticipation), if a leg follows."""
+        nxt = next_nav_index(self._items, seq + 1, dict(self._jump_counts))
+        if nxt < 0 or self._items[nxt].command not in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LAND):
+            return None
+        n, e, _ = self._points[nxt]
+        if math.isnan(n) or math.hypot(n - point[0], e - point[1]) < 1.0:
+            return None
+        return math.atan2(e - point[1], n - point[0])
+
+    def _task_done(self) -> None:
+        task = self._task
+        t = self._tick_now()
+        if isinstance(task, TakeoffTask):
+            self._emit("Takeoff complete")
+            self._prev_point = None
+            if self.mode is FlightMode.TAKEOFF:
+                self._hold_at((t.pn, t.pe, task.alt), "Takeoff done: loiter")
+                return
+            if self._after_takeoff_seq >= 0:
+                seq, self._after_takeoff_seq = self._after_takeoff_seq, -1
+                self._enter_item(seq)
+                return
+        elif isinstance(task, LandTask):
+            self._emit("Landed")
+            if self._in_mission and self.mode is FlightMode.MISSION:
+                self._complete_item(self.current_seq)
+            if self.armed:
+                self.armed = False
+                self._emit("Disarmed")
+            self._in_mission = False
+            self._set_mode(FlightMode.IDLE)
+            self._task = IdleTask()
+            return
+        if self._in_mission and self.mode in (FlightMode.MISSION, FlightMode.RTL):
+            self._complete_item(self.current_seq)
+        else:
+            self._hold_here("Hold")
+
+    def _complete_item(self, seq: int) -> None:
+        """Navigation item ``seq`` is done: record it, then move on."""
+        item = self._items[seq]
+        self._mark_reached(seq)
+        if item.command == MavCmd.NAV_WAYPOINT:
+            n, e, alt = self._points[seq]
+            if not math.isnan(n):
+                self._prev_point = (n, e, alt)
+        else:
+            self._prev_point = None
+        if seq == self._first_flown:
+            self._on_first_flown_reached()
+        self._enter_item(seq + 1)
+
+    def _on_established(self, task: LoiterTask) -> None:
+        """The loiter of the current item reached its circle (called once per task)."""
+        task.announced = True
+        if not self._in_mission or not 0 <= self.current_seq < len(self._items):
+            return
+        seq = self.current_seq
+        if seq == self._first_flown:
+            self._on_first_flown_reached()
+        cmd = self._items[seq].command
+        if cmd == MavCmd.NAV_RETURN_TO_LAUNCH:
+            # RTL is reached at home; later items (if any) follow, else it loiters on.
+            self._complete_item(seq)
+        elif cmd == MavCmd.NAV_LOITER_UNLIM:
+            # Never ends; when nothing but DO items follow, the mission is complete.
+            if next_nav_index(self._items, seq + 1, dict(self._jump_counts)) < 0:
+                self._complete_item(seq)
+            else:
+                self._mark_reached(seq)
+
+    def _on_first_flown_reached(self) -> None:
+        if not self._has_capture_items and not self._default_capture_done:
+            self._default_capture_done = True
+            self._default_capture_pending = True
+
+    def _finish_mission(self) -> None:
+        """No navigation item left: loiter where the mission ended (RTL and loiters go on)."""
+        self._mission_done()
+        task = self._task
+        if isinstance(task, LoiterTask) and not task.done:
+            return
+        if isinstance(task, LoiterTask) and task.done and self.mode is not FlightMode.RTL:
+            task.done = False
+            task.kind = LoiterKind.UNLIMITED
+            self._set_mode(FlightMode.LOITER)
+            return
+        if isinstance(task, (LandTask, IdleTask)):
+            return
+        last = self._prev_point
+        t = self._tick_now()
+        if last is None:
+            last = (t.pn, t.pe, t.alt)
+        self._hold_at(last, "Mission finished: loiter")
+
+    def _mission_done(self) -> None:
+        if self.mission_completed:
+            return
+        self.mission_completed = True
+        self._emit("Mission finished")
+        if not self._has_capture_items and self.capturing:
+            self._set_capture(False)
+        self._default_capture_pending = False
+
+    # ---------------------------------------------------------------------- mode helpers
+    def _set_mode(self, mode: FlightMode) -> None:
+        if mode is not self.mode:
+            self.mode = mode
+            self._emit(f"Mode: {mode.name}")
+
+    def _set_capture(self, on: bool) -> None:
+        if on != self.capturing:
+            self.capturing = on
+            self._emit("Capture started" if on else "Capture stopped")
+
+    def _hold_at(self, point: Point, text: str) -> None:
+        t = self._tick_now()
+        self._task = LoiterTask(t, point, t.p.loiter_radius_m, 1)
+        self._set_mode(FlightMode.LOITER)
+        self._emit(text)
+
+    def _hold_here(self, text: str) -> None:
+        t = self._tick_now()
+        self._hold_at((t.pn, t.pe, t.alt), text)
+
+    def _start_rtl(self, t: Tick) -> None:
+        alt = max(self.home.alt_amsl_m + t.p.rtl_alt_m, t.alt)
+        self._task = LoiterTask(t, (0.0, 0.0, alt), t.p.loiter_radius_m, 1)
+        self._set_mode(FlightMode.RTL)
+        self._emit("Returning home")
+
+    def _land_ahead(self, t: Tick) -> LandTask:
+        """Glide straight ahead to a touchdown point on the FW_LND_ANG slope."""
+        agl = max(0.0, t.alt - self.home.alt_amsl_m)
+        dist = max(50.0, agl / math.tan(t.p.land_angle_rad))
+        c = t.course
+        td = (t.pn + dist * math.cos(c), t.pe + dist * math.sin(c), self.home.alt_amsl_m)
+        return LandTask((t.pn, t.pe, t.alt), td)
+
+    @property
+    def on_ground(self) -> bool:
+        """True before the first update or while the wheels touch."""
+        return self._state is None or self._state.on_ground
+
+    @property
+    def task(self) -> Task:
+        """The running task (for tests and telemetry)."""
+        return self._task

@@ -1,0 +1,88 @@
+"""Where mission items are: pure functions of a :class:`~air_sitl.mission.items.MissionItem`
+(or a :class:`~air_sitl.mission.items.Mission`) and home, shared by the executor and air starts.
+"""
+
+from __future__ import annotations
+
+import math
+
+from air_sitl.frames import geodetic2ned
+from air_sitl.mission.items import LOITER_COMMANDS, MavCmd, Mission, MissionItem
+from air_sitl.mission.validate import RELATIVE_FRAMES
+from air_sitl.state import GeoPoint
+
+# DO_JUMP chains with no navigation item in between end the mission after this many steps.
+MAX_DO_STEPS = 10_000
+POSITIONED_COMMANDS = LOITER_COMMANDS | {MavCmd.NAV_WAYPOINT}
+
+Point = tuple[float, float, float]  # north m, east m, altitude AMSL m
+
+
+def item_altitude_amsl(item: MissionItem, home: GeoPoint) -> float:
+    """Altitude of a positioned item above mean sea level (relative frames add home's)."""
+    if item.frame in RELATIVE_FRAMES:
+        return home.alt_amsl_m + item.alt_m
+    return item.alt_m
+
+
+def item_point(item: MissionItem, home: GeoPoint) -> Point:
+    """Position of an item in home's NED frame; NaN north/east when it has none (0, 0)."""
+    alt = item_altitude_amsl(item, home)
+    if (item.lat_deg == 0.0 and item.lon_deg == 0.0) or not (
+        math.isfinite(item.lat_deg) and math.isfinite(item.lon_deg)
+    ):
+        return (math.nan, math.nan, alt)
+    n, e, _ = geodetic2ned(
+        item.lat_deg, item.lon_deg, alt, home.lat_deg, home.lon_deg, home.alt_amsl_m
+    )
+    return (n, e, alt)
+
+
+def loiter_geometry(item: MissionItem, default_radius_m: float) -> tuple[float, int]:
+    """(radius, direction) of a loiter item; radius param sign: positive = clockwise."""
+    raw = item.param2 if item.command == MavCmd.NAV_LOITER_TO_ALT else item.param3
+    if not math.isfinite(raw) or abs(raw) < 1.0:
+        return default_radius_m, 1
+    return abs(raw), (1 if raw > 0 else -1)
+
+
+def first_flown_item(mission: Mission) -> int:
+    """Index of the first positioned navigation item after take-off (-1 if none).
+
+    This is the "start point" of AIR: where ``--air-start`` places the aircraft and where the
+    default capture window begins.
+    """
+    items = mission.items
+    start = 0
+    for i, item in enumerate(items):
+        if item.command == MavCmd.NAV_TAKEOFF:
+            start = i + 1
+            break
+    for i in range(start, len(items)):
+        if items[i].command in POSITIONED_COMMANDS:
+            return i
+    return -1
+
+
+def next_nav_index(items: tuple[MissionItem, ...], seq: int, jump_counts: dict[int, int]) -> int:
+    """Index of the navigation item reached from ``seq`` onward (DO_JUMPs followed, counting
+    in ``jump_counts``, which is updated); -1 at the end of the mission."""
+    steps = 0
+    n = len(items)
+    while 0 <= seq < n:
+        item = items[seq]
+        if item.is_nav:
+            return seq
+        if item.command == MavCmd.DO_JUMP:
+            count = jump_counts.get(seq, 0)
+            if count < item.param2:
+                jump_counts[seq] = count + 1
+                seq = int(item.param1)
+            else:
+                seq += 1
+        else:
+            seq += 1
+        steps += 1
+        if steps > MAX_DO_STEPS:
+            return -1
+    return -1
