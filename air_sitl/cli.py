@@ -1,8 +1,7 @@
 """The ``air-sitl`` command: parses, dispatches to one module per command, prints errors.
 
 Each command module in :mod:`air_sitl.commands` has ``HELP`` (one line),
-``add_arguments(parser)`` and ``run(args) -> int``. Modules import their heavy dependencies
-inside ``run`` so that ``air-sitl --help`` stays fast.
+``add_arguments(parser)`` and ``run(args) -> int``, and imports what it needs at its top.
 """
 
 from __future__ import annotations
@@ -23,6 +22,7 @@ COMMANDS: dict[str, str] = {
     "dataset": "dataset",
     "check": "check",
     "export": "export",
+    "eval": "eval",
     "render": "render",
     "map": "map_make",
     "camera-bridge": "camera_bridge",
@@ -39,8 +39,8 @@ def _load(module: str) -> ModuleType | None:
         raise
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full argument parser with every available command."""
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser with every available command, or with the command ``only``."""
     parser = argparse.ArgumentParser(
         prog="air-sitl",
         description="Fixed-wing UAV software-in-the-loop for map-based localization research.",
@@ -48,6 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"air-sitl {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, module_name in COMMANDS.items():
+        if only is not None and name != only:
+            continue
         module = _load(module_name)
         if module is None:
             continue
@@ -59,7 +61,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``air-sitl`` console script."""
-    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # Lazy on purpose: running a command imports its module alone (and its dependencies), not
+    # every command's; the overall --help and errors before a command load them all.
+    first = argv[0] if argv else None
+    only = first if first in COMMANDS and _load(COMMANDS[first]) is not None else None
+    parser = build_parser(only)
     args = parser.parse_args(argv)
     try:
         code: int = args._run(args)

@@ -1,0 +1,323 @@
+"""File formats at the boundary: an archive's truth, and the estimate sources.
+
+A SOURCE is, tried in this order:
+
+- a name: ``ARCHIVE/estimates/NAME.csv`` (what the bus recorder writes);
+- ``svo``: AIR's SvoX..SvoZ columns of ``metadata.csv`` (an original AIR archive's baseline);
+- a path to a CSV in the recorder's format (``sim_time_ns`` and/or ``frame``; ENU
+  ``east_m,north_m,up_m`` or ``lat_deg,lon_deg,alt_amsl_m``; optional ``latency_wall_ms``);
+- a path to a TUM file ``t x y z qx qy qz qw`` (t simulated seconds, ENU metres from home, as
+  ``air-sitl export --tum`` writes).
+
+Everything is validated here once; a bad value is an :class:`EvalError` naming the file, the
+line and the value. A row whose position columns are all empty or ``nan`` is "no estimate".
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from air_sitl.dataset.air_schema import ESTIMATES_DIR, METADATA_CSV
+from air_sitl.dataset.reader import Archive
+from air_sitl.eval.errors import EvalError
+from air_sitl.eval.trajectory import NO_FRAME, NO_TIME, Estimate, Truth
+from air_sitl.frames import geodetic2ned
+from air_sitl.state import GeoPoint
+
+SVO = "svo"
+ENU_COLUMNS = ("east_m", "north_m", "up_m")
+GEO_COLUMNS = ("lat_deg", "lon_deg", "alt_amsl_m")
+TUM_COLUMNS = ("t", "x", "y", "z", "qx", "qy", "qz", "qw")
+_NAN_WORDS = ("", "nan")
+
+Triple = tuple[float, float, float]
+
+
+def load_truth(archive: Archive) -> Truth:
+    """The truth of the archive's capture frames: PoseX..Z, orientation yaw, exposure times."""
+    where = f"{archive.path}/{METADATA_CSV}"
+    rows = archive.rows
+    if not rows:
+        msg = f"{where}: no frames, so no truth to score against"
+        raise EvalError(msg)
+    pos = np.array([r.pose_enu_m for r in rows], dtype=np.float64)
+    bad = ~np.isfinite(pos).all(axis=1)
+    if bad.any():
+        k = int(np.argmax(bad))
+        value = ",".join(f"{c}" for c in rows[k].pose_enu_m)
+        msg = f"{where}: line {k + 2}: PoseX,PoseY,PoseZ = {value}: no truth for this frame"
+        raise EvalError(msg)
+    q = np.array([r.orientation_xyzw for r in rows], dtype=np.float64)
+    x, y, z, w = q.T
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    if not np.isfinite(yaw).all():
+        # no orientation: the course of the horizontal track stands in for the heading
+        d = np.gradient(pos[:, :2], axis=0) if len(rows) > 1 else np.zeros((1, 2))
+        yaw = np.arctan2(d[:, 1], d[:, 0])
+    if archive.extra_rows is not None:
+        t_ns = np.array([archive.timestamp_ns(k) for k in range(len(rows))], dtype=np.int64)
+    else:
+        t_ns = np.arange(len(rows), dtype=np.int64) * 20_000_000  # AIR: row k at k/50 s
+    return Truth(where=str(archive.path), t_ns=t_ns, pos_enu_m=pos, yaw_enu_rad=yaw)
+
+
+def _home(archive: Archive) -> GeoPoint | None:
+    home = (archive.manifest or {}).get("home")
+    if not isinstance(home, dict):
+        return None
+    try:
+        return GeoPoint(
+            lat_deg=float(home["lat_deg"]),
+            lon_deg=float(home["lon_deg"]),
+            alt_amsl_m=float(home["alt_amsl_m"]),
+        )
+    except (KeyError, TypeError, ValueError):
+        return None
+
+
+def _number(text: str, where: str, line: int, column: str) -> float:
+    """A finite float, or NaN for an empty / ``nan`` cell; anything else is an error."""
+    t = text.strip()
+    if t.lower() in _NAN_WORDS:
+        return math.nan
+    try:
+        value = float(t)
+    except ValueError:
+        msg = f"{where}: line {line}: {column} {text!r} is not a number"
+        raise EvalError(msg) from None
+    if not math.isfinite(value):
+        msg = f"{where}: line {line}: {column} {text!r} is not a finite number"
+        raise EvalError(msg)
+    return value
+
+
+def _integer(text: str, where: str, line: int, column: str) -> int | None:
+    t = text.strip()
+    if t == "":
+        return None
+    try:
+        return int(t)
+    except ValueError:
+        msg = f"{where}: line {line}: {column} {text!r} is not an integer"
+        raise EvalError(msg) from None
+
+
+def _triple(cells: Sequence[str], columns: Sequence[str], where: str, line: int) -> Triple | None:
+    """Three position cells: all numbers, or all empty/nan (None); a mix is an error."""
+    values = [_number(c, where, line, col) for c, col in zip(cells, columns, strict=True)]
+    finite = [math.isfinite(v) for v in values]
+    if all(finite):
+        return (values[0], values[1], values[2])
+    if any(finite):
+        shown = ",".join(c.strip() or "''" for c in cells)
+        msg = (
+            f"{where}: line {line}: {','.join(columns)} = {shown}: some but not all "
+            "position columns are empty or nan"
+        )
+        raise EvalError(msg)
+    return None
+
+
+def _check_time_order(t_ns: list[int], lines: list[int], where: str) -> None:
+    prev_t, prev_line = None, 0
+    for t, line in zip(t_ns, lines, strict=True):
+        if t == NO_TIME:
+            continue
+        if prev_t is not None and t <= prev_t:
+            msg = (
+                f"{where}: line {line}: time {t} ns is not after {prev_t} ns (line {prev_line}): "
+                "times out of order"
+            )
+            raise EvalError(msg)
+        prev_t, prev_line = t, line
+
+
+def parse_csv(text: str, where: str, name: str, home: GeoPoint | None) -> Estimate:
+    """Estimates in the bus recorder's CSV format (see the module docstring)."""
+    if not text.strip():
+        msg = f"{where}: empty file (expected a header: sim_time_ns,frame,east_m,north_m,up_m,...)"
+        raise EvalError(msg)
+    reader = csv.reader(io.StringIO(text))
+    header = [h.strip() for h in next(reader)]
+    col = {h: k for k, h in enumerate(header)}
+    if "frame" not in col and "sim_time_ns" not in col:
+        msg = f"{where}: line 1: no frame or sim_time_ns column (header {','.join(header)!r})"
+        raise EvalError(msg)
+    enu = [col[c] for c in ENU_COLUMNS] if all(c in col for c in ENU_COLUMNS) else None
+    geo = [col[c] for c in GEO_COLUMNS] if all(c in col for c in GEO_COLUMNS) else None
+    if enu is None and geo is None:
+        msg = (
+            f"{where}: line 1: no position columns (expected {','.join(ENU_COLUMNS)} or "
+            f"{','.join(GEO_COLUMNS)}; header {','.join(header)!r})"
+        )
+        raise EvalError(msg)
+    i_frame, i_time = col.get("frame"), col.get("sim_time_ns")
+    i_latency = col.get("latency_wall_ms")
+    lines: list[int] = []
+    frames: list[int] = []
+    times: list[int] = []
+    positions: list[Triple] = []
+    latencies: list[float] = []
+    nan3 = (math.nan, math.nan, math.nan)
+    for line, fields in enumerate(reader, start=2):
+        if not fields or (len(fields) == 1 and not fields[0].strip()):
+            continue
+        if len(fields) != len(header):
+            msg = f"{where}: line {line}: {len(fields)} fields, expected {len(header)}"
+            raise EvalError(msg)
+        frame = None if i_frame is None else _integer(fields[i_frame], where, line, "frame")
+        t = None if i_time is None else _integer(fields[i_time], where, line, "sim_time_ns")
+        if frame is None and t is None:
+            msg = f"{where}: line {line}: neither a frame nor a sim_time_ns"
+            raise EvalError(msg)
+        p_enu = None if enu is None else _triple([fields[k] for k in enu], ENU_COLUMNS, where, line)
+        p_geo = None if geo is None else _triple([fields[k] for k in geo], GEO_COLUMNS, where, line)
+        pos = p_enu
+        if pos is None and p_geo is not None:
+            if home is None:
+                msg = (
+                    f"{where}: line {line}: a lat/lon estimate needs the archive's home "
+                    "(manifest.json) to be scored"
+                )
+                raise EvalError(msg)
+            n, e, d = geodetic2ned(*p_geo, home.lat_deg, home.lon_deg, home.alt_amsl_m)
+            pos = (e, n, -d)
+        lines.append(line)
+        frames.append(NO_FRAME if frame is None else frame)
+        times.append(NO_TIME if t is None else t)
+        positions.append(nan3 if pos is None else pos)
+        if i_latency is not None:
+            latencies.append(_number(fields[i_latency], where, line, "latency_wall_ms"))
+    _check_time_order(times, lines, where)
+    return Estimate(
+        name=name,
+        where=where,
+        line=np.array(lines, dtype=np.int64),
+        frame=np.array(frames, dtype=np.int64),
+        t_ns=np.array(times, dtype=np.int64),
+        pos_enu_m=np.array(positions, dtype=np.float64).reshape(-1, 3),
+        latency_wall_ms=None if i_latency is None else np.array(latencies, dtype=np.float64),
+    )
+
+
+def parse_tum(text: str, where: str, name: str) -> Estimate:
+    """A TUM trajectory ``t x y z qx qy qz qw`` (simulated seconds, ENU metres from home)."""
+    if not text.strip():
+        msg = f"{where}: empty file (expected TUM lines: {' '.join(TUM_COLUMNS)})"
+        raise EvalError(msg)
+    lines: list[int] = []
+    times: list[int] = []
+    positions: list[Triple] = []
+    nan3 = (math.nan, math.nan, math.nan)
+    for line, raw in enumerate(text.splitlines(), start=1):
+        s = raw.strip()
+        if not s or s.startswith("#"):
+            continue
+        parts = s.split()
+        if len(parts) != len(TUM_COLUMNS):
+            msg = (
+                f"{where}: line {line}: {len(parts)} columns in {s[:60]!r}, expected "
+                f"{len(TUM_COLUMNS)} ({' '.join(TUM_COLUMNS)})"
+            )
+            raise EvalError(msg)
+        t_s = _number(parts[0], where, line, "t")
+        if math.isnan(t_s):
+            msg = f"{where}: line {line}: t {parts[0]!r} is not a number"
+            raise EvalError(msg)
+        pos = _triple(parts[1:4], TUM_COLUMNS[1:4], where, line)
+        for text_q, column in zip(parts[4:], TUM_COLUMNS[4:], strict=True):
+            _number(text_q, where, line, column)
+        lines.append(line)
+        times.append(round(t_s * 1e9))
+        positions.append(nan3 if pos is None else pos)
+    if not lines:
+        msg = f"{where}: no TUM lines (only comments)"
+        raise EvalError(msg)
+    _check_time_order(times, lines, where)
+    return Estimate(
+        name=name,
+        where=where,
+        line=np.array(lines, dtype=np.int64),
+        frame=np.full(len(lines), NO_FRAME, dtype=np.int64),
+        t_ns=np.array(times, dtype=np.int64),
+        pos_enu_m=np.array(positions, dtype=np.float64).reshape(-1, 3),
+        latency_wall_ms=None,
+    )
+
+
+def svo_estimate(archive: Archive, name: str = SVO) -> Estimate:
+    """AIR's SvoX..SvoZ columns as an estimate keyed by frame (all-nan rows: no estimate)."""
+    where = f"{archive.path}/{METADATA_CSV}"
+    svo = np.array([r.svo_enu_m for r in archive.rows], dtype=np.float64).reshape(-1, 3)
+    finite = np.isfinite(svo)
+    mixed = finite.any(axis=1) & ~finite.all(axis=1)
+    if mixed.any():
+        k = int(np.argmax(mixed))
+        shown = ",".join(f"{c}" for c in svo[k])
+        msg = (
+            f"{where}: line {k + 2}: SvoX,SvoY,SvoZ = {shown}: some but not all "
+            "position columns are empty or nan"
+        )
+        raise EvalError(msg)
+    if np.isinf(svo).any():
+        k = int(np.argmax(np.isinf(svo).any(axis=1)))
+        msg = f"{where}: line {k + 2}: SvoX,SvoY,SvoZ = {svo[k].tolist()}: not finite"
+        raise EvalError(msg)
+    n = svo.shape[0]
+    return Estimate(
+        name=name,
+        where=where,
+        line=np.arange(2, n + 2, dtype=np.int64),
+        frame=np.arange(n, dtype=np.int64),
+        t_ns=np.full(n, NO_TIME, dtype=np.int64),
+        pos_enu_m=svo,
+        latency_wall_ms=None,
+    )
+
+
+def _decode(data: bytes, where: str) -> str:
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        msg = f"{where}: not UTF-8 text ({err})"
+        raise EvalError(msg) from None
+
+
+def _looks_like_csv(text: str) -> bool:
+    for raw in text.splitlines():
+        s = raw.strip()
+        if s and not s.startswith("#"):
+            return "," in s
+    return True
+
+
+def load_estimate(archive: Archive, source: str) -> Estimate:
+    """The estimate named by ``source`` (see the module docstring for the lookup order)."""
+    inside = f"{ESTIMATES_DIR}/{source}.csv"
+    if "/" not in source and archive.exists(inside):
+        where = f"{archive.path}/{inside}"
+        return parse_csv(_decode(archive.read_bytes(inside), where), where, source, _home(archive))
+    if source == SVO:
+        return svo_estimate(archive)
+    path = Path(source)
+    if not path.is_file():
+        msg = (
+            f"{source}: no such estimate (not {archive.path}/{inside}, not 'svo', "
+            "not a CSV or TUM file)"
+        )
+        raise EvalError(msg)
+    try:
+        data = path.read_bytes()
+    except OSError as err:
+        msg = f"{path}: cannot read: {err.strerror}"
+        raise EvalError(msg) from None
+    text = _decode(data, str(path))
+    if _looks_like_csv(text):
+        return parse_csv(text, str(path), source, _home(archive))
+    return parse_tum(text, str(path), source)
