@@ -1,0 +1,132 @@
+"""The leaderboard: method x scenario figures from the eval reports, as JSON and markdown.
+
+Figures per cell (SPEC section 5 names): median and rmse horizontal error, recall@25 m,
+availability, drift % and the turn/straight RPE ratio. A method's summary row is the median
+over the scenarios it was measured on; a failed or missing cell is ``null`` / "-" (never 0).
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from air_sitl.bench.results import EntryResult
+
+# (leaderboard key, path into the SPEC report, markdown title, format, better)
+FIGURES: tuple[tuple[str, tuple[str, ...], str, str, str], ...] = (
+    ("median_m", ("horizontal_error_m", "median"), "median horizontal error (m)", ".1f", "low"),
+    ("rmse_m", ("horizontal_error_m", "rmse"), "horizontal RMSE (m)", ".1f", "low"),
+    ("recall_25m", ("recall", "25m"), "recall@25 m (share of all frames)", ".3f", "high"),
+    ("availability", ("availability",), "availability", ".3f", "high"),
+    ("drift_pct", ("drift_pct",), "final drift (% of distance)", ".2f", "low"),
+    (
+        "turn_straight_rpe_ratio",
+        ("turn_straight_rpe_ratio",),
+        "turn / straight RPE@100 m",
+        ".2f",
+        "low",
+    ),
+)
+SCENARIO_CLASSES = {
+    "UL": "urban line",
+    "UR": "urban rectangle",
+    "UC": "urban circle",
+    "FL": "forest line",
+    "FR": "forest rectangle",
+    "FC": "forest circle",
+}
+
+
+def _get(report: dict[str, Any] | None, path: tuple[str, ...]) -> float | None:
+    value: Any = report
+    for key in path:
+        if not isinstance(value, dict):
+            return None
+        value = value.get(key)
+    if value is None or not isinstance(value, int | float) or not math.isfinite(value):
+        return None
+    return float(value)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Leaderboard:
+    """Every cell, and the order to show them in."""
+
+    entries: tuple[str, ...]
+    scenarios: tuple[str, ...]
+    cells: dict[tuple[str, str], EntryResult]
+
+    def figure(self, entry: str, scenario: str, key: str) -> float | None:
+        result = self.cells.get((entry, scenario))
+        path = next(p for k, p, *_ in FIGURES if k == key)
+        return None if result is None else _get(result.report, path)
+
+    def summary(self, entry: str, key: str) -> float | None:
+        values = [self.figure(entry, s, key) for s in self.scenarios]
+        known = [v for v in values if v is not None]
+        return statistics.median(known) if known else None
+
+    def to_json(self) -> dict[str, Any]:
+        rows = []
+        for entry in self.entries:
+            for scenario in self.scenarios:
+                result = self.cells.get((entry, scenario))
+                row: dict[str, Any] = {"method": entry, "scenario": scenario}
+                for key, *_ in FIGURES:
+                    row[key] = self.figure(entry, scenario, key)
+                row["frames_per_s"] = None if result is None else result.frames_per_s
+                row["error"] = "not run" if result is None else result.error
+                rows.append(row)
+        summary = {
+            entry: {key: self.summary(entry, key) for key, *_ in FIGURES} for entry in self.entries
+        }
+        return {
+            "v": 1,
+            "methods": list(self.entries),
+            "scenarios": list(self.scenarios),
+            "rows": rows,
+            "summary": summary,
+        }
+
+    def to_markdown(self) -> str:
+        lines = ["# Leaderboard", ""]
+        lines.append(
+            f"{len(self.entries)} methods x {len(self.scenarios)} scenarios; each cell from "
+            "`air-sitl eval` (SPEC section 5); the last column is the median over scenarios."
+        )
+        for key, _path, title, fmt, better in FIGURES:
+            lines += ["", f"## {title} ({'lower' if better == 'low' else 'higher'} is better)", ""]
+            lines.append("| method | " + " | ".join(self.scenarios) + " | median |")
+            lines.append("|---" * (len(self.scenarios) + 2) + "|")
+            for entry in self.entries:
+                cells = [_fmt(self.figure(entry, s, key), fmt) for s in self.scenarios]
+                lines.append(
+                    f"| {entry} | "
+                    + " | ".join(cells)
+                    + f" | {_fmt(self.summary(entry, key), fmt)} |"
+                )
+        failures = [r for r in self.cells.values() if r.error]
+        if failures:
+            lines += ["", "## Failed", ""]
+            lines += [f"- {r.entry} on {r.scenario}: {r.error}" for r in failures]
+        return "\n".join(lines) + "\n"
+
+
+def _fmt(value: float | None, fmt: str) -> str:
+    return "-" if value is None else format(value, fmt)
+
+
+def build(
+    entries: Sequence[str], scenarios: Sequence[str], results: Sequence[EntryResult]
+) -> Leaderboard:
+    """Arrange results (any order) into the leaderboard."""
+    cells = {(r.entry, r.scenario): r for r in results}
+    return Leaderboard(entries=tuple(entries), scenarios=tuple(scenarios), cells=cells)
+
+
+def scenario_class(scenario: str) -> str:
+    """``UC-300`` -> ``urban circle`` (the box plots' groups)."""
+    return SCENARIO_CLASSES.get(scenario[:2].upper(), scenario)

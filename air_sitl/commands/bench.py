@@ -1,0 +1,97 @@
+"""``air-sitl bench``: localization methods x AIR scenarios -> a leaderboard.
+
+Makes (or reuses) the archives over the flight date, runs each built-in method offline and
+each external localizer command on the bus in lockstep, scores everything with ``eval`` and
+writes ``DIR/leaderboard.md``, ``DIR/leaderboard.json`` and ``DIR/error_boxes.png``. An
+interrupted bench resumes from what it had measured.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from air_sitl.bench import BenchConfig, parse_localizer, parse_methods, run_bench
+from air_sitl.bench.config import FLIGHT_DATE, REFERENCE_DATE
+from air_sitl.dataset.scenarios import missions_dir, parse_scenarios
+from air_sitl.errors import OptionError
+from air_sitl.eval import ALIGNMENTS
+from air_sitl.localize import METHODS
+from air_sitl.options import int_in_range
+
+HELP = "rank localization methods over the AIR scenarios: leaderboard, box plots"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Arguments of ``bench``."""
+    parser.add_argument(
+        "--scenarios", default="all", help="'all' (default) or names such as UL-200,UC-300"
+    )
+    parser.add_argument(
+        "--methods",
+        default="all",
+        help=f"built-in methods, comma-separated: {', '.join(METHODS)} (default all)",
+    )
+    parser.add_argument(
+        "--localizer",
+        metavar="NAME=COMMAND",
+        action="append",
+        default=[],
+        help="an external localizer program, run on the bus in lockstep per scenario; it gets "
+        "'--zenoh-connect ENDPOINT' appended (or {endpoint} replaced) and must publish "
+        "estimate/NAME; repeatable",
+    )
+    parser.add_argument("--out", metavar="DIR", required=True, help="bench folder")
+    parser.add_argument("-j", "--jobs", default="1", metavar="N", help="processes (default 1)")
+    parser.add_argument("--missions", default=None, help="folder of the scenario plans")
+    parser.add_argument(
+        "--map-date",
+        default=str(FLIGHT_DATE),
+        help=f"map date the flights are rendered at (default {FLIGHT_DATE})",
+    )
+    parser.add_argument(
+        "--reference-date",
+        default=str(REFERENCE_DATE),
+        help=f"map date map-matching methods match against (default {REFERENCE_DATE})",
+    )
+    parser.add_argument(
+        "--align", choices=ALIGNMENTS, default="none", help="eval alignment (default none)"
+    )
+    parser.add_argument("--seed", default="0", help="flight and sensor seed (default 0)")
+    parser.add_argument("--quiet", action="store_true", help="no progress, only the table")
+
+
+def config_from_args(args: argparse.Namespace) -> BenchConfig:
+    """Validate every option before anything flies."""
+    folder = missions_dir(args.missions)
+    localizers = tuple(parse_localizer(text) for text in args.localizer)
+    methods = parse_methods(args.methods, tuple(METHODS))
+    names = [loc.name for loc in localizers]
+    clash = sorted({n for n in names if names.count(n) > 1 or n in methods})
+    if clash:
+        msg = f"--localizer {clash[0]}: the name is used twice (methods and localizers share names)"
+        raise OptionError(msg)
+    return BenchConfig(
+        scenarios=tuple(parse_scenarios(args.scenarios, folder)),
+        methods=methods,
+        localizers=localizers,
+        out=Path(args.out),
+        jobs=int_in_range("-j", args.jobs, 1, 64),
+        missions=folder,
+        flight_date=int_in_range("--map-date", args.map_date, 0, 99),
+        reference_date=int_in_range("--reference-date", args.reference_date, 0, 99),
+        align=args.align,
+        seed=int_in_range("--seed", args.seed, 0, 2**31 - 1),
+        quiet=bool(args.quiet),
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the bench; 0 when every cell was measured, 1 when some failed."""
+    config = config_from_args(args)
+    board = run_bench(config)
+    sys.stdout.write(board.to_markdown().split("\n## ", 2)[1].join(["## ", "\n"]))
+    sys.stdout.write(f"leaderboard: {config.out / 'leaderboard.md'}\n")
+    failed = [r for r in board.cells.values() if r.error]
+    return 1 if failed else 0
