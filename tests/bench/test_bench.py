@@ -1,0 +1,109 @@
+"""``air-sitl bench`` end to end: a real short flight, built-in methods, and the example
+localizer as an external program on the bus in lockstep; resume; bad options."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+import short_plans
+
+from air_sitl.bench.config import parse_localizer
+from air_sitl.bench.tasks import localizer_argv
+from air_sitl.cli import main
+from air_sitl.state import GeoPoint
+
+pytestmark = pytest.mark.integration
+
+ROOT = Path(__file__).resolve().parents[2]
+HOME = GeoPoint(lat_deg=38.54, lon_deg=-121.49, alt_amsl_m=10.0)
+
+
+@pytest.fixture(scope="module")
+def missions(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("missions")
+    # "U...": flown over the urban map, like the AIR urban scenarios. About 500 frames.
+    short_plans.write_short_plan(folder / "UT-200.plan", HOME, leg_m=150.0)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def bench(missions: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("bench") / "b"
+    example = f"{sys.executable} {ROOT / 'bridges' / 'example_localizer.py'} --name ex --quiet"
+    argv = [
+        "bench", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
+        str(missions), "--localizer", f"ex={example}", "--out", str(out), "--quiet",
+    ]  # fmt: skip
+    assert main(argv) == 0
+    return out
+
+
+def test_leaderboard_has_every_method_and_the_external_localizer(bench: Path) -> None:
+    board = json.loads((bench / "leaderboard.json").read_text())
+    assert board["methods"] == ["deadreckon", "vo", "ex"]
+    rows = {row["method"]: row for row in board["rows"]}
+    for name in ("deadreckon", "vo", "ex"):
+        row = rows[name]
+        assert row["scenario"] == "UT-200" and row["error"] is None, row
+        assert row["availability"] is not None and row["availability"] > 0.9, row
+        assert row["median_m"] is not None and 0.0 <= row["median_m"] < 100.0, row
+    # The external run answered every frame of the same flight, in lockstep.
+    report = json.loads((bench / "reports" / "UT-200" / "ex.json").read_text())["report"]
+    assert report["estimated_frames"] == report["frames"] > 300
+    archive = bench / "archives" / "UT-200"
+    assert (archive / "estimates" / "ex.csv").is_file()
+    assert "estimates/ex.csv" in json.loads((archive / "manifest.json").read_text())["files"]
+    md = (bench / "leaderboard.md").read_text()
+    assert "| deadreckon |" in md and "| ex |" in md and "recall@25 m" in md
+    png = (bench / "error_boxes.png").read_bytes()
+    assert png.startswith(b"\x89PNG") and len(png) > 10_000
+
+
+def test_a_second_run_resumes_without_measuring_again(bench: Path, missions: Path) -> None:
+    reports = sorted((bench / "reports").rglob("*.json"))
+    before = {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in reports}
+    example = f"{sys.executable} {ROOT / 'bridges' / 'example_localizer.py'} --name ex"
+    argv = [
+        "bench", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
+        str(missions), "--localizer", f"ex={example}", "--out", str(bench), "--quiet",
+    ]  # fmt: skip
+    assert main(argv) == 0
+    assert {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in reports} == before
+
+
+def test_endpoint_is_appended_or_substituted() -> None:
+    plain = parse_localizer('mine=python my_loc.py --name "my loc"')
+    assert plain.argv == ("python", "my_loc.py", "--name", "my loc")
+    assert localizer_argv(plain, "tcp/127.0.0.1:5")[-2:] == ["--zenoh-connect", "tcp/127.0.0.1:5"]
+    placed = parse_localizer("x=run --bus {endpoint} --fast")
+    assert localizer_argv(placed, "tcp/127.0.0.1:5") == ["run", "--bus", "tcp/127.0.0.1:5", "--fast"]
+
+
+@pytest.mark.parametrize(
+    ("extra", "expected"),
+    [
+        (["--methods", "deadreckon,teleport"], "unknown method 'teleport'"),
+        (["--methods", "vo,vo"], "named twice"),
+        (["--localizer", "no-equals-sign"], "expected NAME=COMMAND"),
+        (["--localizer", "vo=python x.py"], "--localizer vo: the name is used twice"),
+        (["--localizer", "x="], "--localizer x: the command is empty"),
+        (["--scenarios", "ZZ-100"], "ZZ-100 has no plan"),
+        (["-j", "0"], "-j"),
+    ],
+)
+def test_bad_options_get_one_line_and_exit_2(
+    extra: list[str],
+    expected: str,
+    missions: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    argv = ["bench", "--scenarios", "UT-200", "--methods", "vo", "--missions", str(missions)]
+    argv += ["--out", str(tmp_path / "b"), *extra]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and expected in err, err
+    assert not (tmp_path / "b").exists()  # nothing flown or written
