@@ -79,7 +79,8 @@ def test_endpoint_is_appended_or_substituted() -> None:
     assert plain.argv == ("python", "my_loc.py", "--name", "my loc")
     assert localizer_argv(plain, "tcp/127.0.0.1:5")[-2:] == ["--zenoh-connect", "tcp/127.0.0.1:5"]
     placed = parse_localizer("x=run --bus {endpoint} --fast")
-    assert localizer_argv(placed, "tcp/127.0.0.1:5") == ["run", "--bus", "tcp/127.0.0.1:5", "--fast"]
+    expected = ["run", "--bus", "tcp/127.0.0.1:5", "--fast"]
+    assert localizer_argv(placed, "tcp/127.0.0.1:5") == expected
 
 
 @pytest.mark.parametrize(
