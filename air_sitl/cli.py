@@ -23,6 +23,7 @@ COMMANDS: dict[str, str] = {
     "check": "check",
     "export": "export",
     "eval": "eval",
+    "localize": "localize",
     "bench": "bench",
     "render": "render",
     "map": "map_make",
