@@ -285,7 +285,7 @@ def from_mission_message(m: MissionMessage, target_system: int, target_component
         return cls(*t, m.seq, m.mission_type)
     if isinstance(m, MissionItemMessage):
         i = m.item
-        p = (i.param1, i.param2, i.param3, i.param4)
+        p = i.params[:4]
         if m.int_form:
             scale = 1e7 if i.frame in GLOBAL_FRAMES else 1.0
             return mavlink2.MAVLink_mission_item_int_message(

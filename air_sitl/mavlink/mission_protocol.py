@@ -79,13 +79,7 @@ def opaque_id_of(items: Sequence[MissionItem]) -> int:
             "<HBffffdddB",
             item.command & 0xFFFF,
             item.frame & 0xFF,
-            item.param1,
-            item.param2,
-            item.param3,
-            item.param4,
-            item.lat_deg,
-            item.lon_deg,
-            item.alt_m,
+            *item.params,
             int(item.autocontinue),
         )
         crc = zlib.crc32(packed, crc)

@@ -161,6 +161,19 @@ class MissionItem:
         )
 
     @property
+    def params(self) -> tuple[float, float, float, float, float, float, float]:
+        """MAVLink's seven params (5..7 = x/lat, y/lon, z/alt): what :meth:`from_params` takes."""
+        return (
+            self.param1,
+            self.param2,
+            self.param3,
+            self.param4,
+            self.lat_deg,
+            self.lon_deg,
+            self.alt_m,
+        )
+
+    @property
     def is_nav(self) -> bool:
         """True for items with a position the aircraft flies to or around."""
         return self.command in NAV_COMMANDS

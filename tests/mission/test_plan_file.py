@@ -29,19 +29,7 @@ from .conftest import PlanWriter
 
 def item_key(item: MissionItem) -> tuple[object, ...]:
     """Comparable form of an item: NaN -> "nan" (NaN != NaN would defeat equality)."""
-    values = (
-        item.command,
-        item.frame,
-        item.param1,
-        item.param2,
-        item.param3,
-        item.param4,
-        item.lat_deg,
-        item.lon_deg,
-        item.alt_m,
-        item.autocontinue,
-        item.do_jump_id,
-    )
+    values = (item.command, item.frame, *item.params, item.autocontinue, item.do_jump_id)
     return tuple("nan" if isinstance(v, float) and math.isnan(v) else v for v in values)
 
 
