@@ -1,0 +1,117 @@
+"""Airspeed control (EKF2 airspeed_fusion, sideslip_fusion): true airspeed and wind.
+
+Start: when flying (airspeed above ``airspeed_min_m_s``) with a valid velocity, the wind is
+reset to ground velocity minus airspeed along the heading (EKF2 resetWindUsingAirspeed).
+Fuse: true airspeed |v - wind| and, for a fixed wing, a synthetic zero sideslip; together
+they bound the velocity through heading and wind when GNSS is gone, and they make the wind
+observable while GNSS is there.
+"""
+
+from __future__ import annotations
+
+import math
+
+from air_sitl.nav.buffer import TimedBuffer
+from air_sitl.nav.ekf import VEL, WIND, ErrorStateEkf, rotation_matrix
+from air_sitl.nav.fusion import fuse
+from air_sitl.nav.params import NavParams
+from air_sitl.nav.status import SourceCounters
+from air_sitl.nav.types import AirspeedSample
+
+
+class AirspeedControl:
+    def __init__(self, params: NavParams) -> None:
+        self.params = params
+        self.counters = SourceCounters()
+        self.buffer: TimedBuffer[float] = TimedBuffer(64)
+        self.wind_started = False
+        self.last_fused_ns: int | None = None
+        self.tas_ratio = 0.0
+        self.beta_ratio = 0.0
+
+    def push(self, sample: AirspeedSample, now_ns: int, horizon_start_ns: int) -> bool:
+        c = self.counters
+        c.received += 1
+        if not (math.isfinite(sample.airspeed_m_s) and sample.airspeed_m_s >= 0.0):
+            c.reject("invalid")
+            return False
+        if not horizon_start_ns <= sample.sim_time_ns <= now_ns:
+            c.reject("time")
+            return False
+        if not self.buffer.push(sample.sim_time_ns, sample.airspeed_m_s):
+            c.reject("rate")
+            return False
+        return True
+
+    def fuse_due(self, ekf: ErrorStateEkf, t_ns: int, velocity_valid: bool) -> None:
+        p = self.params
+        for t_m, tas in self.buffer.pop_due(t_ns):
+            if tas < p.airspeed_min_m_s:
+                self.counters.empty += 1  # not flying: nothing to fuse
+                continue
+            r = rotation_matrix(ekf.q)
+            if not self.wind_started:
+                # Air velocity along the body x axis projected on the horizontal.
+                hx, hy = r[0], r[3]
+                norm = math.hypot(hx, hy) or 1.0
+                air = (tas * hx / norm, tas * hy / norm)
+                if velocity_valid:
+                    wind = (ekf.v[0] - air[0], ekf.v[1] - air[1])
+                    ekf.reset_states(WIND, wind, p.init_wind_m_s**2 * 0.25)
+                else:  # no velocity source yet: assume calm air until one comes
+                    ekf.reset_states(VEL, air, p.init_wind_m_s**2)
+                    ekf.reset_states(WIND, (0.0, 0.0), p.init_wind_m_s**2)
+                self.wind_started = True
+            vn, ve, vd = ekf.v
+            rn, re = vn - ekf.wind[0], ve - ekf.wind[1]
+            pred = math.sqrt(rn * rn + re * re + vd * vd)
+            if pred < 1.0:
+                self.counters.reject("model")
+                continue
+            h = [[rn / pred, re / pred, vd / pred, -rn / pred, -re / pred]]
+            res = fuse(ekf, (3, 4, 5, 15, 16), [tas - pred], [[p.airspeed_noise_m_s**2]],
+                       p.airspeed_gate, h)
+            self.tas_ratio = self.counters.test_ratio = res.test_ratio
+            if res.fused:
+                self.counters.fused += 1
+                self.last_fused_ns = t_m
+            else:
+                self.counters.reject("gate")
+            if p.fuse_beta:
+                self._fuse_beta(ekf)
+
+    def _fuse_beta(self, ekf: ErrorStateEkf) -> None:
+        """Synthetic sideslip: the air velocity has no body-y component (beta = 0)."""
+        p = self.params
+        r = rotation_matrix(ekf.q)
+        vn, ve, vd = ekf.v
+        a = (vn - ekf.wind[0], ve - ekf.wind[1], vd)
+        # Body air velocity = R^T a; column i of R is body axis i in NED.
+        c0 = (r[0], r[3], r[6])
+        c1 = (r[1], r[4], r[7])
+        bx = c0[0] * a[0] + c0[1] * a[1] + c0[2] * a[2]
+        by = c1[0] * a[0] + c1[1] * a[1] + c1[2] * a[2]
+        if bx < 1.0:
+            return
+        beta = by / bx
+
+        def cross(u: tuple[float, float, float]) -> tuple[float, float, float]:
+            return (u[1] * a[2] - u[2] * a[1], u[2] * a[0] - u[0] * a[2],
+                    u[0] * a[1] - u[1] * a[0])
+
+        # d(body_i)/d(dtheta) = c_i x a (global attitude error); d/dv = c_i; d/dwind = -c_i.
+        x0, x1 = cross(c0), cross(c1)
+        inv = 1.0 / bx
+        k = by * inv * inv
+
+        def d(u1: float, u0: float) -> float:
+            return u1 * inv - u0 * k
+
+        h = [[
+            d(c1[0], c0[0]), d(c1[1], c0[1]), d(c1[2], c0[2]),
+            d(x1[0], x0[0]), d(x1[1], x0[1]), d(x1[2], x0[2]),
+            -d(c1[0], c0[0]), -d(c1[1], c0[1]),
+        ]]
+        res = fuse(ekf, (3, 4, 5, 6, 7, 8, 15, 16), [-beta], [[p.beta_noise_rad**2]],
+                   p.beta_gate, h)
+        self.beta_ratio = res.test_ratio

@@ -1,0 +1,86 @@
+"""Barometer control (EKF2 baro_height_control): the height reference.
+
+Start: the first reading sets the height (minus an offset taken against GNSS when a fix is
+there). Fuse: height above home = baro altitude - offset - home altitude. The offset (turn-on
+error plus slow drift) is tracked by a scalar Kalman filter against GNSS altitude while GNSS
+is fusing, and frozen during denial (EKF2 estimates a baro bias the same way).
+"""
+
+from __future__ import annotations
+
+import math
+
+from air_sitl.nav.buffer import TimedBuffer
+from air_sitl.nav.ekf import POS, ErrorStateEkf
+from air_sitl.nav.fusion import fuse
+from air_sitl.nav.params import NavParams
+from air_sitl.nav.status import SourceCounters
+from air_sitl.nav.types import BaroSample
+
+
+class BaroControl:
+    def __init__(self, params: NavParams, home_alt_m: float) -> None:
+        self.params = params
+        self.home_alt_m = home_alt_m
+        self.counters = SourceCounters()
+        self.buffer: TimedBuffer[float] = TimedBuffer(64)
+        self.started = False
+        self.offset_m = 0.0
+        self.offset_var_m2 = 25.0
+        self.last_alt_m: float | None = None
+        self.last_fused_ns: int | None = None
+        self.ratio = 0.0
+
+    def push(self, sample: BaroSample, now_ns: int, horizon_start_ns: int) -> bool:
+        c = self.counters
+        c.received += 1
+        if not math.isfinite(sample.alt_amsl_m):
+            c.reject("invalid")
+            return False
+        if not horizon_start_ns <= sample.sim_time_ns <= now_ns:
+            c.reject("time")
+            return False
+        if not self.buffer.push(sample.sim_time_ns, sample.alt_amsl_m):
+            c.reject("rate")
+            return False
+        return True
+
+    def fusing(self, t_ns: int) -> bool:
+        last = self.last_fused_ns
+        return last is not None and t_ns - last <= self.params.baro_timeout_ns
+
+    def calibrate(self, gnss_alt_m: float, gnss_var_m2: float, dt_s: float) -> None:
+        """One GNSS altitude observation of the offset (while GNSS fuses)."""
+        if self.last_alt_m is None:
+            return
+        p = self.params
+        self.offset_var_m2 += p.baro_bias_noise_m_sqrt_s**2 * dt_s
+        z = self.last_alt_m - gnss_alt_m
+        s = self.offset_var_m2 + gnss_var_m2 + p.baro_noise_m**2
+        k = self.offset_var_m2 / s
+        self.offset_m += k * (z - self.offset_m)
+        self.offset_var_m2 *= 1.0 - k
+
+    def fuse_due(self, ekf: ErrorStateEkf, t_ns: int, gnss_alt_m: float | None) -> None:
+        p = self.params
+        for t_m, alt in self.buffer.pop_due(t_ns):
+            self.last_alt_m = alt
+            if not self.started:
+                if gnss_alt_m is not None:
+                    self.offset_m = alt - gnss_alt_m
+                height = alt - self.offset_m - self.home_alt_m
+                ekf.reset_states(POS + 2, (-height,), p.baro_noise_m**2)
+                self.started = True
+                self.last_fused_ns = t_m
+                self.counters.fused += 1
+                continue
+            lag = (t_ns - t_m) * 1e-9
+            predicted = -(ekf.p[2] - ekf.v[2] * lag)
+            y = alt - self.offset_m - self.home_alt_m - predicted
+            r = fuse(ekf, (2,), [y], [[p.baro_noise_m**2]], p.baro_gate, [[-1.0]])
+            self.ratio = self.counters.test_ratio = r.test_ratio
+            if r.fused:
+                self.counters.fused += 1
+                self.last_fused_ns = t_m
+            else:
+                self.counters.reject("gate")

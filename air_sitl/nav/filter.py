@@ -1,0 +1,337 @@
+"""NavFilter: the public face of the onboard navigation filter.
+
+Feed it every IMU sample (``predict``) and each measurement when it arrives (``fuse_*``);
+read ``estimate()`` (the state now, from the output predictor) and ``status()`` (counters,
+flags, test ratios). Measurements are buffered and fused when the delayed filter, which runs
+``fusion_horizon_ns`` behind the newest IMU sample, reaches their own time.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+from air_sitl.frames import euler2quat, ned2geodetic
+from air_sitl.nav.aid import AidControl
+from air_sitl.nav.airspeed import AirspeedControl
+from air_sitl.nav.baro import BaroControl
+from air_sitl.nav.buffer import ImuDelta, OutputPredictor
+from air_sitl.nav.ekf import POS, VEL, ErrorStateEkf, normal_gravity_m_s2
+from air_sitl.nav.gnss import GnssControl
+from air_sitl.nav.mag import MagControl
+from air_sitl.nav.params import NavParams
+from air_sitl.nav.status import AidStatus, NavStatus, SourceCounters
+from air_sitl.nav.types import (
+    AidMeasurement,
+    AidResult,
+    AirspeedSample,
+    BaroSample,
+    HeadingSample,
+    NavEstimate,
+    NavFlags,
+)
+from air_sitl.state import GeoPoint, GpsFix, ImuSample
+
+MAX_AIDS = 16
+REPLAY_PERIOD_NS = 1_000_000_000
+UNKNOWN_POS_M = 100.0
+UNKNOWN_VEL_M_S = 30.0
+
+
+class NavFilter:
+    """Error-state EKF (position, velocity, attitude, gyro/accel biases, horizontal wind)."""
+
+    def __init__(self, home: GeoPoint, params: NavParams | None = None) -> None:
+        self.home = home
+        self.params = p = params or NavParams()
+        g = normal_gravity_m_s2(home.lat_deg, home.alt_amsl_m)
+        self.ekf = ErrorStateEkf(p, g)
+        self.output = OutputPredictor(g)
+        self.deltas: deque[ImuDelta] = deque()
+        self.gnss = GnssControl(p, home)
+        self.baro = BaroControl(p, home.alt_amsl_m)
+        self.airspeed = AirspeedControl(p)
+        self.mag = MagControl(p)
+        self.aids: dict[str, AidControl] = {}
+        self.aid_overflow = SourceCounters()
+        self.aligned = False
+        self.pos_valid = False
+        self.vel_valid = False
+        self.gnss_denied_ns = 0
+        self._t_imu: int | None = None
+        self._t_delayed: int | None = None
+        self._last_replay_ns = 0
+        self._align = [0.0, 0.0, 0.0]
+        self._align_n = 0
+        self._acc = [0.0] * 6
+        self._acc_dt = 0.0
+        self._acc_t0 = 0
+        self._period_ns = p.filter_period_ns
+        self._horizon_ns = p.fusion_horizon_ns
+        self._imu_dt = p.imu_period_ns * 1e-9
+
+    # ------------------------------------------------------------------ prediction
+
+    def predict(self, imu: ImuSample) -> None:
+        """One IMU sample (200 Hz): sum it; every filter period run the output predictor
+        and the delayed filter up to the fusion horizon."""
+        t = imu.sim_time_ns
+        last = self._t_imu
+        if last is None:
+            dt = self._imu_dt
+        else:
+            if t <= last:
+                return  # duplicate or out of order: ignored
+            dt = (t - last) * 1e-9
+            if dt > 0.1:
+                dt = self._imu_dt  # a gap: do not integrate across it
+        self._t_imu = t
+        g = imu.gyro_frd_rad_s
+        f = imu.accel_frd_m_s2
+        if not self.aligned:
+            self._align_step(t, f)
+            return
+        a = self._acc
+        a[0] += g[0] * dt
+        a[1] += g[1] * dt
+        a[2] += g[2] * dt
+        a[3] += f[0] * dt
+        a[4] += f[1] * dt
+        a[5] += f[2] * dt
+        self._acc_dt += dt
+        if t - self._acc_t0 >= self._period_ns:
+            self._push_delta(t)
+
+    def _push_delta(self, t: int) -> None:
+        a = self._acc
+        dang = (a[0], a[1], a[2])
+        dvel = (a[3], a[4], a[5])
+        dt = self._acc_dt
+        out = self.output
+        ekf = self.ekf
+        out.advance(t, dang, dvel, dt, ekf.bg, ekf.ba)
+        self.deltas.append(ImuDelta(t, dang, dvel, dt, out.cv, out.cp))
+        self._acc = [0.0] * 6
+        self._acc_dt = 0.0
+        self._acc_t0 = t
+        horizon = t - self._horizon_ns
+        deltas = self.deltas
+        while deltas and deltas[0].t_ns <= horizon:
+            self._delayed_step(deltas.popleft())
+
+    def _delayed_step(self, d: ImuDelta) -> None:
+        ekf = self.ekf
+        ekf.predict(d.dang, d.dvel, d.dt)
+        t_d = d.t_ns
+        self._t_delayed = t_d
+        self.mag.fuse_due(ekf, t_d)
+        self.baro.fuse_due(ekf, t_d, self.gnss.last_alt_amsl_m)
+        self._fuse_gnss_due(t_d)
+        self._fuse_aids_due(t_d)
+        if self.airspeed.buffer:
+            self.airspeed.fuse_due(ekf, t_d, self.vel_valid)
+            if self.airspeed.wind_started and not self.vel_valid:
+                self.vel_valid = True
+        if self.gnss.started and not self.gnss.fusing(t_d):
+            self.gnss_denied_ns += round(d.dt * 1e9)
+        out = self.output
+        if t_d - self._last_replay_ns >= REPLAY_PERIOD_NS:
+            self._last_replay_ns = t_d
+            out.replay(ekf.p, ekf.v, ekf.q, self.deltas, ekf.bg, ekf.ba)
+            ekf.pending = [0.0] * len(ekf.pending)
+        elif any(ekf.pending):
+            out.carry(ekf.pending, (out.t_ns - t_d) * 1e-9, d.cv, d.cp)
+            ekf.pending = [0.0] * len(ekf.pending)
+
+    def _fuse_gnss_due(self, t_d: int) -> None:
+        gnss = self.gnss
+        if not gnss.buffer:
+            return
+        was_started = gnss.started
+        fused_before = gnss.counters.fused
+        gnss.fuse_due(self.ekf, t_d)
+        if gnss.started and not was_started:
+            self.pos_valid = self.vel_valid = True
+        if gnss.counters.fused > fused_before and gnss.last_alt_amsl_m is not None:
+            self.baro.calibrate(gnss.last_alt_amsl_m, self.params.gnss_pos_noise_m**2 * 4, 0.2)
+
+    def _fuse_aids_due(self, t_d: int) -> None:
+        if not self.aids:
+            return
+        gnss_fusing = self.gnss.fusing(t_d)
+        now = self._t_imu or t_d
+        for name, aid in self.aids.items():
+            if not aid.alive(now):
+                aid.lost()
+            if not aid.buffer:
+                continue
+            others = gnss_fusing or any(
+                other.fusing(t_d) for n, other in self.aids.items() if n != name
+            )
+            if aid.fuse_due(self.ekf, t_d, not others, self.pos_valid):
+                self.pos_valid = True
+
+    def _align_step(self, t: int, f: tuple[float, float, float]) -> None:
+        """Tilt from the mean specific force (unaccelerated flight), yaw from the compass."""
+        a = self._align
+        a[0] += f[0]
+        a[1] += f[1]
+        a[2] += f[2]
+        self._align_n += 1
+        if self._align_n < self.params.align_samples:
+            return
+        fx, fy, fz = (x / self._align_n for x in a)
+        roll = math.atan2(-fy, -fz)
+        pitch = math.atan2(fx, math.hypot(fy, fz))
+        heading = self.mag.last_heading_rad
+        yaw = 0.0 if heading is None else heading + self.params.mag_declination_rad
+        ekf = self.ekf
+        ekf.q = euler2quat(roll, pitch, yaw)
+        ekf.init_covariance()
+        for k in range(3):
+            ekf.P[POS + k, POS + k] = UNKNOWN_POS_M**2
+            ekf.P[VEL + k, VEL + k] = UNKNOWN_VEL_M_S**2
+        if heading is None:
+            ekf.P[8, 8] = math.pi**2
+        ekf.pending = [0.0] * len(ekf.pending)
+        out = self.output
+        out.p, out.v, out.q, out.t_ns = ekf.p, ekf.v, ekf.q, t
+        self.aligned = True
+        self._acc_t0 = t
+        self._t_delayed = t
+        self._last_replay_ns = t
+
+    # ------------------------------------------------------------------ measurements
+
+    def _horizon_start(self, now_ns: int) -> int:
+        start = now_ns - self._horizon_ns
+        if self._t_delayed is not None:
+            start = max(start, self._t_delayed + 1)
+        return start
+
+    def _now(self, now_ns: int | None, stamp_ns: int) -> int:
+        if now_ns is not None:
+            return now_ns
+        return self._t_imu if self._t_imu is not None else stamp_ns
+
+    def fuse_gnss(self, fix: GpsFix, now_ns: int | None = None) -> bool:
+        """Buffer one GNSS fix (arrived at ``now_ns``, default: the newest IMU time)."""
+        now = self._now(now_ns, fix.sim_time_ns)
+        return self.gnss.push(fix, now, self._horizon_start(now))
+
+    def fuse_baro(self, sample: BaroSample, now_ns: int | None = None) -> bool:
+        now = self._now(now_ns, sample.sim_time_ns)
+        return self.baro.push(sample, now, self._horizon_start(now))
+
+    def fuse_airspeed(self, sample: AirspeedSample, now_ns: int | None = None) -> bool:
+        now = self._now(now_ns, sample.sim_time_ns)
+        return self.airspeed.push(sample, now, self._horizon_start(now))
+
+    def fuse_heading(self, sample: HeadingSample, now_ns: int | None = None) -> bool:
+        now = self._now(now_ns, sample.sim_time_ns)
+        return self.mag.push(sample, now, self._horizon_start(now))
+
+    def fuse_aid(self, measurement: AidMeasurement, now_ns: int) -> AidResult:
+        """Check and buffer one external position (never raises on bad content)."""
+        name = measurement.name if isinstance(measurement.name, str) else "?"
+        aid = self.aids.get(name)
+        if aid is None:
+            if len(self.aids) >= MAX_AIDS:
+                self.aid_overflow.received += 1
+                self.aid_overflow.reject("too_many_aids")
+                return AidResult.REJECTED_INVALID
+            aid = self.aids[name] = AidControl(name, self.params, self.home)
+        return aid.push(measurement, now_ns, self._horizon_start(now_ns))
+
+    # ------------------------------------------------------------------ outputs
+
+    def _flags(self) -> NavFlags:
+        t_d = self._t_delayed or 0
+        gnss = self.gnss.fusing(t_d)
+        aid = any(a.fusing(t_d) for a in self.aids.values())
+        return NavFlags(
+            attitude=self.aligned,
+            velocity_horiz=self.vel_valid,
+            velocity_vert=self.aligned,
+            pos_horiz_rel=self.pos_valid,
+            pos_horiz_abs=gnss or aid,
+            pos_vert_abs=self.baro.started,
+            gnss_fusing=gnss,
+            aid_fusing=aid,
+            dead_reckoning=self.pos_valid and not (gnss or aid),
+            wind_estimated=self.airspeed.wind_started,
+        )
+
+    def estimate(self) -> NavEstimate:
+        """The state at the newest IMU time (output predictor, extrapolated < 1 filter step)."""
+        out = self.output
+        ekf = self.ekf
+        t = self._t_imu if self._t_imu is not None else 0
+        lead = (t - out.t_ns) * 1e-9 if self.aligned else 0.0
+        v = out.v
+        p = (out.p[0] + v[0] * lead, out.p[1] + v[1] * lead, out.p[2] + v[2] * lead)
+        h = self.home
+        lat, lon, alt = ned2geodetic(p[0], p[1], p[2], h.lat_deg, h.lon_deg, h.alt_amsl_m)
+        P = ekf.P
+        a, b, c = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
+        big = 0.5 * (a + c) + math.sqrt(max(0.0, 0.25 * (a - c) ** 2 + b * b))
+        return NavEstimate(
+            sim_time_ns=t,
+            pos_ned_m=p,
+            vel_ned_m_s=v,
+            q_body_to_ned_wxyz=out.q,
+            lat_deg=lat,
+            lon_deg=lon,
+            alt_amsl_m=alt,
+            std_h_m=math.sqrt(max(big, 0.0)),
+            std_v_m=math.sqrt(max(float(P[2, 2]), 0.0)),
+            wind_ned_m_s=ekf.wind,
+            gyro_bias_rad_s=ekf.bg,
+            accel_bias_m_s2=ekf.ba,
+            flags=self._flags(),
+        )
+
+    def status(self) -> NavStatus:
+        t_d = self._t_delayed or 0
+        flags = self._flags()
+        if flags.gnss_fusing:
+            source = "gnss"
+        elif flags.aid_fusing:
+            names = sorted(n for n, a in self.aids.items() if a.fusing(t_d))
+            source = "aid:" + ",".join(names)
+        elif flags.dead_reckoning:
+            source = "dead_reckoning"
+        else:
+            source = "none"
+        P = self.ekf.P
+        aids = tuple(
+            AidStatus.of(n, a.counters, fusing=a.fusing(t_d)) for n, a in sorted(self.aids.items())
+        )
+        return NavStatus(
+            sim_time_ns=self._t_imu or 0,
+            source=source,
+            gnss_denied_s=self.gnss_denied_ns * 1e-9,
+            flags=flags,
+            gnss=AidStatus.of("gnss", self.gnss.counters, fusing=flags.gnss_fusing),
+            baro=AidStatus.of("baro", self.baro.counters, fusing=self.baro.fusing(t_d)),
+            airspeed=AidStatus.of(
+                "airspeed", self.airspeed.counters, fusing=self.airspeed.wind_started
+            ),
+            heading=AidStatus.of("heading", self.mag.counters, fusing=self.mag.started),
+            aids=aids,
+            vel_ratio=self.gnss.vel_ratio,
+            pos_horiz_ratio=max([self.gnss.pos_ratio] + [a.counters.test_ratio for a in
+                                                          self.aids.values()]),
+            pos_vert_ratio=self.baro.ratio,
+            mag_ratio=self.mag.ratio,
+            tas_ratio=self.airspeed.tas_ratio,
+            beta_ratio=self.airspeed.beta_ratio,
+            pos_horiz_accuracy_m=math.sqrt(max(float(P[0, 0] + P[1, 1]), 0.0)),
+            pos_vert_accuracy_m=math.sqrt(max(float(P[2, 2]), 0.0)),
+        )
+
+    def horizontal_covariance(self) -> tuple[float, float, float]:
+        """(var_n, cov_ne, var_e) of the delayed state, m^2 (consistency checks)."""
+        P = self.ekf.P
+        return float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
+

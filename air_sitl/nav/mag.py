@@ -1,0 +1,77 @@
+"""Magnetic heading control (EKF2 mag heading fusion, EKF2_MAG_TYPE = heading).
+
+Start: the first reading resets the yaw (tilt kept). Fuse: yaw = heading + declination,
+the innovation wrapped to [-pi, pi). Reset: after 5 s of continuous rejection, yaw jumps to
+the compass (a filter that lost its heading would otherwise never recover without GNSS).
+"""
+
+from __future__ import annotations
+
+import math
+
+from air_sitl.nav.buffer import TimedBuffer
+from air_sitl.nav.ekf import ErrorStateEkf, rotation_matrix
+from air_sitl.nav.fusion import fuse
+from air_sitl.nav.params import NavParams
+from air_sitl.nav.status import SourceCounters
+from air_sitl.nav.types import HeadingSample
+
+RESET_TIMEOUT_NS = 5_000_000_000
+
+
+class MagControl:
+    def __init__(self, params: NavParams) -> None:
+        self.params = params
+        self.counters = SourceCounters()
+        self.buffer: TimedBuffer[float] = TimedBuffer(64)
+        self.started = False
+        self.first_reject_ns: int | None = None
+        self.last_heading_rad: float | None = None  # newest arrival (alignment)
+        self.ratio = 0.0
+
+    def push(self, sample: HeadingSample, now_ns: int, horizon_start_ns: int) -> bool:
+        c = self.counters
+        c.received += 1
+        if not math.isfinite(sample.heading_rad):
+            c.reject("invalid")
+            return False
+        if not horizon_start_ns <= sample.sim_time_ns <= now_ns:
+            c.reject("time")
+            return False
+        if not self.buffer.push(sample.sim_time_ns, sample.heading_rad):
+            c.reject("rate")
+            return False
+        self.last_heading_rad = sample.heading_rad
+        return True
+
+    def fuse_due(self, ekf: ErrorStateEkf, t_ns: int) -> None:
+        p = self.params
+        for t_m, heading in self.buffer.pop_due(t_ns):
+            yaw_meas = heading + p.mag_declination_rad
+            first = self.first_reject_ns
+            if not self.started or (first is not None and t_m - first >= RESET_TIMEOUT_NS):
+                ekf.reset_yaw(yaw_meas, p.heading_noise_rad**2)
+                if self.started:
+                    self.counters.resets += 1
+                self.started = True
+                self.first_reject_ns = None
+                self.counters.fused += 1
+                continue
+            r = rotation_matrix(ekf.q)
+            r00, r10, r20 = r[0], r[3], r[6]
+            d = r00 * r00 + r10 * r10
+            if d < 1e-6:  # pointing straight up or down: heading undefined
+                self.counters.empty += 1
+                continue
+            yaw = math.atan2(r10, r00)
+            y = math.remainder(yaw_meas - yaw, 2.0 * math.pi)
+            h = [[-r00 * r20 / d, -r10 * r20 / d, 1.0]]
+            res = fuse(ekf, (6, 7, 8), [y], [[p.heading_noise_rad**2]], p.heading_gate, h)
+            self.ratio = self.counters.test_ratio = res.test_ratio
+            if res.fused:
+                self.counters.fused += 1
+                self.first_reject_ns = None
+            else:
+                self.counters.reject("gate")
+                if self.first_reject_ns is None:
+                    self.first_reject_ns = t_m
