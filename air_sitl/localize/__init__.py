@@ -30,6 +30,18 @@ def _deadreckon(**options: Any) -> Localizer:
     return DeadReckoning(**options)
 
 
+def _mapmatch(**options: Any) -> Localizer:
+    from air_sitl.localize.mapmatch import MapMatchLocalizer
+
+    return MapMatchLocalizer(**options)
+
+
+def _fused(**options: Any) -> Localizer:
+    from air_sitl.localize.fused import FusedLocalizer
+
+    return FusedLocalizer(**options)
+
+
 def _vo(**options: Any) -> Localizer:
     from air_sitl.localize.vo import VisualOdometry
 
@@ -40,6 +52,8 @@ def _vo(**options: Any) -> Localizer:
 METHODS: dict[str, Callable[..., Localizer]] = {
     "deadreckon": _deadreckon,
     "vo": _vo,
+    "mapmatch": _mapmatch,
+    "fused": _fused,
 }
 
 
