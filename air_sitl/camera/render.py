@@ -22,7 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.camera.model import CameraModel
-from air_sitl.frames import ned2geodetic
+from air_sitl.frames import euler2quat, ned2geodetic
 from air_sitl.maps.base import FILL_BGRX, TILE_PX, MapSource
 from air_sitl.maps.procedural.noise import key_of
 from air_sitl.state import CameraFrame, SimSample, VehicleState
@@ -450,8 +450,6 @@ def pose_state(
     sim_time_ns: int = 0,
 ) -> VehicleState:
     """A still VehicleState at a pose (previews, tests, benchmarks); home is under it."""
-    from air_sitl.frames import euler2quat
-
     return VehicleState(
         sim_time_ns=sim_time_ns,
         lat_deg=lat_deg,

@@ -25,6 +25,8 @@ os.environ.setdefault("GDAL_CACHEMAX", "64")
 
 import rasterio  # after GDAL_CACHEMAX on purpose
 from rasterio.errors import NotGeoreferencedWarning, RasterioError
+from rasterio.shutil import copy as rio_copy
+from rasterio.transform import Affine
 from rasterio.warp import transform as warp_transform
 from rasterio.windows import Window
 
@@ -183,9 +185,6 @@ def write_geotiff(
     the file is assembled block by block in a temporary tiled GeoTIFF (bounded memory), then
     copied by GDAL's COG driver, which builds the overviews.
     """
-    from rasterio.shutil import copy as rio_copy
-    from rasterio.transform import Affine
-
     tmp = path.with_name(path.name + ".tmp.tif")
     t0, t1, t2, t3, t4, t5 = transform
     profile = {

@@ -60,6 +60,8 @@ def _choose_date(files: list[str], date: str | int | None) -> str:
 
 
 def _open_geotiff(path: Path, home: GeoPoint, *, reference: Path) -> MapSource:
+    # Here, not at the top: rasterio (GDAL) takes about half a second to import, and only
+    # GeoTIFF maps need it (procedural maps and every other command start without it).
     from air_sitl.maps.geotiff import GeoTiffMap
 
     tif = GeoTiffMap(path, ground_elevation_m=home.alt_amsl_m)

@@ -12,6 +12,7 @@ import functools
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from air_sitl.maps.procedural.canvas import (
@@ -344,23 +345,17 @@ def _grow(pts: tuple[Point, ...], m: float) -> list[Point]:
 
 
 def _hull(pts: list[Point]) -> list[Point]:
-    import cv2
-
     a = np.asarray(pts, dtype=np.float32)
     h = cv2.convexHull(a)
     return [(float(p[0][0]), float(p[0][1])) for p in h]
 
 
 def _erase_shadow(cv: Canvas, world: list[Point], _scratch: np.ndarray) -> None:
-    import cv2
-
     cv2.fillPoly(cv.shadow, [cv.px(world)], (0,), cv2.LINE_8, 4)
     cv2.fillPoly(cv.veg, [cv.px(world)], (0,), cv2.LINE_8, 4)
 
 
 def _erase_circle(cv: Canvas, c: Point, r: float) -> None:
-    import cv2
-
     p = cv.px([c])[0]
     cv2.circle(
         cv.shadow, (int(p[0]), int(p[1])), max(1, round(r / cv.gsd_m * 16)), (0,), -1, cv2.LINE_8, 4
