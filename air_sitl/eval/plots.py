@@ -27,6 +27,10 @@ from air_sitl.eval.trajectory import F64, Bools
 TURN_COLOUR = "#f28e2b"
 TRUTH_COLOUR = "0.35"
 DPI = 110
+SMOOTH_FRAMES = 51  # 1 s at 50 Hz
+CDF_MAX_M = 250.0
+LOG_SPREAD = 20.0
+STRETCH_ASPECT = 6.0  # a track longer than this times its width is drawn not to scale
 
 
 def _slug(name: str) -> str:
@@ -76,20 +80,20 @@ def track(s: Scored, path: Path) -> Path:
     """Top-down truth vs estimate, the estimate coloured by horizontal error, turns marked."""
     truth = s.truth.pos_enu_m
     fig, ax = _figure(8.5, 7.5)
-    ax.plot(truth[:, 0], truth[:, 1], color=TRUTH_COLOUR, lw=1.2, label="truth", zorder=2)
+    ax.plot(truth[:, 0], truth[:, 1], color="k", lw=0.8, alpha=0.8, label="truth", zorder=4)
     for k, (a, b) in enumerate(_runs(s.turn)):
         seg = truth[a : max(b, a + 1)]
         ax.plot(
             seg[:, 0],
             seg[:, 1],
             color=TURN_COLOUR,
-            lw=6,
-            alpha=0.45,
+            lw=9,
+            alpha=0.5,
             solid_capstyle="butt",
             label="truth in a turn (> 3 deg/s)" if k == 0 else None,
             zorder=1,
         )
-    ax.plot(truth[0, 0], truth[0, 1], "o", color="k", ms=6, label="start", zorder=4)
+    ax.plot(truth[0, 0], truth[0, 1], "o", color="k", ms=7, label="start", zorder=5)
     if s.est_aligned_m is not None and s.h_err_m is not None and s.h_err_m.size:
         est = s.est_aligned_m
         order = np.argsort(s.h_err_m)  # largest errors on top
@@ -109,10 +113,18 @@ def track(s: Scored, path: Path) -> Path:
         )
         bar = fig.colorbar(points, ax=ax, shrink=0.8, extend="max")
         bar.set_label("horizontal error (m)")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_xlabel("east from home (m)")
+    span = np.ptp(truth[:, :2], axis=0)
+    if max(span) > STRETCH_ASPECT * max(min(span), 1.0):
+        ax.set_xlabel("east from home (m), not to scale")  # a line: show the cross-track error
+        ax.margins(0.15)
+    else:
+        ax.set_aspect("equal", adjustable="datalim")
+    if not ax.get_xlabel():
+        ax.set_xlabel("east from home (m)")
     ax.set_ylabel("north from home (m)")
     ax.grid(True, lw=0.4, alpha=0.5)
+    if not s.turn.any():
+        ax.plot([], [], color=TURN_COLOUR, lw=9, alpha=0.5, label="turn (> 3 deg/s): none")
     ax.legend(loc="best", fontsize=8, markerscale=2)
     ax.set_title(_title(s), fontsize=9)
     return _save(fig, path)
@@ -123,6 +135,21 @@ def _shade_turns(ax: Axes, s: Scored) -> None:
         lo = float(s.path_m[a])
         hi = float(s.path_m[min(b, s.path_m.shape[0] - 1)])
         ax.axvspan(lo, hi, color=TURN_COLOUR, alpha=0.18, lw=0, label="turn" if k == 0 else None)
+
+
+def _rolling_median(y: F64, window: int) -> F64:
+    """Centred rolling median (NaN where the window holds no value: gaps stay gaps)."""
+    n = y.shape[0]
+    if n < window or window < 2:
+        return y
+    half = window // 2
+    padded = np.concatenate((np.full(half, np.nan), y, np.full(window - 1 - half, np.nan)))
+    windows = np.lib.stride_tricks.sliding_window_view(padded, window)
+    out: F64 = np.full(n, np.nan)
+    has = ~np.isnan(windows).all(axis=1)
+    out[has] = np.nanmedian(windows[has], axis=1)
+    out[np.isnan(y)] = np.nan
+    return out
 
 
 def error_distance(scored: Sequence[Scored], path: Path) -> Path:
@@ -139,11 +166,24 @@ def error_distance(scored: Sequence[Scored], path: Path) -> Path:
         x = np.insert(x, gap, np.nan)
         y = np.insert(y, gap, np.nan)
         r = s.report
-        ax.plot(x, y, lw=0.8, label=f"{r['estimate']} ({r['alignment']})")
+        raw = ax.plot(x, y, lw=0.5, alpha=0.35)[0]
+        ax.plot(
+            x,
+            _rolling_median(y, SMOOTH_FRAMES),
+            lw=1.6,
+            color=raw.get_color(),
+            label=f"{r['estimate']} ({r['alignment']}), 1 s median",
+        )
     ax.set_xlabel("distance flown (m, horizontal truth path)")
     ax.set_ylabel("horizontal error (m)")
     ax.set_xlim(0.0, float(scored[0].path_m[-1]) or 1.0)
-    ax.set_ylim(bottom=0.0)
+    p95 = [v for v in (s.report["horizontal_error_m"]["p95"] for s in scored) if v]
+    if p95 and max(p95) > LOG_SPREAD * max(min(p95), 1e-3):
+        # estimates orders of magnitude apart: a log scale keeps each one readable
+        ax.set_yscale("log")
+        ax.set_ylabel("horizontal error (m, log scale)")
+    else:
+        ax.set_ylim(bottom=0.0)
     ax.grid(True, lw=0.4, alpha=0.5)
     ax.legend(loc="upper left", fontsize=8)
     ax.set_title(
@@ -153,38 +193,61 @@ def error_distance(scored: Sequence[Scored], path: Path) -> Path:
 
 
 def error_cdf(scored: Sequence[Scored], path: Path) -> Path:
-    """CDF of the horizontal error over all capture frames, recall thresholds marked."""
-    fig, ax = _figure(8, 5)
-    x_max = max(RECALL_THRESHOLDS_M) * 1.6
+    """CDF of the horizontal error over all capture frames, recall thresholds marked.
+
+    The x axis spans the thresholds and the estimates' 95th percentiles (at most
+    ``CDF_MAX_M``): an estimate far off leaves the figure to the right, its recall stays read.
+    """
+    fig, ax = _figure(8.5, 5.2)
+    p95 = [s.report["horizontal_error_m"]["p95"] for s in scored]
+    x_max = min(max([max(RECALL_THRESHOLDS_M) * 1.6] + [1.3 * v for v in p95 if v]), CDF_MAX_M)
     for s in scored:
         n = s.truth.frames
         err: F64 = np.sort(s.h_err_m) if s.h_err_m is not None else np.empty(0)
-        if err.size:
-            x_max = max(x_max, float(np.percentile(err, 98)) * 1.05)
         y = np.arange(1, err.size + 1) / n
         r = s.report
-        label = f"{r['estimate']} ({r['alignment']}), availability {r['availability']:.1%}"
+        recalls = "/".join(
+            "-" if r["recall"][f"{d:g}m"] is None else f"{r['recall'][f'{d:g}m']:.2f}"
+            for d in RECALL_THRESHOLDS_M
+        )
+        label = (
+            f"{r['estimate']} ({r['alignment']}): recall {recalls}, "
+            f"availability {r['availability']:.1%} (dotted)"
+        )
         line = ax.step(
             np.concatenate(([0.0], err)),
             np.concatenate(([0.0], y)),
             where="post",
-            lw=1.4,
+            lw=1.5,
             label=label,
         )[0]
+        colour = line.get_color()
+        top = err.size / n if n else 0.0
+        ax.plot([err[-1] if err.size else 0.0, 1e9], [top, top], ls=":", lw=1.2, color=colour)
         for d in RECALL_THRESHOLDS_M:
             value = r["recall"][f"{d:g}m"]
             if value is not None:
-                ax.plot([d], [value], "o", color=line.get_color(), ms=4)
+                ax.plot([d], [value], "o", color=colour, ms=5, zorder=5)
     for d in RECALL_THRESHOLDS_M:
-        ax.axvline(d, color="0.5", lw=0.8, ls="--")
-        ax.text(d, 1.01, f"{d:g} m", ha="center", va="bottom", fontsize=8, color="0.3")
+        ax.axvline(d, color="0.5", lw=0.8, ls="--", zorder=0)
+        ax.annotate(
+            f"{d:g} m",
+            (d, 1.0),
+            xytext=(0, 3),
+            textcoords="offset points",
+            ha="center",
+            va="bottom",
+            fontsize=7,
+            color="0.3",
+            rotation=90,
+        )
     ax.set_xlim(0.0, x_max)
     ax.set_ylim(0.0, 1.0)
     ax.set_xlabel("horizontal error (m)")
-    ax.set_ylabel("share of all capture frames (recall)")
+    ax.set_ylabel("share of all capture frames with error <= x")
     ax.grid(True, lw=0.4, alpha=0.5)
-    ax.legend(loc="lower right", fontsize=8)
-    ax.set_title(f"{Path(str(scored[0].report['archive'])).name}: error CDF", fontsize=9, pad=16)
+    ax.legend(loc="lower right", fontsize=7.5, title="recall at 5/10/25/50 m", title_fontsize=8)
+    ax.set_title(f"{Path(str(scored[0].report['archive'])).name}: error CDF", fontsize=9, pad=26)
     return _save(fig, path)
 
 
