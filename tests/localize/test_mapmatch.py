@@ -1,0 +1,185 @@
+"""``mapmatch``: real frames of a short flight over the urban map (date 1) against date 0.
+
+One real flight per module (the first 12 s of UC-200's circle, banked about 9 degrees), run
+through the offline driver as ``air-sitl localize`` runs it; no mocks.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from short_plans import write_short_plan
+
+from air_sitl.camera.model import CameraModel
+from air_sitl.cli import main
+from air_sitl.dataset.reader import open_archive
+from air_sitl.localize.archive import context_of, observations, run_archive, run_method
+from air_sitl.localize.base import Estimate
+from air_sitl.localize.mapmatch import MapMatchLocalizer, open_reference
+from air_sitl.localize.mapmatch_core import MapMatcher
+from air_sitl.maps import open_map
+from air_sitl.state import GeoPoint
+
+pytestmark = pytest.mark.integration
+
+MISSIONS = Path(__file__).resolve().parents[2] / "missions"
+
+
+def fly_uc200(out: Path) -> Path:
+    """The first 600 frames of UC-200 over the urban map at date 1 (about 10 s of CPU).
+
+    The flight stops at 45 s of simulated time, mission unfinished: exit code 1 by design.
+    """
+    argv = ["fly", str(MISSIONS / "UC-200.plan"), "--air-start", "--map-date", "1"]
+    assert main([*argv, "--max-sim-time", "45", "--quiet", "--out", str(out)]) == 1
+    assert json.loads((out / "manifest.json").read_text())["complete"] is True
+    return out
+
+
+@pytest.fixture(scope="module")
+def flight(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return fly_uc200(tmp_path_factory.mktemp("mapmatch") / "uc200")
+
+
+def truth_rows(archive: Path) -> list[dict[str, str]]:
+    with (archive / "frames.csv").open(encoding="utf-8", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def horizontal_errors(estimates: list[Estimate], rows: list[dict[str, str]]) -> np.ndarray:
+    """Per capture frame; inf where the method gave no position."""
+    out = []
+    for est, row in zip(estimates, rows, strict=True):
+        if est.enu_m is None:
+            out.append(math.inf)
+            continue
+        out.append(
+            math.hypot(est.enu_m[0] - float(row["east_m"]), est.enu_m[1] - float(row["north_m"]))
+        )
+    return np.array(out)
+
+
+def run(archive: Path, method: MapMatchLocalizer) -> list[Estimate]:
+    with open_archive(archive) as arch:
+        context = context_of(arch)
+        source = observations(arch, needs_image=method.needs_image)
+        return run_method(method, context, source, total=len(arch))
+
+
+def test_mapmatch_meets_the_urban_200_m_figures(flight: Path) -> None:
+    method = MapMatchLocalizer()
+    estimates = run(flight, method)
+    errors = horizontal_errors(estimates, truth_rows(flight))
+    assert len(errors) > 500
+    assert np.all(np.isfinite(errors))  # a position at every frame
+    assert float(np.median(errors)) <= 3.0
+    assert float(np.mean(errors <= 25.0)) >= 0.98
+    # every frame was matched and nearly all accepted, each with a covariance and quality
+    assert method.matches_tried == len(errors)
+    assert method.matches_accepted >= 0.95 * len(errors)
+    fixes = [e for e in estimates if e.quality is not None and e.quality >= 0.5]
+    assert len(fixes) == method.matches_accepted
+    assert all(e.cov_enu_m2 is not None and 0.5 < e.cov_enu_m2[0] < 50.0 for e in fixes)
+
+
+def test_the_driver_writes_mapmatch_estimates(flight: Path) -> None:
+    """Registered method, the driver's estimates file, one row per frame."""
+    result = run_archive(flight, "mapmatch", name="mm")
+    assert result.path == flight / "estimates" / "mm.csv"
+    with result.path.open(encoding="utf-8", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == result.frames == result.estimated_frames
+
+
+def test_truth_pose_rectification_recovers_a_prior_offset(flight: Path) -> None:
+    """Geometry check: with the true attitude and height the match lands on the truth
+    (the remaining error is the date change and JPEG), whatever the prior's offset."""
+    manifest = json.loads((flight / "manifest.json").read_text())
+    home = GeoPoint(**manifest["home"])
+    reference = open_map("urban", home, seed=0, date=0)
+    matcher = MapMatcher(reference, CameraModel(), home)
+    rows = truth_rows(flight)
+    errors = []
+    for k in range(0, len(rows), 60):
+        r = rows[k]
+        q = (float(r["q_ned_w"]), float(r["q_ned_x"]), float(r["q_ned_y"]), float(r["q_ned_z"]))
+        east, north = float(r["east_m"]), float(r["north_m"])
+        jpeg = (flight / r["filename"]).read_bytes()
+        res = matcher.match(jpeg, q, float(r["alt_rel_m"]), east + 12.0, north - 9.0, 25.0)
+        assert res is not None and res.accepted
+        assert math.hypot(res.shift_east_m + 12.0, res.shift_north_m - 9.0) < 1.0
+        errors.append(math.hypot(res.east_m - east, res.north_m - north))
+    assert float(np.median(errors)) < 0.5
+
+
+def test_quality_gate_refuses_another_area_and_another_map(flight: Path) -> None:
+    """Frames searched where they are not (400 m off), or against the forest map: refused,
+    and the estimate at such a frame is the propagated one with quality 0."""
+    manifest = json.loads((flight / "manifest.json").read_text())
+    home = GeoPoint(**manifest["home"])
+    rows = truth_rows(flight)
+    urban = MapMatcher(open_map("urban", home, seed=0, date=0), CameraModel(), home)
+    forest = MapMatcher(open_map("forest", home, seed=0, date=0), CameraModel(), home)
+    tried = 0
+    for k in range(0, len(rows), 40):
+        r = rows[k]
+        q = (float(r["q_ned_w"]), float(r["q_ned_x"]), float(r["q_ned_y"]), float(r["q_ned_z"]))
+        east, north, h = float(r["east_m"]), float(r["north_m"]), float(r["alt_rel_m"])
+        jpeg = (flight / r["filename"]).read_bytes()
+        for matcher, (pe, pn) in ((urban, (east + 400.0, north)), (forest, (east, north))):
+            res = matcher.match(jpeg, q, h, pe, pn, 25.0)
+            assert res is not None
+            assert not res.accepted, (k, res)
+            assert res.quality == 0.0
+            tried += 1
+    assert tried >= 20
+
+    # Through the method: the forest as reference -> no fix, dead reckoning with quality 0.
+    method = MapMatchLocalizer(reference=open_map("forest", home, seed=0, date=0))
+    estimates = run(flight, method)
+    assert method.matches_accepted <= 0.01 * method.matches_tried
+    assert all(e.quality is not None and e.quality < 0.5 for e in estimates[1:])
+    covs = [e.cov_enu_m2[0] for e in estimates if e.cov_enu_m2 is not None]
+    assert covs[-1] > covs[1]  # the propagated uncertainty grows
+
+
+def test_default_reference_is_another_date(flight: Path) -> None:
+    with open_archive(flight) as arch:
+        context = context_of(arch)
+        assert context.map_date == 1
+        reference = open_reference(context)
+        assert reference.describe()["date_index"] == 0
+        own = open_reference(context_of(arch, reference_date=1))
+        assert own.describe()["date_index"] == 1
+
+
+def test_geotiff_reference(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """A GeoTIFF of date 0 (``map make``) as the reference of a flight over date 1."""
+    root = tmp_path_factory.mktemp("mapmatch-tif")
+    home = GeoPoint(lat_deg=38.5125, lon_deg=-121.4935, alt_amsl_m=7.0)
+    plan = write_short_plan(root / "UT-200.plan", home, leg_m=60.0, alt_m=200.0)
+    tif = root / "urban0.tif"
+    origin = f"{home.lat_deg},{home.lon_deg}"
+    assert main(["map", "make", "urban", "--out", str(tif), "--size-m", "900", "900",
+                 "--origin", origin, "--date", "0"]) == 0  # fmt: skip
+    archive = root / "flight"
+    argv = ["fly", str(plan), "--air-start", "--map", "urban", "--map-date", "1"]
+    assert main([*argv, "--quiet", "--out", str(archive)]) == 0
+    result = run_archive(archive, "mapmatch", reference_map=str(tif), reference_date=0)
+    with result.path.open(encoding="utf-8", newline="") as f:
+        est = list(csv.DictReader(f))
+    rows = truth_rows(archive)
+    errors = [
+        math.hypot(
+            float(e["east_m"]) - float(r["east_m"]), float(e["north_m"]) - float(r["north_m"])
+        )
+        for e, r in zip(est, rows, strict=True)
+    ]
+    assert len(errors) > 100
+    assert float(np.median(errors)) <= 3.0
+    assert max(errors) <= 10.0
