@@ -20,7 +20,7 @@ import math
 from air_sitl.frames import geodetic2ned
 from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.nav.ekf import POS, ErrorStateEkf
-from air_sitl.nav.fusion import fuse
+from air_sitl.nav.fusion import fuse_direct
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.status import SourceCounters
 from air_sitl.nav.types import AidFrame, AidMeasurement, AidResult
@@ -156,7 +156,7 @@ class AidControl:
             lag = (t_ns - t_m) * 1e-9
             pn = ekf.p[0] - ekf.v[0] * lag
             pe = ekf.p[1] - ekf.v[1] * lag
-            res = fuse(ekf, (0, 1), [n - pn, e - pe], [[vnn, vne], [vne, vee]], p.aid_gate)
+            res = fuse_direct(ekf, POS, [n - pn, e - pe], [[vnn, vne], [vne, vee]], p.aid_gate)
             c.test_ratio = res.test_ratio
             if res.fused:
                 c.fused += 1

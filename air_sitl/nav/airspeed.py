@@ -12,8 +12,8 @@ from __future__ import annotations
 import math
 
 from air_sitl.nav.buffer import TimedBuffer
-from air_sitl.nav.ekf import VEL, WIND, ErrorStateEkf, rotation_matrix
-from air_sitl.nav.fusion import fuse
+from air_sitl.nav.ekf import ATT, N_STATES, VEL, WIND, ErrorStateEkf, rotation_matrix
+from air_sitl.nav.fusion import fuse_scalar
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.status import SourceCounters
 from air_sitl.nav.types import AirspeedSample
@@ -68,9 +68,11 @@ class AirspeedControl:
             if pred < 1.0:
                 self.counters.reject("model")
                 continue
-            h = [[rn / pred, re / pred, vd / pred, -rn / pred, -re / pred]]
-            res = fuse(ekf, (3, 4, 5, 15, 16), [tas - pred], [[p.airspeed_noise_m_s**2]],
-                       p.airspeed_gate, h)
+            inv = 1.0 / pred
+            h = [0.0] * N_STATES
+            h[VEL], h[VEL + 1], h[VEL + 2] = rn * inv, re * inv, vd * inv
+            h[WIND], h[WIND + 1] = -rn * inv, -re * inv
+            res = fuse_scalar(ekf, h, tas - pred, p.airspeed_noise_m_s**2, p.airspeed_gate)
             self.tas_ratio = self.counters.test_ratio = res.test_ratio
             if res.fused:
                 self.counters.fused += 1
@@ -107,11 +109,10 @@ class AirspeedControl:
         def d(u1: float, u0: float) -> float:
             return u1 * inv - u0 * k
 
-        h = [[
-            d(c1[0], c0[0]), d(c1[1], c0[1]), d(c1[2], c0[2]),
-            d(x1[0], x0[0]), d(x1[1], x0[1]), d(x1[2], x0[2]),
-            -d(c1[0], c0[0]), -d(c1[1], c0[1]),
-        ]]
-        res = fuse(ekf, (3, 4, 5, 6, 7, 8, 15, 16), [-beta], [[p.beta_noise_rad**2]],
-                   p.beta_gate, h)
+        h = [0.0] * N_STATES
+        for i in range(3):
+            h[VEL + i] = d(c1[i], c0[i])
+            h[ATT + i] = d(x1[i], x0[i])
+        h[WIND], h[WIND + 1] = -h[VEL], -h[VEL + 1]
+        res = fuse_scalar(ekf, h, -beta, p.beta_noise_rad**2, p.beta_gate)
         self.beta_ratio = res.test_ratio

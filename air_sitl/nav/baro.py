@@ -12,7 +12,7 @@ import math
 
 from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.nav.ekf import POS, ErrorStateEkf
-from air_sitl.nav.fusion import fuse
+from air_sitl.nav.fusion import fuse_direct
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.status import SourceCounters
 from air_sitl.nav.types import BaroSample
@@ -75,9 +75,9 @@ class BaroControl:
                 self.counters.fused += 1
                 continue
             lag = (t_ns - t_m) * 1e-9
-            predicted = -(ekf.p[2] - ekf.v[2] * lag)
-            y = alt - self.offset_m - self.home_alt_m - predicted
-            r = fuse(ekf, (2,), [y], [[p.baro_noise_m**2]], p.baro_gate, [[-1.0]])
+            # Measured down position minus the predicted one at the reading's time.
+            y = -(alt - self.offset_m - self.home_alt_m) - (ekf.p[2] - ekf.v[2] * lag)
+            r = fuse_direct(ekf, POS + 2, [y], [[p.baro_noise_m**2]], p.baro_gate)
             self.ratio = self.counters.test_ratio = r.test_ratio
             if r.fused:
                 self.counters.fused += 1

@@ -14,7 +14,7 @@ import math
 from air_sitl.frames import geodetic2ned
 from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.nav.ekf import POS, VEL, ErrorStateEkf
-from air_sitl.nav.fusion import fuse
+from air_sitl.nav.fusion import fuse_direct
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.status import SourceCounters
 from air_sitl.state import GeoPoint, GpsFix
@@ -89,12 +89,13 @@ class GnssControl:
             lag = (t_ns - t_m) * 1e-9
             pn = ekf.p[0] - ekf.v[0] * lag
             pe = ekf.p[1] - ekf.v[1] * lag
-            pos = fuse(ekf, (0, 1), [n - pn, e - pe], [[pos_var, 0.0], [0.0, pos_var]],
-                       p.gnss_pos_gate)
+            pos = fuse_direct(
+                ekf, POS, [n - pn, e - pe], [[pos_var, 0.0], [0.0, pos_var]], p.gnss_pos_gate
+            )
             v = ekf.v
-            vel = fuse(
+            vel = fuse_direct(
                 ekf,
-                (3, 4, 5),
+                VEL,
                 [vn - v[0], ve - v[1], vd - v[2]],
                 [[vel_var, 0.0, 0.0], [0.0, vel_var, 0.0], [0.0, 0.0, vel_var]],
                 p.gnss_vel_gate,

@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 
 from air_sitl.nav.buffer import TimedBuffer
-from air_sitl.nav.ekf import ErrorStateEkf, rotation_matrix
-from air_sitl.nav.fusion import fuse
+from air_sitl.nav.ekf import ATT, N_STATES, ErrorStateEkf, rotation_matrix
+from air_sitl.nav.fusion import fuse_scalar
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.status import SourceCounters
 from air_sitl.nav.types import HeadingSample
@@ -65,8 +65,11 @@ class MagControl:
                 continue
             yaw = math.atan2(r10, r00)
             y = math.remainder(yaw_meas - yaw, 2.0 * math.pi)
-            h = [[-r00 * r20 / d, -r10 * r20 / d, 1.0]]
-            res = fuse(ekf, (6, 7, 8), [y], [[p.heading_noise_rad**2]], p.heading_gate, h)
+            h = [0.0] * N_STATES
+            h[ATT] = -r00 * r20 / d
+            h[ATT + 1] = -r10 * r20 / d
+            h[ATT + 2] = 1.0
+            res = fuse_scalar(ekf, h, y, p.heading_noise_rad**2, p.heading_gate)
             self.ratio = self.counters.test_ratio = res.test_ratio
             if res.fused:
                 self.counters.fused += 1

@@ -16,7 +16,7 @@ class NavParams:
     filter_period_ns: int = 20_000_000  # 50 Hz delayed-state prediction
     cov_every: int = 2  # covariance at 25 Hz
     gyro_noise_rad_s: float = 0.015  # EKF2_GYR_NOISE (the sensor's 0.003 plus model error)
-    accel_noise_m_s2: float = 0.35  # EKF2_ACC_NOISE
+    accel_noise_m_s2: float = 0.15  # EKF2_ACC_NOISE is 0.35; our IMU is 0.05 per sample
     gyro_bias_noise_rad_s2: float = 1.0e-4  # EKF2_GYR_B_NOISE
     accel_bias_noise_m_s3: float = 3.0e-3  # EKF2_ACC_B_NOISE
     wind_noise_m_s2: float = 0.05  # EKF2_WIND_NSD
@@ -37,7 +37,7 @@ class NavParams:
 
     # GNSS (EKF2_GPS_*): noise floors; the receiver's eph/epv are used when larger.
     gnss_pos_noise_m: float = 0.5
-    gnss_vel_noise_m_s: float = 0.3
+    gnss_vel_noise_m_s: float = 0.15  # EKF2_GPS_V_NOISE (our receiver: 0.1)
     gnss_pos_gate: float = 5.0
     gnss_vel_gate: float = 5.0
     gnss_timeout_ns: int = 1_000_000_000  # no fix for this long: GNSS lost, dead-reckoning

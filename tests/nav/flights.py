@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,15 +45,22 @@ def record(
 ) -> Recording:
     """Fly ``plan`` from an air start for ``seconds`` and keep every 5 ms step."""
     from air_sitl.fdm.base import Wind
-    from air_sitl.mission.plan_file import load_mission
     from air_sitl.options import FlightOptions
-    from air_sitl.runner import assemble_flight
 
-    mission = load_mission(MISSIONS / f"{plan}.plan")
     options = FlightOptions(
         air_start=True, wind=Wind(speed_m_s=wind[0], from_deg=wind[1]), seed=seed
     )
-    flight, home, _ = assemble_flight(mission, options)
+    path = MISSIONS / f"{plan}.plan"
+    try:  # the single flight builder, once it lands
+        from air_sitl.builder import build_flight, load_setup
+    except ImportError:
+        from air_sitl.mission.plan_file import load_mission
+        from air_sitl.runner import assemble_flight
+
+        flight, home, _ = assemble_flight(load_mission(path), options)
+    else:
+        setup = load_setup(path, options)
+        flight, home = build_flight(setup), setup.home
     baro = Barometer(seed=seed)
     airspeed = AirspeedSensor(seed=seed)
     mag = Magnetometer(seed=seed)
@@ -89,11 +97,69 @@ def enu_aid(name: str, t_ns: int, north: float, east: float, up: float = 0.0,
     return AidMeasurement(name=name, sim_time_ns=t_ns, position=(east, north, up), sigma_m=sigma)
 
 
-def run(rec: Recording, params: NavParams | None = None, *, deny_after_s: float | None = None):
-    """Fly the filter over a recording; yields (step, nav) after each step."""
+AidSource = Callable[[Step, float], Iterable[tuple[AidMeasurement, int]]]
+
+
+@dataclass(frozen=True, slots=True)
+class Point:
+    """One traced instant: time from the start, estimate and truth (NED), horizontal std."""
+
+    t_s: float
+    est_ned_m: tuple[float, float, float]
+    truth_ned_m: tuple[float, float, float]
+    std_h_m: float
+    cov_ne_m2: tuple[float, float, float]
+    source: str
+
+    @property
+    def error_h_m(self) -> float:
+        return math.hypot(self.est_ned_m[0] - self.truth_ned_m[0],
+                          self.est_ned_m[1] - self.truth_ned_m[1])
+
+    @property
+    def error_ne_m(self) -> tuple[float, float]:
+        return (self.est_ned_m[0] - self.truth_ned_m[0], self.est_ned_m[1] - self.truth_ned_m[1])
+
+
+def fly(
+    rec: Recording,
+    params: NavParams | None = None,
+    *,
+    deny_after_s: float | None = None,
+    aid: AidSource | None = None,
+    until_s: float | None = None,
+    trace_every: int = 20,
+) -> tuple[NavFilter, list[Point]]:
+    """Run the filter over ``rec``: GNSS cut after ``deny_after_s``, aid measurements from
+    ``aid(step, t_s)`` fed before each step's prediction; trace every ``trace_every`` steps."""
     nav = NavFilter(rec.home, params)
-    for step in rec.steps:
-        t = step.imu.sim_time_ns - rec.steps[0].imu.sim_time_ns
-        gnss = deny_after_s is None or t < deny_after_s * NS
-        feed(nav, step, gnss=gnss)
-        yield step, nav
+    t0 = rec.steps[0].imu.sim_time_ns
+    trace: list[Point] = []
+    for i, step in enumerate(rec.steps):
+        t_s = (step.imu.sim_time_ns - t0) / NS
+        if until_s is not None and t_s > until_s:
+            break
+        if aid is not None:
+            for m, now in aid(step, t_s):
+                nav.fuse_aid(m, now)
+        feed(nav, step, gnss=deny_after_s is None or t_s < deny_after_s)
+        if i % trace_every == 0:
+            e = nav.estimate()
+            trace.append(Point(t_s, e.pos_ned_m, step.state.pos_ned_m, e.std_h_m,
+                               nav.horizontal_covariance(), nav.status().source))
+    return nav, trace
+
+
+def at(trace: list[Point], t_s: float) -> Point:
+    """The traced point nearest ``t_s``."""
+    return min(trace, key=lambda p: abs(p.t_s - t_s))
+
+
+def between(trace: list[Point], a_s: float, b_s: float) -> list[Point]:
+    return [p for p in trace if a_s <= p.t_s < b_s]
+
+
+def percentile(values: list[float], q: float) -> float:
+    xs = sorted(values)
+    k = min(len(xs) - 1, max(0, round(q / 100.0 * (len(xs) - 1))))
+    return xs[k]
