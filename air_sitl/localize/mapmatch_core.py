@@ -102,6 +102,46 @@ def _subpixel(a: float, b: float, c: float) -> float:
     return 0.0 if d >= 0.0 else 0.5 * (a - c) / d
 
 
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Rectified:
+    """A frame rectified onto the reference grid and the reference window to search.
+
+    Patch pixel (i, j) sits on reference-window pixel (i + margin, j + margin) when the prior
+    is right; a score map has (2 margin + 1)^2 entries, one per integer shift.
+    """
+
+    patch: Image  # grey, level pixels
+    patch_mask: Image  # 255 where the patch holds the frame (footprint, shrunk by 3 px)
+    reference: Image  # grey window of the reference, the patch grown by margin_px per side
+    reference_mask: Image  # 255 where the reference holds map pixels
+    margin_px: int
+    level: int
+    gsd_m: float
+    height_m: float
+    prior_east_m: float
+    prior_north_m: float
+
+
+Scored = tuple[npt.NDArray[np.float32], float]  # score map, and its value at a perfect match
+
+
+def orientation_correlation(rect: Rectified) -> Scored:
+    """Cross-correlation of unit gradient orientations (3 FFTs): score map and normaliser."""
+    a = _orientation(rect.patch, rect.patch_mask)
+    b = _orientation(rect.reference, rect.reference_mask)
+    ph, pw = a.shape[:2]
+    rh, rw = b.shape[:2]
+    nh, nw = cv2.getOptimalDFTSize(rh), cv2.getOptimalDFTSize(rw)
+    fa = cv2.dft(cv2.copyMakeBorder(a, 0, nh - ph, 0, nw - pw, cv2.BORDER_CONSTANT, value=0),
+                 flags=cv2.DFT_COMPLEX_OUTPUT)  # fmt: skip
+    fb = cv2.dft(cv2.copyMakeBorder(b, 0, nh - rh, 0, nw - rw, cv2.BORDER_CONSTANT, value=0),
+                 flags=cv2.DFT_COMPLEX_OUTPUT)  # fmt: skip
+    corr = cv2.idft(cv2.mulSpectrums(fb, fa, 0, conjB=True), flags=cv2.DFT_SCALE)
+    m = 2 * rect.margin_px + 1
+    score = np.ascontiguousarray(corr[:m, :m, 0], dtype=np.float32)
+    return score, float(cv2.countNonZero(rect.patch_mask))
+
+
 class MapMatcher:
     """Matches frames of one camera against one reference map (a date of it, or a GeoTIFF)."""
 
@@ -168,7 +208,7 @@ class MapMatcher:
         out: Mat3 = ground @ to_ground
         return out
 
-    def match(
+    def rectify(
         self,
         image: Image | bytes,
         q_body_to_ned_wxyz: Quat,
@@ -176,9 +216,9 @@ class MapMatcher:
         prior_east_m: float,
         prior_north_m: float,
         radius_m: float,
-    ) -> MatchResult | None:
-        """Locate the frame within ``radius_m`` of the prior; None when it cannot be tried
-        (below the ground, horizon in view, nothing of the map in the window)."""
+    ) -> Rectified | None:
+        """The frame on the reference grid around the prior, and the reference window to
+        search; None when no footprint (below the ground, horizon in view)."""
         if not (height_m > 1.0 and math.isfinite(height_m)):
             return None
         level, reduce = self.level_for_height(height_m)
@@ -231,26 +271,47 @@ class MapMatcher:
         poly = ctr + d * np.maximum(n - 3.0, 0.0) / np.maximum(n, 1e-9)
         cv2.fillConvexPoly(pmask, np.round(poly).astype(np.int32), 255)
         margin = max(4, math.ceil(radius_m / gsd))
-        # Sizes: the reference window is the patch grown by the margin, its DFT size the
-        # next fast one.
         ref = self.map.read_level(level, x0 - margin, y0 - margin, pw + 2 * margin, ph + 2 * margin)
-        rgray = np.asarray(cv2.cvtColor(ref, cv2.COLOR_BGRA2GRAY), dtype=np.uint8)
-        rmask = np.asarray(cv2.erode(ref[:, :, 3], np.ones((5, 5), np.uint8)), dtype=np.uint8)
-        a = _orientation(np.asarray(patch, dtype=np.uint8), pmask)
-        b = _orientation(rgray, rmask)
-        rh, rw = b.shape[:2]
-        nh, nw = cv2.getOptimalDFTSize(rh), cv2.getOptimalDFTSize(rw)
-        fa = cv2.dft(cv2.copyMakeBorder(a, 0, nh - ph, 0, nw - pw, cv2.BORDER_CONSTANT, value=0),
-                     flags=cv2.DFT_COMPLEX_OUTPUT)  # fmt: skip
-        fb = cv2.dft(cv2.copyMakeBorder(b, 0, nh - rh, 0, nw - rw, cv2.BORDER_CONSTANT, value=0),
-                     flags=cv2.DFT_COMPLEX_OUTPUT)  # fmt: skip
-        corr = cv2.idft(cv2.mulSpectrums(fb, fa, 0, conjB=True), flags=cv2.DFT_SCALE)
-        score = corr[: 2 * margin + 1, : 2 * margin + 1, 0]
-        valid_px = float(cv2.countNonZero(pmask))
-        if valid_px < 1:
+        return Rectified(
+            patch=np.asarray(patch, dtype=np.uint8),
+            patch_mask=pmask,
+            reference=np.asarray(cv2.cvtColor(ref, cv2.COLOR_BGRA2GRAY), dtype=np.uint8),
+            reference_mask=np.asarray(
+                cv2.erode(ref[:, :, 3], np.ones((5, 5), np.uint8)), dtype=np.uint8
+            ),
+            margin_px=margin,
+            level=level,
+            gsd_m=gsd,
+            height_m=height_m,
+            prior_east_m=prior_east_m,
+            prior_north_m=prior_north_m,
+        )
+
+    def match(
+        self,
+        image: Image | bytes,
+        q_body_to_ned_wxyz: Quat,
+        height_m: float,
+        prior_east_m: float,
+        prior_north_m: float,
+        radius_m: float,
+    ) -> MatchResult | None:
+        """Locate the frame within ``radius_m`` of the prior; None when it cannot be tried
+        (below the ground, horizon in view)."""
+        rect = self.rectify(
+            image, q_body_to_ned_wxyz, height_m, prior_east_m, prior_north_m, radius_m
+        )
+        if rect is None:
             return None
+        return self.locate(rect, orientation_correlation(rect))
+
+    def locate(self, rect: Rectified, scored: Scored) -> MatchResult | None:
+        """The best peak of a score map over the search window, its distinctness, the gate."""
+        score, normaliser = scored
+        margin = rect.margin_px
+        ph, pw = rect.patch.shape
         _, vmax, _, (px, py) = cv2.minMaxLoc(score)
-        if vmax <= 0:
+        if vmax <= 0 or normaliser <= 0:
             return None
         e = PEAK_EXCLUSION_PX
         masked = score.copy()
@@ -263,11 +324,12 @@ class MapMatcher:
                    if 0 < py < score.shape[0] - 1 else 0.0)  # fmt: skip
         at_edge = px in (0, score.shape[1] - 1) or py in (0, score.shape[0] - 1)
         # Overlap of the frame's footprint with map pixels at the found offset.
-        ref_valid = rmask[py : py + ph, px : px + pw]
-        overlap = float(cv2.countNonZero(cv2.bitwise_and(pmask, ref_valid)))
+        ref_valid = rect.reference_mask[py : py + ph, px : px + pw]
+        overlap = float(cv2.countNonZero(cv2.bitwise_and(rect.patch_mask, ref_valid)))
         valid_fraction = overlap / float(pw * ph)
-        response = vmax / valid_px
+        response = vmax / normaliser
         # Shift in level px -> level-0 px -> (north, east) metres.
+        s = 1 << rect.level
         dx0, dy0 = (fx - margin) * s, (fy - margin) * s
         dn, de = self._jac_inv @ np.array([dx0, dy0])
         accepted = (
@@ -276,17 +338,17 @@ class MapMatcher:
             and valid_fraction >= MIN_VALID_FRACTION
             and not at_edge
         )
-        sigma = (0.5 * gsd + ATTITUDE_SIGMA_RAD * height_m) / max(0.2, 1.0 - ratio)
+        sigma = (0.5 * rect.gsd_m + ATTITUDE_SIGMA_RAD * rect.height_m) / max(0.2, 1.0 - ratio)
         return MatchResult(
-            east_m=prior_east_m + float(de),
-            north_m=prior_north_m + float(dn),
+            east_m=rect.prior_east_m + float(de),
+            north_m=rect.prior_north_m + float(dn),
             shift_east_m=float(de),
             shift_north_m=float(dn),
             peak_ratio=ratio,
             response=response,
             valid_fraction=valid_fraction,
-            level=level,
-            gsd_m=gsd,
+            level=rect.level,
+            gsd_m=rect.gsd_m,
             at_edge=at_edge,
             accepted=accepted,
             sigma_m=sigma,
