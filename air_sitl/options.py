@@ -1,4 +1,7 @@
-"""Options shared by the commands that fly a vehicle (fly, serve, dataset): parse once, here."""
+"""Options of a flight (fly, serve, dataset): parsed and validated once, here.
+
+Also the validators every command's options use: numbers, integer ranges, ``A:B`` windows.
+"""
 
 from __future__ import annotations
 
@@ -7,10 +10,14 @@ import math
 import re
 from dataclasses import dataclass, field
 
+from air_sitl.clock import NS_PER_S
 from air_sitl.errors import OptionError
 from air_sitl.fdm.base import Wind
 
 DEFAULT_AIRCRAFT = "airsitl_uav"
+OPEN_END_NS = 2**62  # the end of a GNSS denial window that lasts to the end of the flight
+
+DenialWindows = tuple[tuple[int, int], ...]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -24,6 +31,17 @@ class FlightOptions:
     speed: float = 0.0  # 0 = as fast as possible, 1 = real time
     max_sim_time_s: float = 4 * 3600.0
     sensor_noise: float = 1.0  # scale of IMU/AHRS/GNSS noise; 0 = perfect sensors
+    # GNSS denial windows [start, end) in simulation ns, sorted (OPEN_END_NS: to the end).
+    gps_denied_ns: DenialWindows = ()
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class MapChoice:
+    """Which map the camera sees: ``spec`` is urban, forest or GeoTIFF path(s); None = by name."""
+
+    spec: str | None = None
+    seed: int = 0
+    date: str | None = None
 
 
 def parse_wind(text: str) -> Wind:
@@ -43,15 +61,55 @@ def parse_wind(text: str) -> Wind:
     return Wind(speed_m_s=speed, from_deg=direction % 360.0)
 
 
-def _nonneg_float(name: str, text: str) -> float:
+def _number(text: str) -> float:
     try:
-        value = float(text)
+        return float(text)
     except ValueError:
-        value = math.nan
+        return math.nan
+
+
+def nonneg_number(name: str, text: str, *, of: str = "") -> float:
+    """A finite number >= 0 (``of``: what it counts, in the message: " of seconds")."""
+    value = _number(text)
     if not (math.isfinite(value) and value >= 0.0):
-        msg = f"{name}: {text!r} is not a number >= 0"
+        msg = f"{name}: {text!r} is not a number{of} >= 0"
         raise OptionError(msg)
     return value
+
+
+def positive_number(name: str, text: str) -> float:
+    """A finite number > 0."""
+    value = _number(text)
+    if not (math.isfinite(value) and value > 0.0):
+        msg = f"{name}: {text!r} is not a number > 0"
+        raise OptionError(msg)
+    return value
+
+
+def int_in_range(name: str, text: str, lo: int, hi: int) -> int:
+    """An integer in ``lo..hi``."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = lo - 1
+    if not lo <= value <= hi:
+        msg = f"{name}: {text!r} is not an integer {lo}..{hi}"
+        raise OptionError(msg)
+    return value
+
+
+def seconds_window(name: str, text: str) -> tuple[float, float]:
+    """``A:B``, two numbers of seconds >= 0 with B after A."""
+    a_text, sep, b_text = text.partition(":")
+    if not sep:
+        msg = f"{name} {text!r}: expected A:B in simulated seconds, e.g. 60:120"
+        raise OptionError(msg)
+    a = nonneg_number(name, a_text, of=" of seconds")
+    b = nonneg_number(name, b_text, of=" of seconds")
+    if b <= a:
+        msg = f"{name} {text!r}: the end must come after the start"
+        raise OptionError(msg)
+    return a, b
 
 
 def add_flight_arguments(parser: argparse.ArgumentParser, *, default_speed: float) -> None:
@@ -100,18 +158,52 @@ def flight_options_from_args(args: argparse.Namespace) -> FlightOptions:
         msg = f"--seed: {seed} must be >= 0"
         raise OptionError(msg)
     wind = parse_wind(args.wind) if args.wind else Wind()
-    turbulence = _nonneg_float("--turbulence", args.turbulence)
+    turbulence = nonneg_number("--turbulence", args.turbulence)
     if turbulence > 1.0:
         msg = f"--turbulence: {args.turbulence!r} must be between 0 and 1"
         raise OptionError(msg)
     wind = Wind(speed_m_s=wind.speed_m_s, from_deg=wind.from_deg, turbulence=turbulence)
-    max_sim = _nonneg_float("--max-sim-time", args.max_sim_time)
+    max_sim = nonneg_number("--max-sim-time", args.max_sim_time)
     return FlightOptions(
         aircraft=args.aircraft,
         air_start=bool(args.air_start),
         wind=wind,
         seed=seed,
-        speed=_nonneg_float("--speed", args.speed),
+        speed=nonneg_number("--speed", args.speed),
         max_sim_time_s=max_sim,
-        sensor_noise=_nonneg_float("--sensor-noise", args.sensor_noise),
+        sensor_noise=nonneg_number("--sensor-noise", args.sensor_noise),
+        gps_denied_ns=gps_denied_from_args(args),
     )
+
+
+def add_gps_denial_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--gps-denied-after``, ``--gps-denied-window`` (fly, serve)."""
+    d = parser.add_argument_group("GNSS denial")
+    d.add_argument(
+        "--gps-denied-after",
+        default=None,
+        metavar="SECONDS",
+        help="no GNSS fix from this simulated time (s since the start) to the end",
+    )
+    d.add_argument(
+        "--gps-denied-window",
+        action="append",
+        metavar="A:B",
+        help="no GNSS fix from simulated second A to B; repeatable",
+    )
+
+
+def gps_denied_from_args(args: argparse.Namespace) -> DenialWindows:
+    """GNSS denial windows [start, end) in simulation nanoseconds, sorted.
+
+    A command without the denial options (dataset) flies without denial.
+    """
+    windows: list[tuple[int, int]] = []
+    after = getattr(args, "gps_denied_after", None)
+    if after is not None:
+        start = nonneg_number("--gps-denied-after", after, of=" of seconds")
+        windows.append((round(start * NS_PER_S), OPEN_END_NS))
+    for text in getattr(args, "gps_denied_window", None) or ():
+        a, b = seconds_window("--gps-denied-window", text)
+        windows.append((round(a * NS_PER_S), round(b * NS_PER_S)))
+    return tuple(sorted(windows))

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, Any
 
 from air_sitl.clock import NS_PER_S
 from air_sitl.mission.items import Mission
-
-if TYPE_CHECKING:
-    from air_sitl.runner import Flight
-    from air_sitl.state import SimSample
+from air_sitl.runner import Flight
+from air_sitl.state import SimSample
 
 
 class ProgressBar:

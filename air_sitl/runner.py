@@ -12,11 +12,14 @@ import queue
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
+from air_sitl.autopilot.autopilot import Autopilot, air_start_pose
+from air_sitl.autopilot.control import Controller, gains_for
+from air_sitl.autopilot.params import ParamStore
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S, PHYSICS_STEP_NS, Pacer, SimClock
 from air_sitl.errors import PlanError
 from air_sitl.fdm.base import FlightModel, InitialCondition
+from air_sitl.fdm.jsbsim_model import JSBSimModel
 from air_sitl.flightlog import FlightStats
 from air_sitl.frames import geodetic2ned
 from air_sitl.mission.items import MavCmd, Mission
@@ -24,9 +27,6 @@ from air_sitl.options import DEFAULT_AIRCRAFT, FlightOptions
 from air_sitl.sensors import SensorNoise, SensorSuite
 from air_sitl.sinks import FlightResult, FrameSource, Sink
 from air_sitl.state import GeoPoint, SimSample, VehicleState
-
-if TYPE_CHECKING:
-    from air_sitl.autopilot.autopilot import Autopilot
 
 InboxItem = Callable[["Flight"], None]
 ProgressFn = Callable[[SimSample, "Flight"], None]
@@ -175,15 +175,10 @@ def assemble_flight(
     home: GeoPoint | None = None,
     auto_start: bool = True,
 ) -> tuple[Flight, GeoPoint, InitialCondition]:
-    """Build the flight model, autopilot and sensors for ``mission`` and place the aircraft.
+    """Build the flight model, autopilot and sensors (GNSS denial included) and place the aircraft.
 
     ``auto_start=False`` (serve): the vehicle waits on the ground, disarmed, for a client.
     """
-    from air_sitl.autopilot.autopilot import Autopilot, air_start_pose
-    from air_sitl.autopilot.control import Controller, gains_for
-    from air_sitl.autopilot.params import ParamStore
-    from air_sitl.fdm.jsbsim_model import JSBSimModel
-
     home = home or home_of(mission)
     gains = gains_for(options.aircraft)
     # Our UAV's parameter defaults; other aircraft fly inside their own speed envelope.
@@ -227,7 +222,13 @@ def assemble_flight(
         auto_start=auto_start,
     )
     noise = SensorNoise().scaled(options.sensor_noise)
-    sensors = SensorSuite(home, seed=options.seed, step_ns=fdm.step_ns, noise=noise)
+    sensors = SensorSuite(
+        home,
+        seed=options.seed,
+        step_ns=fdm.step_ns,
+        noise=noise,
+        gps_denied_ns=options.gps_denied_ns,
+    )
     flight = Flight(
         fdm=fdm,
         autopilot=autopilot,

@@ -12,10 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from air_sitl.clock import NS_PER_S
 from air_sitl.frames import ned2geodetic, quat_multiply, quat_normalize
 from air_sitl.state import GeoPoint, GpsFix, ImuSample, VehicleState
-
-NS_PER_S = 1_000_000_000
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

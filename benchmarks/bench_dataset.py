@@ -45,6 +45,7 @@ def _jpeg_only(folder: Path, quality: int) -> tuple[float, float, int]:
 
 def bench_scenario(scenario: str, out: Path) -> None:
     """Part 1: one scenario, capture-window throughput beside JPEG-only encoding."""
+    from air_sitl.builder import load_setup
     from air_sitl.camera.model import CameraModel
     from air_sitl.options import FlightOptions
     from air_sitl.recording import RecordingRequest, record_flight
@@ -64,13 +65,13 @@ def bench_scenario(scenario: str, out: Path) -> None:
         )
 
     camera = CameraModel()
-    request = RecordingRequest(
-        plan=REPO / "missions" / f"{scenario}.plan",
-        out=out,
-        options=FlightOptions(speed=0.0),
+    setup = load_setup(
+        REPO / "missions" / f"{scenario}.plan",
+        FlightOptions(speed=0.0),
         camera=camera,
         render_workers=2,
     )
+    request = RecordingRequest(setup=setup, out=out)
     t0 = time.perf_counter()
     result = record_flight(request, progress=progress)
     total = time.perf_counter() - t0

@@ -17,26 +17,25 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def main() -> None:
+    from air_sitl.builder import build_flight, load_setup
     from air_sitl.clock import NS_PER_S
-    from air_sitl.mission.plan_file import load_mission
     from air_sitl.options import FlightOptions
-    from air_sitl.runner import assemble_flight
     from air_sitl.state import ActuatorCommand
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenario", nargs="?", default="FR-300")
     parser.add_argument("--seconds", type=float, default=600.0)
     args = parser.parse_args()
-    mission = load_mission(REPO / "missions" / f"{args.scenario}.plan")
+    setup = load_setup(REPO / "missions" / f"{args.scenario}.plan", FlightOptions(air_start=True))
     limit_ns = int(args.seconds * NS_PER_S)
 
-    flight, _, _ = assemble_flight(mission, FlightOptions(air_start=True))
+    flight = build_flight(setup)
     t0 = time.perf_counter()
     result = flight.run(stop=lambda s: False, max_sim_time_ns=limit_ns)
     full = time.perf_counter() - t0
     steps = flight.counters.steps
 
-    bare, _, _ = assemble_flight(mission, FlightOptions(air_start=True))
+    bare = build_flight(setup)
     command = ActuatorCommand(throttle=0.5)
     t0 = time.perf_counter()
     for _ in range(steps):

@@ -25,16 +25,15 @@ PAPER = PAPER_TABLE  # scenario: (images at 50 Hz, distance m) -- AIR paper, Tab
 
 def fly(name: str, air_start: bool) -> dict[str, Any]:
     """Fly one scenario and return its figures."""
+    from air_sitl.builder import build_flight, load_setup
     from air_sitl.frames import geodetic2ned
     from air_sitl.mission.items import MavCmd
-    from air_sitl.mission.plan_file import load_mission
     from air_sitl.options import FlightOptions
-    from air_sitl.runner import assemble_flight
     from air_sitl.sinks import NullSink
     from air_sitl.state import SimSample
 
-    mission = load_mission(REPO / "missions" / f"{name}.plan")
-    loiter = next((i for i in mission.items if i.command == MavCmd.NAV_LOITER_TURNS), None)
+    setup = load_setup(REPO / "missions" / f"{name}.plan", FlightOptions(air_start=air_start))
+    loiter = next((i for i in setup.mission.items if i.command == MavCmd.NAV_LOITER_TURNS), None)
 
     class RadiusProbe(NullSink):
         def __init__(self) -> None:
@@ -48,7 +47,7 @@ def fly(name: str, air_start: bool) -> dict[str, Any]:
             self.radii.append(math.hypot(c[0], c[1]))
 
     probe = RadiusProbe()
-    flight, _, _ = assemble_flight(mission, FlightOptions(air_start=air_start), sinks=[probe])
+    flight = build_flight(setup, sinks=[probe])
     start = time.monotonic()
     result = flight.run(
         stop=lambda sample: sample.autopilot.mission_completed, max_sim_time_ns=3 * 3600 * 10**9

@@ -1,17 +1,16 @@
-"""Command-line options of the bus (fly, serve, bridges) and of GNSS denial: parsed here once."""
+"""Command-line options of the bus (fly, serve, bridges): parsed here once."""
 
 from __future__ import annotations
 
 import argparse
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
 from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace, check_chunk
 from air_sitl.bus.lockstep import WaitFor
 from air_sitl.bus.session import DEFAULT_ENDPOINT, BusConfig, Mode
-from air_sitl.clock import NS_PER_S
 from air_sitl.errors import OptionError
+from air_sitl.options import positive_number
 
 DEFAULT_WAIT_TIMEOUT_S = 10.0
 
@@ -56,7 +55,7 @@ def add_connection_arguments(parser: argparse.ArgumentParser, *, serves: bool) -
 
 
 def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
-    """Every bus option of a command that flies a vehicle (fly, serve), plus GNSS denial."""
+    """Every bus option of a command that flies a vehicle (fly, serve)."""
     g = parser.add_argument_group("zenoh bus")
     g.add_argument(
         "--zenoh",
@@ -101,19 +100,6 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
         help="render in this process (local, default) or ask `air-sitl camera-bridge` over zenoh",
     )
     add_connection_arguments(parser, serves=True)
-    d = parser.add_argument_group("GNSS denial")
-    d.add_argument(
-        "--gps-denied-after",
-        default=None,
-        metavar="SECONDS",
-        help="no GNSS fix from this simulated time (s since the start) to the end",
-    )
-    d.add_argument(
-        "--gps-denied-window",
-        action="append",
-        metavar="A:B",
-        help="no GNSS fix from simulated second A to B; repeatable",
-    )
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -172,21 +158,10 @@ def parse_wait_for(text: str, timeout_s: float) -> WaitFor:
     return WaitFor(name=name, max_lag=lag, timeout_s=timeout_s)
 
 
-def _positive(name: str, text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        msg = f"{name}: {text!r} is not a number > 0"
-        raise OptionError(msg)
-    return value
-
-
 def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
     """Validate the bus options of ``fly``/``serve``."""
-    timeout = _positive("--wait-timeout", args.wait_timeout)
-    imu_rate = _positive("--imu-rate", args.imu_rate)
+    timeout = positive_number("--wait-timeout", args.wait_timeout)
+    imu_rate = positive_number("--imu-rate", args.imu_rate)
     if imu_rate > 200:
         msg = f"--imu-rate {args.imu_rate}: at most 200 Hz (the physics rate)"
         raise OptionError(msg)
@@ -207,34 +182,3 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
         svo_columns=svo,
         remote_camera=remote,
     )
-
-
-def gps_denied_from_args(args: argparse.Namespace) -> tuple[tuple[int, int], ...]:
-    """GNSS denial windows [start, end) in simulation nanoseconds, sorted."""
-    windows: list[tuple[int, int]] = []
-    if args.gps_denied_after is not None:
-        start = _nonneg("--gps-denied-after", args.gps_denied_after)
-        windows.append((round(start * NS_PER_S), 2**62))
-    for text in args.gps_denied_window or ():
-        a_text, sep, b_text = text.partition(":")
-        if not sep:
-            msg = f"--gps-denied-window {text!r}: expected A:B in simulated seconds, e.g. 60:120"
-            raise OptionError(msg)
-        a = _nonneg("--gps-denied-window", a_text)
-        b = _nonneg("--gps-denied-window", b_text)
-        if b <= a:
-            msg = f"--gps-denied-window {text!r}: the end must come after the start"
-            raise OptionError(msg)
-        windows.append((round(a * NS_PER_S), round(b * NS_PER_S)))
-    return tuple(sorted(windows))
-
-
-def _nonneg(name: str, text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value >= 0):
-        msg = f"{name}: {text!r} is not a number of seconds >= 0"
-        raise OptionError(msg)
-    return value

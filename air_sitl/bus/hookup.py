@@ -3,44 +3,41 @@
 ``bus_sinks_from_args(args)`` validates the options and opens the session; the recording code
 then calls :meth:`BusHookup.attach` once home, camera and output folder are known, and gets
 the sinks to add and the FrameSource to use (remote camera and/or lockstep wrapper).
-:meth:`BusHookup.after_flight` collects late estimates and closes the logs;
-:meth:`BusHookup.after_archive` fills AIR's Svo columns. Use it as a context manager: the
-session closes whatever happens.
+:meth:`BusHookup.after_flight` collects late estimates and closes the logs; the recording then
+takes what it needs into the archive (:meth:`BusHookup.svo_positions`). The bus only publishes
+and collects estimates: it knows nothing of archives. Use it as a context manager: the session
+closes whatever happens.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import json
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import TracebackType
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from air_sitl.bus.args import BusOptions, bus_options_from_args, gps_denied_from_args
-from air_sitl.clock import CAMERA_RATE_HZ, NS_PER_S
+from air_sitl.bus.args import BusOptions, bus_options_from_args
+from air_sitl.bus.codec import CameraInfo
+from air_sitl.bus.estimates import EstimateLog
+from air_sitl.bus.lockstep import LockstepFrameSource
+from air_sitl.bus.publisher import BusPublisher, FrameLedger, PublishOptions
+from air_sitl.bus.remote_camera import RemoteCamera, RenderSettings
+from air_sitl.bus.session import Bus, open_bus
+from air_sitl.camera.info import q_cam_to_body_wxyz
+from air_sitl.camera.model import CameraModel
+from air_sitl.clock import CAMERA_RATE_HZ
+from air_sitl.closeable import Closeable
 from air_sitl.errors import OptionError
-
-if TYPE_CHECKING:
-    from air_sitl.bus.estimates import EstimateLog
-    from air_sitl.bus.publisher import BusPublisher
-    from air_sitl.bus.session import Bus
-    from air_sitl.camera.model import CameraModel
-    from air_sitl.dataset.writer import ArchiveInfo
-    from air_sitl.sinks import FrameSource, Sink
-    from air_sitl.state import GeoPoint
-
-GPS_DENIAL_JSON = "gps_denial.json"
+from air_sitl.sinks import FrameSource, Sink
+from air_sitl.state import GeoPoint, Vec3
 
 
 @dataclass(slots=True)
-class BusHookup:
-    """The bus side of one flight (a disabled hookup does nothing but GNSS denial)."""
+class BusHookup(Closeable):
+    """The bus side of one flight (a disabled hookup does nothing)."""
 
     options: BusOptions | None
-    gps_denied_ns: tuple[tuple[int, int], ...] = ()
     bus: Bus | None = None
     publisher: BusPublisher | None = None
     log: EstimateLog | None = None
@@ -48,36 +45,10 @@ class BusHookup:
     lockstep_wait_s: list[float] = field(default_factory=list)
     _lockstep: Any = None
 
-    def __enter__(self) -> BusHookup:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
-
     @property
     def needs_camera(self) -> bool:
         """True when the bus wants camera frames (publishing them, or the remote camera)."""
         return self.options is not None and (self.options.publish or self.options.remote_camera)
-
-    def manifest_extra(self) -> dict[str, Any]:
-        """What the archive manifest should record: the GNSS denial windows (if any)."""
-        if not self.gps_denied_ns:
-            return {}
-        return {"gps_denied": gps_denial_record(self.gps_denied_ns)}
-
-    def extend_archive_info(self, info: ArchiveInfo) -> ArchiveInfo:
-        """The archive's manifest (and resume key) with the GNSS denial windows added."""
-        extra = self.manifest_extra()
-        if not extra:
-            return info
-        return dataclasses.replace(
-            info, manifest={**info.manifest, **extra}, run_key={**info.run_key, **extra}
-        )
 
     def attach(
         self,
@@ -90,20 +61,9 @@ class BusHookup:
     ) -> tuple[list[Sink], FrameSource | None]:
         """Sinks to add to the flight, and the FrameSource to use instead of ``frame_source``."""
         self.out = out
-        if out is not None and camera is None and self.gps_denied_ns:
-            # Without a camera there is no manifest: the windows get a file of their own.
-            (out / GPS_DENIAL_JSON).write_text(
-                json.dumps(gps_denial_record(self.gps_denied_ns), indent=2) + "\n",
-                encoding="utf-8",
-            )
         opts = self.options
         if opts is None or self.bus is None:
             return [], frame_source
-        from air_sitl.bus.estimates import EstimateLog
-        from air_sitl.bus.lockstep import LockstepFrameSource
-        from air_sitl.bus.publisher import BusPublisher, FrameLedger, PublishOptions
-        from air_sitl.bus.remote_camera import RemoteCamera, RenderSettings
-
         source = frame_source
         if opts.remote_camera:
             if camera is None:
@@ -114,7 +74,7 @@ class BusHookup:
             source = RemoteCamera(
                 self.bus,
                 opts.keys,
-                RenderSettings(home=home, camera=camera_fields(camera), seed=seed),
+                RenderSettings(home=home, camera=camera.settings(), seed=seed),
                 timeout_s=opts.wait_timeout_s,
             )
         sinks: list[Sink] = []
@@ -172,24 +132,20 @@ class BusHookup:
             summary["lockstep_wait_wall_s"] = round(self._lockstep.wait_wall_s, 3)
         return summary
 
-    def after_archive(self, archive: Path) -> int:
-        """Fill SvoX..SvoZ from ``--svo-columns NAME`` (after the archive is finished)."""
-        opts = self.options
-        if opts is None or opts.svo_columns is None or self.log is None:
-            if self.log is not None and self.log.names():
-                from air_sitl.dataset.manifest import refresh_manifest
+    @property
+    def svo_columns(self) -> str | None:
+        """``--svo-columns NAME``: the estimator whose positions fill AIR's SvoX..SvoZ."""
+        return None if self.options is None else self.options.svo_columns
 
-                refresh_manifest(archive)  # list estimates/ that came after the manifest
-            return 0
-        from air_sitl.dataset.estimates import fill_svo_columns
+    def estimate_names(self) -> list[str]:
+        """The estimators heard from (each logged as ``estimates/<name>.csv``)."""
+        return [] if self.log is None else self.log.names()
 
-        positions = self.log.positions_enu(opts.svo_columns)
-        if not positions:
-            print(
-                f"air-sitl: warning: --svo-columns {opts.svo_columns}: no estimate received",
-                file=sys.stderr,
-            )
-        return fill_svo_columns(archive, positions)
+    def svo_positions(self) -> dict[int, Vec3] | None:
+        """ENU positions by frame of the ``--svo-columns`` estimator; None without the option."""
+        if self.svo_columns is None or self.log is None:
+            return None
+        return self.log.positions_enu(self.svo_columns)
 
     def close(self) -> None:
         """Close the logs and the session."""
@@ -201,49 +157,19 @@ class BusHookup:
 
 
 def bus_sinks_from_args(args: argparse.Namespace) -> BusHookup:
-    """Validate the bus and GNSS-denial options and open the session if any option needs it."""
-    from air_sitl.bus.session import open_bus
-
-    denied = gps_denied_from_args(args)
+    """Validate the bus options and open the session if any option needs it."""
     opts = bus_options_from_args(args)
     if not opts.enabled:
-        return BusHookup(options=None, gps_denied_ns=denied)
-    bus = open_bus(opts.config)
-    return BusHookup(options=opts, gps_denied_ns=denied, bus=bus)
+        return BusHookup(options=None)
+    return BusHookup(options=opts, bus=open_bus(opts.config))
 
 
-def gps_denial_record(windows: tuple[tuple[int, int], ...]) -> list[dict[str, Any]]:
-    """The denial windows as the archive records them (an open end is null)."""
-    out = []
-    for a, b in windows:
-        end = None if b >= 2**62 else b
-        out.append(
-            {
-                "start_ns": a,
-                "end_ns": end,
-                "start_s": a / NS_PER_S,
-                "end_s": None if end is None else end / NS_PER_S,
-            }
-        )
-    return out
-
-
-def camera_fields(camera: CameraModel) -> dict[str, Any]:
-    """CameraModel fields as JSON values (what a remote render request carries)."""
-    return camera.settings()
-
-
-def camera_info_of(camera: CameraModel) -> Any:
+def camera_info_of(camera: CameraModel) -> CameraInfo:
     """The ``camera/info`` content of a CameraModel."""
-    from air_sitl.bus.codec import CameraInfo
-    from air_sitl.dataset.camera_info import matrix_to_quat
-
-    r = camera.r_cam_to_body()
-    q = matrix_to_quat([[float(r[i][j]) for j in range(3)] for i in range(3)])
     return CameraInfo(
         width_px=camera.width_px,
         height_px=camera.height_px,
         hfov_deg=camera.hfov_deg,
         rate_hz=float(CAMERA_RATE_HZ),
-        q_cam_to_body_wxyz=q,
+        q_cam_to_body_wxyz=q_cam_to_body_wxyz(camera),
     )

@@ -15,6 +15,7 @@ from air_sitl.bus import codec
 from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace
 from air_sitl.bus.session import Bus, Publisher, QueryAnswer, QueryRequest
 from air_sitl.clock import CAMERA_PERIOD_NS, CAMERA_RATE_HZ, NS_PER_S
+from air_sitl.errors import BusError
 from air_sitl.sinks import FlightResult, NullSink
 from air_sitl.state import AutopilotStatus, CameraFrame, GeoPoint, SimSample
 
@@ -121,8 +122,6 @@ class BusPublisher(NullSink):
     def _answer_info(self, request: QueryRequest) -> QueryAnswer:
         info = self._info
         if info is None:
-            from air_sitl.errors import BusError
-
             msg = f"{self.options.keys.info}: this simulator has no camera"
             raise BusError(msg)
         return QueryAnswer(info, encoding=codec.JSON_ENCODING)
@@ -131,8 +130,6 @@ class BusPublisher(NullSink):
         with self._latest_lock:
             payload = self._latest.get(request.key)
         if payload is None:
-            from air_sitl.errors import BusError
-
             msg = f"{request.key}: nothing published yet"
             raise BusError(msg)
         return QueryAnswer(payload, encoding=codec.JSON_ENCODING)

@@ -19,11 +19,11 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 from typing import Any, Literal
 
 import zenoh
 
+from air_sitl.closeable import Closeable
 from air_sitl.errors import BusError
 
 DEFAULT_PORT = 7447
@@ -146,7 +146,7 @@ class QueryAnswer:
     encoding: str | None = None
 
 
-class Bus:
+class Bus(Closeable):
     """An open zenoh session with air-sitl's small vocabulary; close it (or use ``with``)."""
 
     def __init__(self, session: zenoh.Session, cfg: BusConfig) -> None:
@@ -156,17 +156,6 @@ class Bus:
         self._lock = threading.Lock()
         self._closed = False
         self.callback_errors: list[str] = []  # exceptions raised inside our callbacks
-
-    def __enter__(self) -> Bus:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     @property
     def zid(self) -> str:

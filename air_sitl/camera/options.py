@@ -1,17 +1,16 @@
-"""Command-line options for maps and the camera, shared by fly, serve, dataset and render."""
+"""Command-line options for maps and the camera, shared by fly, serve, dataset and render,
+and the map they choose."""
 
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING
 
 from air_sitl.camera.model import DEFAULT_JPEG_QUALITY, DEFAULT_NOISE_SIGMA, CameraModel
 from air_sitl.errors import CameraError
 from air_sitl.maps.base import MapSource
+from air_sitl.maps.open import default_map_for_plan, open_map
+from air_sitl.options import MapChoice
 from air_sitl.state import GeoPoint
-
-if TYPE_CHECKING:
-    from air_sitl.camera.bridge import CameraBridge
 
 
 def add_map_arguments(parser: argparse.ArgumentParser) -> None:
@@ -60,12 +59,22 @@ def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def map_from_args(args: argparse.Namespace, home: GeoPoint, plan_name: str = "") -> MapSource:
-    """The MapSource the options name (``--map`` default from the plan name)."""
-    from air_sitl.maps.open import default_map_for_plan, open_map
+def map_choice_from_args(args: argparse.Namespace) -> MapChoice:
+    """``--map``, ``--map-seed``, ``--map-date`` as a MapChoice."""
+    return MapChoice(spec=args.map, seed=args.map_seed, date=args.map_date)
 
-    spec = args.map if args.map else default_map_for_plan(plan_name)
-    return open_map(spec, home, seed=args.map_seed, date=args.map_date)
+
+def open_chosen_map(choice: MapChoice, home: GeoPoint, plan_name: str = "") -> MapSource:
+    """The MapSource ``choice`` names (default from the plan name: U* urban, F* forest)."""
+    spec = choice.spec or default_map_for_plan(plan_name)
+    return open_map(spec, home, seed=choice.seed, date=choice.date)
+
+
+def close_map(source: object) -> None:
+    """Release a map's files (GeoTIFF maps hold some; procedural ones hold none)."""
+    close = getattr(source, "close", None)
+    if callable(close):
+        close()
 
 
 def camera_from_args(args: argparse.Namespace) -> CameraModel:
@@ -86,14 +95,3 @@ def camera_from_args(args: argparse.Namespace) -> CameraModel:
         noise_sigma=args.noise_sigma,
         jpeg_quality=args.jpeg_quality,
     )
-
-
-def camera_bridge_from_args(
-    args: argparse.Namespace, home: GeoPoint, plan_name: str = "", *, seed: int = 0
-) -> CameraBridge:
-    """A ready CameraBridge (FrameSource) for a flight: map + camera + renderer + threads."""
-    from air_sitl.camera.bridge import CameraBridge
-    from air_sitl.camera.render import Renderer
-
-    renderer = Renderer(map_from_args(args, home, plan_name), camera_from_args(args), seed=seed)
-    return CameraBridge(renderer)

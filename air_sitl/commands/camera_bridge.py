@@ -10,19 +10,31 @@ so run on another host. Runs until SIGINT or SIGTERM.
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from air_sitl.bus.remote_camera import RenderFn, RenderSettings
+from air_sitl.bus.args import add_connection_arguments, bus_config_from_args
+from air_sitl.bus.keys import KeySpace
+from air_sitl.bus.remote_camera import CameraBridgeServer, RenderedFrame, RenderFn, RenderSettings
+from air_sitl.bus.session import open_bus
+from air_sitl.bus.signals import wait_until_signalled
+from air_sitl.camera.model import CameraModel
+from air_sitl.camera.options import (
+    add_camera_arguments,
+    add_map_arguments,
+    camera_from_args,
+    close_map,
+    open_chosen_map,
+)
+from air_sitl.camera.render import Renderer
+from air_sitl.errors import BusError
+from air_sitl.maps.base import MapSource
+from air_sitl.options import MapChoice
+from air_sitl.state import GeoPoint, VehicleState
 
 HELP = "render camera frames for simulators over zenoh (fly --camera remote; truth -> camera/image)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``camera-bridge``."""
-    from air_sitl.bus.args import add_connection_arguments
-    from air_sitl.camera.options import add_camera_arguments, add_map_arguments
-
     add_map_arguments(parser)
     add_camera_arguments(parser)
     parser.add_argument(
@@ -37,25 +49,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Serve renders until interrupted; exit 0 on SIGINT/SIGTERM."""
-    from air_sitl.bus.args import bus_config_from_args
-    from air_sitl.bus.hookup import camera_fields
-    from air_sitl.bus.keys import KeySpace
-    from air_sitl.bus.remote_camera import CameraBridgeServer, RenderSettings
-    from air_sitl.bus.session import open_bus
-    from air_sitl.bus.signals import wait_until_signalled
-    from air_sitl.camera.options import camera_from_args
-    from air_sitl.state import GeoPoint
-
     keys = KeySpace(args.vehicle)
     camera = camera_from_args(args)  # validates the options before joining the bus
     spec = args.map or "urban"
-    closers: list[object] = []
+    choice = MapChoice(spec=spec, seed=args.map_seed, date=args.map_date)
+    maps: list[MapSource] = []
 
     def factory(settings: RenderSettings) -> RenderFn:
-        return _renderer(spec, args.map_seed, args.map_date, settings, closers)
+        return _renderer(choice, settings, maps)
 
     def free_settings(home: GeoPoint) -> RenderSettings:
-        return RenderSettings(home=home, camera=camera_fields(camera), seed=args.seed)
+        return RenderSettings(home=home, camera=camera.settings(), seed=args.seed)
 
     with open_bus(bus_config_from_args(args, serves=False)) as bus:
         server = CameraBridgeServer(bus, keys, factory, free_settings=free_settings)
@@ -72,24 +76,13 @@ def run(args: argparse.Namespace) -> int:
                 f"{server.published} published from truth",
                 flush=True,
             )
-    for obj in closers:
-        close = getattr(obj, "close", None)
-        if callable(close):
-            close()
+    for source in maps:
+        close_map(source)
     return 0
 
 
-def _renderer(
-    spec: str, map_seed: int, map_date: str | None, settings: RenderSettings, closers: list[object]
-) -> RenderFn:
+def _renderer(choice: MapChoice, settings: RenderSettings, maps: list[MapSource]) -> RenderFn:
     """A render function for one (home, camera, seed): the in-process camera's Renderer."""
-    from air_sitl.bus.remote_camera import RenderedFrame
-    from air_sitl.camera.model import CameraModel
-    from air_sitl.camera.render import Renderer
-    from air_sitl.errors import BusError
-    from air_sitl.maps.open import open_map
-    from air_sitl.state import VehicleState
-
     c = settings.camera
     try:
         rpy = tuple(float(a) for a in c["mount_rpy_deg"])
@@ -104,8 +97,8 @@ def _renderer(
     except (KeyError, TypeError, ValueError, IndexError) as err:
         msg = f"camera/render: bad camera settings ({err!r})"
         raise BusError(msg) from None
-    map_source = open_map(spec, settings.home, seed=map_seed, date=map_date)
-    closers.append(map_source)
+    map_source = open_chosen_map(choice, settings.home)
+    maps.append(map_source)
     renderer = Renderer(map_source, camera, seed=settings.seed)
 
     def render(state: VehicleState, index: int) -> RenderedFrame:

@@ -9,21 +9,38 @@ from __future__ import annotations
 
 import argparse
 import csv
+import ctypes
+import ctypes.util
+import dataclasses
+import io
 import multiprocessing
 import os
 import queue
+import signal
 import sys
 import time
 import zipfile
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import IO, Any
 
-if TYPE_CHECKING:
-    from air_sitl.camera.model import CameraModel
-    from air_sitl.options import FlightOptions
-    from air_sitl.recording import MapChoice
+from air_sitl.builder import FlightSetup, load_setup, open_setup_map
+from air_sitl.camera.options import add_camera_arguments, camera_from_args, close_map
+from air_sitl.dataset.scenarios import (
+    PAPER_TABLE,
+    ScenarioStats,
+    format_table,
+    missions_dir,
+    parse_scenarios,
+    stats_table,
+)
+from air_sitl.errors import AirSitlError, DatasetError, OptionError
+from air_sitl.files import write_bytes_atomic
+from air_sitl.options import MapChoice, add_flight_arguments, flight_options_from_args, int_in_range
+from air_sitl.recording import RecordingRequest, record_flight
+from air_sitl.runner import Flight
+from air_sitl.state import SimSample
 
 HELP = "fly the AIR scenarios (all 12 or a list) into ROOT/<scenario>/ and print the AIR table"
 
@@ -32,9 +49,6 @@ _PROGRESS: Any = None  # the workers' progress queue (set by the pool initialize
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``dataset``."""
-    from air_sitl.camera.options import add_camera_arguments
-    from air_sitl.options import add_flight_arguments
-
     parser.add_argument(
         "--scenarios", default="all", help="'all' (default) or names such as FL-200,UC-300"
     )
@@ -67,13 +81,8 @@ class Job:
     """One scenario at one map date."""
 
     name: str  # folder name: scenario, or scenario@date
-    scenario: str
-    plan: Path
+    setup: FlightSetup
     out: Path
-    options: FlightOptions
-    camera: CameraModel
-    map: MapChoice
-    render_workers: int
     resume: bool
     zip: bool
 
@@ -100,10 +109,6 @@ def _init_worker(progress: Any) -> None:
 def _die_with_parent() -> None:
     """Linux: a worker gets SIGKILL when the parent dies (a killed ``dataset`` leaves no
     orphan still writing into a folder that ``--resume`` is about to continue)."""
-    import ctypes
-    import ctypes.util
-    import signal
-
     pr_set_pdeathsig = 1
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
@@ -131,28 +136,16 @@ def zip_folder(folder: Path, out: Path) -> None:
 
 def run_job(job: Job, progress: Any = None) -> Outcome:
     """Fly one job (in a worker process or inline); errors come back as one line."""
-    from air_sitl.errors import AirSitlError
-    from air_sitl.recording import RecordingRequest, record_flight
-
     sink = progress if progress is not None else _PROGRESS
     start = time.monotonic()
 
-    def report(sample: Any, flight: Any) -> None:
+    def report(sample: SimSample, flight: Flight) -> None:
         if sink is not None:
             sink.put((job.name, flight.stats.capture_frames, sample.state.sim_time_ns / 1e9))
 
     try:
         result = record_flight(
-            RecordingRequest(
-                plan=job.plan,
-                out=job.out,
-                options=job.options,
-                camera=job.camera,
-                map=job.map,
-                render_workers=job.render_workers,
-                resume=job.resume,
-                scenario=job.scenario,
-            ),
+            RecordingRequest(setup=job.setup, out=job.out, resume=job.resume),
             progress=report,
         )
         if job.zip:
@@ -251,30 +244,11 @@ class Display:
         self._drawn = len(lines)
 
 
-def _int_option(name: str, text: str, lo: int, hi: int) -> int:
-    from air_sitl.errors import OptionError
-
-    try:
-        value = int(text)
-    except ValueError:
-        value = lo - 1
-    if not lo <= value <= hi:
-        msg = f"{name}: {text!r} is not an integer {lo}..{hi}"
-        raise OptionError(msg)
-    return value
-
-
 def build_jobs(args: argparse.Namespace) -> list[Job]:
-    """Validate the options and list the jobs (errors before anything flies)."""
-    from air_sitl.camera.options import camera_from_args
-    from air_sitl.dataset.scenarios import missions_dir, parse_scenarios
-    from air_sitl.errors import DatasetError, OptionError
-    from air_sitl.options import flight_options_from_args
-    from air_sitl.recording import MapChoice
-
+    """Validate the options, load the plans and list the jobs (errors before anything flies)."""
     options = flight_options_from_args(args)
     camera = camera_from_args(args)
-    _int_option("-j", args.jobs, 1, 64)  # validated before anything flies
+    int_in_range("-j", args.jobs, 1, 64)  # validated before anything flies
     folder = missions_dir(args.missions)
     names = parse_scenarios(args.scenarios, folder)
     dates: list[str | None] = [None]
@@ -295,49 +269,37 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
             spec = args.map_urban
         elif scenario.upper().startswith("F") and args.map_forest:
             spec = args.map_forest
+        setup = load_setup(
+            folder / f"{scenario}.plan",
+            options,
+            camera=camera,
+            render_workers=workers,
+            name=scenario,
+        )
         for date in dates:
             name = scenario if len(dates) == 1 else f"{scenario}@{date}"
             out = root / name
             if out.exists() and any(out.iterdir()) and not args.resume:
                 msg = f"{out}: folder exists and is not empty (choose another --out, or --resume)"
                 raise DatasetError(msg)
+            choice = MapChoice(spec=spec, seed=args.map_seed, date=date)
             jobs.append(
                 Job(
                     name=name,
-                    scenario=scenario,
-                    plan=folder / f"{scenario}.plan",
+                    setup=dataclasses.replace(setup, map=choice),
                     out=out,
-                    options=options,
-                    camera=camera,
-                    map=MapChoice(spec=spec, seed=args.map_seed, date=date),
-                    render_workers=workers,
                     resume=bool(args.resume),
                     zip=bool(args.zip),
                 )
             )
     for job in jobs:
-        if job.map.spec is not None:
-            _check_map(job)
+        if job.setup.map.spec is not None:
+            # A GeoTIFF map missing home fails now, not in an hour.
+            close_map(open_setup_map(job.setup))
     return jobs
 
 
-def _check_map(job: Job) -> None:
-    """Open a GeoTIFF map once before flying: a map missing home fails now, not in an hour."""
-    from air_sitl.maps.open import open_map
-    from air_sitl.mission.plan_file import load_mission
-    from air_sitl.runner import home_of
-
-    assert job.map.spec is not None
-    home = home_of(load_mission(job.plan))
-    source = open_map(job.map.spec, home, seed=job.map.seed, date=job.map.date)
-    close = getattr(source, "close", None)
-    if callable(close):
-        close()
-
-
 def _run_pool(jobs: list[Job], n: int, display: Display) -> list[Outcome]:
-    from air_sitl.dataset.scenarios import PAPER_TABLE
-
     # Spawned, not forked: a fork copies the parent's threads' locks (OpenCV's thread pool,
     # zenoh) in whatever state they are, and a worker can hang on one; a caller that had
     # rendered in-process before running a pool hung this way.
@@ -348,7 +310,7 @@ def _run_pool(jobs: list[Job], n: int, display: Display) -> list[Outcome]:
         max_workers=n, mp_context=ctx, initializer=_init_worker, initargs=(progress,)
     ) as pool:
         # Longest first (the paper's image counts): the processes finish together.
-        order = sorted(jobs, key=lambda j: -PAPER_TABLE.get(j.scenario.upper(), (0, 0))[0])
+        order = sorted(jobs, key=lambda j: -PAPER_TABLE.get(j.setup.name.upper(), (0, 0))[0])
         futures: dict[Future[Outcome], Job] = {pool.submit(run_job, job): job for job in order}
         pending = set(futures)
         while pending:
@@ -370,14 +332,6 @@ def _run_pool(jobs: list[Job], n: int, display: Display) -> list[Outcome]:
 
 def run(args: argparse.Namespace) -> int:
     """Fly every job; exit 0 when all completed, 1 when a mission did not, 2 on errors."""
-    from air_sitl.dataset.scenarios import (
-        PAPER_TABLE,
-        ScenarioStats,
-        format_table,
-        stats_table,
-    )
-    from air_sitl.errors import DatasetError
-
     jobs = build_jobs(args)
     root = Path(args.out)
     try:
@@ -385,8 +339,8 @@ def run(args: argparse.Namespace) -> int:
     except OSError as err:
         msg = f"{root}: cannot create the output folder: {err.strerror}"
         raise DatasetError(msg) from None
-    n = min(_int_option("-j", args.jobs, 1, 64), len(jobs))
-    expected = {j.name: PAPER_TABLE.get(j.scenario.upper(), (0, 0))[0] for j in jobs}
+    n = min(int_in_range("-j", args.jobs, 1, 64), len(jobs))
+    expected = {j.name: PAPER_TABLE.get(j.setup.name.upper(), (0, 0))[0] for j in jobs}
     stream = sys.stderr
     display = Display([j.name for j in jobs], expected, stream, tty=stream.isatty())
     if args.quiet:
@@ -419,10 +373,9 @@ def run(args: argparse.Namespace) -> int:
     ]
     if stats:
         rows = stats_table(stats)
-        tmp = root / "stats.csv.tmp"
-        with tmp.open("w", newline="", encoding="ascii") as f:
-            csv.writer(f, lineterminator="\n").writerows(rows)
-        tmp.replace(root / "stats.csv")
+        text = io.StringIO()
+        csv.writer(text, lineterminator="\n").writerows(rows)
+        write_bytes_atomic(root / "stats.csv", text.getvalue().encode("ascii"))
         sys.stdout.write(format_table(rows) + "\n")
     frames = sum(o.images for o in outcomes)
     sys.stdout.write(

@@ -6,6 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from air_sitl.dataset.export import export_rosbag, export_tum
+from air_sitl.dataset.reader import open_archive
+from air_sitl.errors import OptionError
+
 HELP = "export an archive as a rosbag2 (MCAP) folder, a rosbag1 file or a TUM trajectory"
 
 
@@ -26,10 +30,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export; exit 0 on success."""
-    from air_sitl.dataset.export import export_rosbag, export_tum
-    from air_sitl.dataset.reader import open_archive
-    from air_sitl.errors import OptionError
-
     if args.estimate is not None and args.tum is None:
         msg = "--estimate: only with --tum"
         raise OptionError(msg)

@@ -10,10 +10,19 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import sys
 from pathlib import Path
-from typing import Any
+
+from air_sitl.builder import load_setup
+from air_sitl.bus.hookup import bus_sinks_from_args
+from air_sitl.camera.options import camera_from_args, map_choice_from_args
+from air_sitl.commands.flying import add_vehicle_arguments
+from air_sitl.mission.items import Mission
+from air_sitl.options import flight_options_from_args, int_in_range
+from air_sitl.progress import ProgressBar, print_summary
+from air_sitl.recording import RecordingRequest, record_flight
+from air_sitl.runner import Flight
+from air_sitl.state import SimSample
 
 HELP = (
     "fly a QGC mission plan (.plan or QGC WPL) to its end and record trajectory, summary and frames"
@@ -22,10 +31,6 @@ HELP = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``fly``."""
-    from air_sitl.bus.args import add_bus_arguments
-    from air_sitl.camera.options import add_camera_arguments, add_map_arguments
-    from air_sitl.options import add_flight_arguments
-
     parser.add_argument(
         "plan", metavar="PLAN", help="QGroundControl .plan file or QGC WPL 110 text"
     )
@@ -48,76 +53,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="camera rendering threads (default 2; 0 renders on the simulation thread)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
-    add_flight_arguments(parser, default_speed=0.0)
-    add_map_arguments(parser)
-    add_camera_arguments(parser)
-    add_bus_arguments(parser)
-
-
-def prepare_out_dir(path: Path) -> Path:
-    """Create ``path``; refuse an existing non-empty folder or a file in the way."""
-    from air_sitl.recording import prepare_out_dir as prepare
-
-    return prepare(path)
-
-
-def write_json(path: Path, content: dict[str, Any]) -> None:
-    """Write JSON atomically (temporary name, then rename)."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(content, indent=2, sort_keys=True) + "\n", encoding="utf-8")
-    tmp.replace(path)
-
-
-def _workers(text: str) -> int:
-    from air_sitl.errors import OptionError
-
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if not 0 <= value <= 64:
-        msg = f"--render-workers: {text!r} is not an integer 0..64"
-        raise OptionError(msg)
-    return value
+    add_vehicle_arguments(parser, default_speed=0.0)
 
 
 def run(args: argparse.Namespace) -> int:
     """Fly the plan; exit 0 when the mission completed, 1 when it did not."""
-    from air_sitl.bus.hookup import bus_sinks_from_args
-    from air_sitl.camera.options import camera_from_args
-    from air_sitl.mission.plan_file import load_mission
-    from air_sitl.options import flight_options_from_args
-    from air_sitl.progress import ProgressBar, print_summary
-    from air_sitl.recording import MapChoice, RecordingRequest, record_flight
-
-    options = flight_options_from_args(args)
-    workers = _workers(args.render_workers)
-    camera = None if args.no_camera else camera_from_args(args)
-    plan = Path(args.plan)
-    out = Path(args.out) if args.out else None
-    if out is None:
-        mission = load_mission(plan)
-        out = Path("out") / (mission.name or "flight")
+    setup = load_setup(
+        Path(args.plan),
+        flight_options_from_args(args),
+        camera=None if args.no_camera else camera_from_args(args),
+        map=map_choice_from_args(args),
+        render_workers=int_in_range("--render-workers", args.render_workers, 0, 64),
+    )
+    out = Path(args.out) if args.out else Path("out") / (setup.mission.name or "flight")
     request = RecordingRequest(
-        plan=plan,
-        out=out,
-        options=options,
-        camera=camera,
-        map=MapChoice(spec=args.map, seed=args.map_seed, date=args.map_date),
-        render_workers=workers,
-        resume=bool(args.resume),
-        bus=bus_sinks_from_args(args),
+        setup=setup, out=out, resume=bool(args.resume), bus=bus_sinks_from_args(args)
     )
     show = not args.quiet and sys.stderr.isatty()
     bars: list[ProgressBar] = []
 
-    def on_start(mission: Any, first_frame: int) -> None:
+    def on_start(mission: Mission, first_frame: int) -> None:
         if show:
             bars.append(ProgressBar(mission, sys.stderr))
         if first_frame and not args.quiet:
             print(f"resuming {out} from frame {first_frame}", file=sys.stderr)
 
-    def progress(sample: Any, flight: Any) -> None:
+    def progress(sample: SimSample, flight: Flight) -> None:
         if bars:
             bars[0].update(sample, flight)
 

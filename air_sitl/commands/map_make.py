@@ -14,6 +14,11 @@ import math
 import sys
 from pathlib import Path
 
+from air_sitl.errors import OptionError
+from air_sitl.maps.geotiff import write_geotiff
+from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
+from air_sitl.state import GeoPoint
+
 HELP = "make map files (map make {urban,forest} --out FILE.tif)"
 
 DEFAULT_ORIGIN = (54.6872, 25.2797)  # Vilnius, where AIR was made
@@ -54,8 +59,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _parse_origin(text: str | None) -> tuple[float, float]:
-    from air_sitl.errors import OptionError
-
     if text is None:
         return DEFAULT_ORIGIN
     try:
@@ -72,11 +75,6 @@ def _parse_origin(text: str | None) -> tuple[float, float]:
 
 def run(args: argparse.Namespace) -> int:
     """Generate the map window block by block and write it as a COG."""
-    from air_sitl.errors import OptionError
-    from air_sitl.maps.geotiff import write_geotiff
-    from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
-    from air_sitl.state import GeoPoint
-
     lat, lon = _parse_origin(args.origin)
     out = Path(args.out)
     if out.suffix.lower() not in (".tif", ".tiff"):

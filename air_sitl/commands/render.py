@@ -7,13 +7,25 @@ import math
 import sys
 from pathlib import Path
 
+import cv2
+
+from air_sitl.camera.options import (
+    add_camera_arguments,
+    add_map_arguments,
+    camera_from_args,
+    map_choice_from_args,
+    open_chosen_map,
+)
+from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.errors import OptionError
+from air_sitl.files import write_bytes_atomic
+from air_sitl.state import GeoPoint
+
 HELP = "render one camera frame of a map at a pose to a JPEG (or PNG) file"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``render``."""
-    from air_sitl.camera.options import add_camera_arguments, add_map_arguments
-
     parser.add_argument("--lat", type=float, required=True, help="latitude, degrees")
     parser.add_argument("--lon", type=float, required=True, help="longitude, degrees")
     parser.add_argument(
@@ -34,13 +46,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Render and write the frame; print where its centre falls on the map."""
-    import cv2
-
-    from air_sitl.camera.options import camera_from_args, map_from_args
-    from air_sitl.camera.render import Renderer, pose_state
-    from air_sitl.errors import OptionError
-    from air_sitl.state import GeoPoint
-
     out = Path(args.out)
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         msg = f"--out {out}: expected a .jpg, .jpeg or .png file name"
@@ -56,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         raise OptionError(msg)
     home = GeoPoint(lat_deg=args.lat, lon_deg=args.lon, alt_amsl_m=args.ground_alt_m)
     camera = camera_from_args(args)
-    renderer = Renderer(map_from_args(args, home), camera, seed=args.seed)
+    renderer = Renderer(open_chosen_map(map_choice_from_args(args), home), camera, seed=args.seed)
     state = pose_state(
         args.lat,
         args.lon,
@@ -72,9 +77,7 @@ def run(args: argparse.Namespace) -> int:
         data = bytes(buf)
     else:
         data = renderer.encode(img)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_bytes(data)
-    tmp.replace(out)
+    write_bytes_atomic(out, data)
     centre = renderer.map_xy_px(state)
     where = "no ground" if centre is None else f"map px {centre[0]:.1f}, {centre[1]:.1f}"
     print(f"{out}: {camera.width_px}x{camera.height_px}, centre at {where}", file=sys.stdout)

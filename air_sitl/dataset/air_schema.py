@@ -120,7 +120,6 @@ RECORDING_JSON = ".air-sitl-recording.json"  # present only while a recording is
 ESTIMATES_DIR = "estimates"
 FRAME_PREFIX = "frame_"
 FRAME_SUFFIX = ".jpg"
-TMP_SUFFIX = ".tmp"
 # A GPS fix older than this is reported as "no fix" in frames.csv (denied or lost).
 GPS_STALE_NS = 400_000_000
 

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import PurePosixPath
 from typing import Any
 
+import cv2
 import numpy as np
 
 from air_sitl.clock import CAMERA_PERIOD_NS
@@ -22,11 +23,11 @@ from air_sitl.dataset.air_schema import (
     IMU_COLUMNS,
     IMU_CSV,
     MANIFEST_JSON,
-    TMP_SUFFIX,
     frame_index_of,
 )
 from air_sitl.dataset.manifest import sha256_bytes
 from air_sitl.dataset.reader import AirRow, Archive
+from air_sitl.files import TMP_SUFFIX
 from air_sitl.frames import geodetic2ned, ned2geodetic
 from air_sitl.state import GeoPoint
 
@@ -160,8 +161,6 @@ def _home_tuple(home: GeoPoint) -> tuple[float, float, float]:
 def _check_images(
     archive: Archive, report: CheckReport, problems: _Problems, expected: tuple[int, int] | None
 ) -> None:
-    import cv2
-
     def size_of(k: int) -> tuple[int, int] | str:
         name = archive.rows[k].filename
         if not archive.exists(name):

@@ -12,7 +12,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +19,7 @@ from pathlib import Path
 from air_sitl.dataset.air_schema import AIR_COLUMNS, AIR_HEADER, ESTIMATES_DIR, METADATA_CSV
 from air_sitl.dataset.manifest import refresh_manifest, sha256_bytes
 from air_sitl.errors import DatasetError
+from air_sitl.files import write_bytes_atomic
 from air_sitl.frames import geodetic2ned
 from air_sitl.state import GeoPoint, Quat, Vec3
 
@@ -156,13 +156,6 @@ def fill_svo_columns(archive_dir: Path, positions_enu_by_frame: Mapping[int, Vec
         else:
             out.append(line)
     data = "".join(out).encode("ascii")
-    tmp = path.with_name(path.name + ".svo.tmp")
-    try:
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
-    except OSError as err:
-        tmp.unlink(missing_ok=True)
-        msg = f"{path}: cannot write: {err.strerror}"
-        raise DatasetError(msg) from None
+    write_bytes_atomic(path, data)
     refresh_manifest(archive_dir, {METADATA_CSV: sha256_bytes(data)})
     return filled

@@ -18,6 +18,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from rosbags.rosbag1 import Writer as Writer1
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer as Writer2
+from rosbags.typesys import Stores, get_typestore
 
 from air_sitl.dataset.air_schema import (
     ESTIMATES_DIR,
@@ -155,8 +159,6 @@ class _Builder:
     """Builds rosbags message objects for one typestore (ROS1 and ROS2 differ in details)."""
 
     def __init__(self, ros1: bool) -> None:
-        from rosbags.typesys import Stores, get_typestore
-
         self.ros1 = ros1
         self.store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
         self.t = self.store.types
@@ -267,10 +269,6 @@ def _check_out(out: Path) -> None:
 
 def export_rosbag(archive: Archive, out: Path, *, ros1: bool) -> dict[str, int]:
     """Write every message of ``archive`` to a rosbag2 (MCAP) folder or a rosbag1 file."""
-    from rosbags.rosbag1 import Writer as Writer1
-    from rosbags.rosbag2 import StoragePlugin
-    from rosbags.rosbag2 import Writer as Writer2
-
     _check_out(out)
     builder = _Builder(ros1)
     counts: dict[str, int] = {}

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -20,9 +19,9 @@ from air_sitl.dataset.air_schema import (
     MANIFEST_JSON,
     RECORDING_JSON,
     SUMMARY_JSON,
-    TMP_SUFFIX,
 )
 from air_sitl.errors import DatasetError
+from air_sitl.files import TMP_SUFFIX, write_json_atomic
 
 MANIFEST_FORMAT = "air-sitl-archive"
 MANIFEST_VERSION = 1
@@ -41,26 +40,6 @@ def sha256_file(path: Path) -> str:
         while block := f.read(1 << 20):
             h.update(block)
     return h.hexdigest()
-
-
-def write_json_atomic(path: Path, content: Mapping[str, Any]) -> None:
-    """Write JSON to a temporary name, fsync, rename into place (DatasetError on failure)."""
-    tmp = path.with_name(path.name + TMP_SUFFIX)
-    data = (json.dumps(content, indent=2) + "\n").encode("utf-8")
-    try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-        try:
-            view = memoryview(data)
-            while view:
-                view = view[os.write(fd, view) :]
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-        os.replace(tmp, path)
-    except OSError as err:
-        tmp.unlink(missing_ok=True)
-        msg = f"{path}: cannot write: {err.strerror}"
-        raise DatasetError(msg) from None
 
 
 def archive_files(folder: Path) -> list[str]:

@@ -17,13 +17,15 @@ import zipfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from types import TracebackType
 from typing import Any
 
+import cv2
 import numpy as np
 import numpy.typing as npt
+import yaml
 
 from air_sitl.clock import CAMERA_PERIOD_NS
+from air_sitl.closeable import Closeable
 from air_sitl.dataset.air_schema import (
     AIR_COLUMNS,
     CAMERA_YAML,
@@ -178,7 +180,7 @@ def _split_lines(data: bytes, where: str) -> tuple[list[list[str]], bool]:
     return (list(csv.reader(io.StringIO(text))), torn)
 
 
-class Archive:
+class Archive(Closeable):
     """An opened archive: its rows, timestamps, manifest and camera; iterate for frames."""
 
     def __init__(self, path: Path) -> None:
@@ -259,8 +261,6 @@ class Archive:
 
     def image(self, index: int) -> Image:
         """The decoded image (BGR) of frame ``index``."""
-        import cv2
-
         data = self.jpeg(index)
         image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
         if image is None:
@@ -272,8 +272,6 @@ class Archive:
         """``camera.yaml`` (ROS camera_info layout plus FOV and mounting), when present."""
         if not self._store.exists(CAMERA_YAML):
             return None
-        import yaml
-
         value = yaml.safe_load(self._store.read(CAMERA_YAML).decode("utf-8"))
         return value if isinstance(value, dict) else None
 
@@ -297,17 +295,6 @@ class Archive:
     def close(self) -> None:
         """Close the zip file, if any."""
         self._store.close()
-
-    def __enter__(self) -> Archive:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def open_archive(path: str | Path) -> Archive:

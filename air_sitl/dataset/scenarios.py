@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import air_sitl
 from air_sitl.errors import OptionError
 
 # Table 2 of the AIR paper (SPEC section 1): images at 50 Hz, flown distance in metres.
@@ -46,8 +47,6 @@ def missions_dir(explicit: str | None = None) -> Path:
             msg = f"--missions {explicit}: no such folder"
             raise OptionError(msg)
         return path
-    import air_sitl
-
     candidates = [
         Path(air_sitl.__file__).resolve().parent.parent / "missions",  # editable install
         Path.cwd() / "missions",

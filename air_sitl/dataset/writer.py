@@ -17,7 +17,6 @@ writing and is raised as a one-line :class:`~air_sitl.errors.DatasetError` at th
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import queue
@@ -39,20 +38,15 @@ from air_sitl.dataset.air_schema import (
     METADATA_CSV,
     RECORDING_JSON,
     SUMMARY_JSON,
-    TMP_SUFFIX,
     frame_filename,
     frame_index_of,
     frames_row,
     imu_row,
     metadata_row,
 )
-from air_sitl.dataset.manifest import (
-    hash_files,
-    sha256_bytes,
-    write_json_atomic,
-    write_manifest,
-)
+from air_sitl.dataset.manifest import hash_files, sha256_bytes, write_manifest
 from air_sitl.errors import DatasetError
+from air_sitl.files import TMP_SUFFIX, write_all, write_bytes_atomic, write_error, write_json_atomic
 from air_sitl.sinks import FlightResult, NullSink
 from air_sitl.state import CameraFrame, GpsFix, SimSample
 
@@ -76,32 +70,6 @@ class ArchiveInfo:
     plan_text: str
     manifest: Mapping[str, Any] = field(default_factory=dict)
     run_key: Mapping[str, Any] = field(default_factory=dict)
-
-
-def _os_error(path: Path, err: OSError) -> DatasetError:
-    return DatasetError(f"{path}: cannot write: {err.strerror or err}")
-
-
-def _write_all(fd: int, data: bytes) -> None:
-    view = memoryview(data)
-    while view:
-        view = view[os.write(fd, view) :]
-
-
-def _write_file_atomic(path: Path, data: bytes) -> None:
-    """Write to ``<path>.tmp`` and rename into place; the temporary name never stays."""
-    tmp = path.with_name(path.name + TMP_SUFFIX)
-    try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-        try:
-            _write_all(fd, data)
-        finally:
-            os.close(fd)
-        os.replace(tmp, path)
-    except OSError as err:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise _os_error(path, err) from None
 
 
 class DatasetWriter(NullSink):
@@ -142,13 +110,13 @@ class DatasetWriter(NullSink):
         try:
             folder.mkdir(parents=True, exist_ok=True)
         except OSError as err:
-            raise _os_error(folder, err) from None
+            raise write_error(folder, err) from None
         marker = {"scenario": info.scenario, "run_key": dict(info.run_key)}
         write_json_atomic(folder / RECORDING_JSON, marker)
         self._open_streams()
         try:
-            _write_file_atomic(folder / CAMERA_YAML, info.camera_yaml.encode("utf-8"))
-            _write_file_atomic(folder / info.plan_name, info.plan_text.encode("utf-8"))
+            write_bytes_atomic(folder / CAMERA_YAML, info.camera_yaml.encode("utf-8"))
+            write_bytes_atomic(folder / info.plan_name, info.plan_text.encode("utf-8"))
         except DatasetError:
             for fd in self._fds.values():
                 os.close(fd)
@@ -211,7 +179,7 @@ class DatasetWriter(NullSink):
                 if self.error is None:
                     os.fsync(fd)
             except OSError as err:
-                self.error = self.error or _os_error(self.folder / name, err)
+                self.error = self.error or write_error(self.folder / name, err)
             finally:
                 os.close(fd)
         self._fds = {}
@@ -273,11 +241,11 @@ class DatasetWriter(NullSink):
                     fd = os.open(path, os.O_WRONLY | os.O_APPEND)
                 else:
                     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
-                    _write_all(fd, header.encode("ascii"))
+                    write_all(fd, header.encode("ascii"))
             except OSError as err:
                 for other in self._fds.values():
                     os.close(other)
-                raise _os_error(path, err) from None
+                raise write_error(path, err) from None
             self._fds[name] = fd
 
     def _post(self, item: tuple[Any, ...], *, check: bool = True) -> None:
@@ -304,27 +272,11 @@ class DatasetWriter(NullSink):
         except DatasetError as err:
             self.error = err
 
-    def _write_image(self, name: str, jpeg: bytes) -> None:
-        """:func:`_write_file_atomic` with plain string paths (this runs for every frame)."""
-        final = os.path.join(self._folder_str, name)
-        tmp = final + TMP_SUFFIX
-        try:
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-            try:
-                _write_all(fd, jpeg)
-            finally:
-                os.close(fd)
-            os.replace(tmp, final)
-        except OSError as err:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
-            raise _os_error(Path(final), err) from None
-
     def _handle(self, item: tuple[Any, ...]) -> None:
         kind = item[0]
         if kind == "frame":
             _, name, jpeg, meta, extra = item
-            self._write_image(name, jpeg)
+            write_bytes_atomic(os.path.join(self._folder_str, name), jpeg)
             self.jpeg_hashes[name] = sha256_bytes(jpeg)
             self._meta_buf.append(meta)
             self._frames_buf.append(extra)
@@ -341,9 +293,9 @@ class DatasetWriter(NullSink):
                 data = "".join(buf).encode("ascii")
                 buf.clear()
                 try:
-                    _write_all(self._fds[name], data)
+                    write_all(self._fds[name], data)
                 except OSError as err:
-                    raise _os_error(self.folder / name, err) from None
+                    raise write_error(self.folder / name, err) from None
 
 
 def _frame_time_span(frames_csv: Path) -> tuple[int | None, int | None]:

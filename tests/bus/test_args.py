@@ -10,17 +10,18 @@ from air_sitl.bus.args import (
     add_bus_arguments,
     bus_config_from_args,
     bus_options_from_args,
-    gps_denied_from_args,
     parse_wait_for,
 )
 from air_sitl.bus.session import DEFAULT_ENDPOINT, BusConfig, zenoh_config
 from air_sitl.cli import build_parser
 from air_sitl.errors import OptionError
+from air_sitl.options import add_gps_denial_arguments, gps_denied_from_args
 
 
 def parse(*argv: str) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
     add_bus_arguments(parser)
+    add_gps_denial_arguments(parser)
     return parser.parse_args(list(argv))
 
 

@@ -7,7 +7,6 @@ import threading
 import pytest
 
 from air_sitl.bus.codec import decode_frame_meta
-from air_sitl.bus.hookup import camera_fields
 from air_sitl.bus.keys import KeySpace
 from air_sitl.bus.publisher import BusPublisher, PublishOptions
 from air_sitl.bus.remote_camera import (
@@ -54,7 +53,7 @@ def factory(settings: RenderSettings) -> RenderFn:
 def test_remote_frames_are_byte_identical_in_order_and_wait_for_a_late_bridge() -> None:
     sim, bridge = pair(free_endpoint())
     with sim, bridge:
-        settings = RenderSettings(home=HOME, camera=camera_fields(CAMERA), seed=11)
+        settings = RenderSettings(home=HOME, camera=CAMERA.settings(), seed=11)
         remote = RemoteCamera(sim, KEYS, settings, timeout_s=10.0, max_in_flight=4)
         samples = [
             make_sample(k * CAMERA_PERIOD_NS, east_m=0.3 * k, yaw_rad=1.0 + 0.01 * k)
@@ -101,7 +100,7 @@ def test_free_running_bridge_renders_truth_with_a_frame_index() -> None:
     with sim, bridge:
 
         def free(home: GeoPoint) -> RenderSettings:
-            return RenderSettings(home=home, camera=camera_fields(CAMERA), seed=5)
+            return RenderSettings(home=home, camera=CAMERA.settings(), seed=5)
 
         server = CameraBridgeServer(bridge, KEYS, factory, free_settings=free)
         got: list[Message] = []

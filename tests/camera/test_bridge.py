@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 from georef_helpers import HOME
 
 from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state, render_camera_frame
-from air_sitl.camera.sink import JpegFolderSink
 from air_sitl.frames import ned2geodetic
 from air_sitl.maps.open import open_map
 from air_sitl.state import SimSample, mission_sample
@@ -60,16 +58,3 @@ def test_inline_bridge_without_workers() -> None:
     assert [f.index for f in frames] == [0, 1, 2]
     assert bridge.flush() == []
     bridge.close()
-
-
-def test_jpeg_folder_sink_writes_frames(tmp_path: Path) -> None:
-    renderer = Renderer(open_map("urban", HOME), CameraModel(width_px=160, height_px=120))
-    sink = JpegFolderSink(tmp_path / "frames")
-    for i, s in enumerate(_samples(3)):
-        sink.on_frame(render_camera_frame(renderer, s, i))
-    assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == [
-        "000000.jpg",
-        "000001.jpg",
-        "000002.jpg",
-    ]
-    assert (tmp_path / "frames" / "000002.jpg").read_bytes()[:2] == b"\xff\xd8"

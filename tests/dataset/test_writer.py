@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 import air_sitl.dataset
+from air_sitl.camera.info import camera_yaml_dict, camera_yaml_text
 from air_sitl.dataset.air_schema import AIR_COLUMNS, frame_filename
-from air_sitl.dataset.camera_info import camera_yaml_dict, camera_yaml_text
 from air_sitl.dataset.check import check_archive
 from air_sitl.dataset.estimates import fill_svo_columns
 from air_sitl.dataset.writer import ArchiveInfo, DatasetWriter, recover_partial

@@ -19,6 +19,7 @@ import pytest
 from gcs import PX4_MISSION, Gcs, serve
 from pymavlink import mavutil
 
+from air_sitl.camera.info import camera_yaml_for
 from air_sitl.camera.model import CameraModel
 from air_sitl.mavlink.codec import (
     Encoder,
@@ -32,7 +33,6 @@ from air_sitl.mavlink.mission_protocol import same_items
 from air_sitl.mavlink.telemetry import custom_mode
 from air_sitl.mission.items import MavCmd, MissionItem
 from air_sitl.mission.plan_file import load_mission
-from air_sitl.recording import camera_yaml_for
 from air_sitl.state import FlightMode
 
 REPO = Path(__file__).resolve().parents[2]

@@ -1,7 +1,9 @@
-"""``camera.yaml``: intrinsics in the ROS ``camera_info`` YAML layout, plus FOV and mounting.
+"""The camera's intrinsics and mounting as others take them: one source for every consumer.
 
-The layout is the one ``camera_calibration_parsers`` reads (image_width, camera_matrix with
-rows/cols/data, ...), so ROS tools load it as is; the extra keys describe the mounting.
+``camera.yaml`` of an archive (the ROS ``camera_info`` YAML layout that
+``camera_calibration_parsers`` reads: image_width, camera_matrix with rows/cols/data ...,
+plus FOV and mounting), the JSON fields a manifest records, and the camera-to-body quaternion
+the bus's ``camera/info`` carries. Everything follows from :class:`CameraModel`.
 """
 
 from __future__ import annotations
@@ -9,6 +11,10 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
+
+import yaml
+
+from air_sitl.camera.model import CameraModel
 
 DEFAULT_MOUNTING = (
     "optical axis along body +z (down), image x (right) along body +y (right wing), "
@@ -81,27 +87,7 @@ def camera_yaml_dict(
 
 def camera_yaml_text(content: Mapping[str, Any]) -> str:
     """YAML text of :func:`camera_yaml_dict` (keys in the given order, deterministic)."""
-    import yaml
-
     return str(yaml.safe_dump(dict(content), sort_keys=False, default_flow_style=None))
-
-
-def default_camera_yaml(width_px: int = 640, height_px: int = 480, hfov_deg: float = 57.0) -> str:
-    """camera.yaml of AIR's camera (pinhole, principal point at the centre, nose up)."""
-    f = (width_px / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
-    # Camera (x right, y down, z forward) in body FRD: x->+y_b, y->-x_b, z->+z_b.
-    q = matrix_to_quat(((0.0, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 0.0, 1.0)))
-    return camera_yaml_text(
-        camera_yaml_dict(
-            width_px=width_px,
-            height_px=height_px,
-            fx_px=f,
-            fy_px=f,
-            cx_px=width_px / 2.0,
-            cy_px=height_px / 2.0,
-            q_camera_to_body_wxyz=q,
-        )
-    )
 
 
 def matrix_to_quat(m: Sequence[Sequence[float]]) -> tuple[float, float, float, float]:
@@ -118,3 +104,43 @@ def matrix_to_quat(m: Sequence[Sequence[float]]) -> tuple[float, float, float, f
         return ((m[0][2] - m[2][0]) / s, (m[0][1] + m[1][0]) / s, 0.25 * s, (m[1][2] + m[2][1]) / s)
     s = math.sqrt(1.0 + m[2][2] - m[0][0] - m[1][1]) * 2
     return ((m[1][0] - m[0][1]) / s, (m[0][2] + m[2][0]) / s, (m[1][2] + m[2][1]) / s, 0.25 * s)
+
+
+def q_cam_to_body_wxyz(camera: CameraModel) -> tuple[float, float, float, float]:
+    """The camera's mounting as a scalar-first quaternion, camera frame to body FRD."""
+    r = camera.r_cam_to_body()
+    return matrix_to_quat([[float(r[i][j]) for j in range(3)] for i in range(3)])
+
+
+def camera_fields(camera: CameraModel) -> dict[str, Any]:
+    """The model's settings and intrinsics as JSON values (what a manifest records)."""
+    return {
+        **camera.settings(),
+        "fx_px": camera.fx_px,
+        "fy_px": camera.fy_px,
+        "cx_px": camera.cx_px,
+        "cy_px": camera.cy_px,
+    }
+
+
+def camera_yaml_for(camera: CameraModel) -> str:
+    """``camera.yaml`` of a camera model (ROS camera_info layout + FOV, mounting, noise)."""
+    mounting = DEFAULT_MOUNTING
+    if any(a != 0.0 for a in camera.mount_rpy_deg):
+        mounting = f"{DEFAULT_MOUNTING}; then rotated by roll/pitch/yaw {camera.mount_rpy_deg} deg"
+    content = camera_yaml_dict(
+        width_px=camera.width_px,
+        height_px=camera.height_px,
+        fx_px=camera.fx_px,
+        fy_px=camera.fy_px,
+        cx_px=camera.cx_px,
+        cy_px=camera.cy_px,
+        q_camera_to_body_wxyz=q_cam_to_body_wxyz(camera),
+        mounting=mounting,
+        extra={
+            "mount_rpy_deg": [float(a) for a in camera.mount_rpy_deg],
+            "noise_sigma": float(camera.noise_sigma),
+            "jpeg_quality": int(camera.jpeg_quality),
+        },
+    )
+    return camera_yaml_text(content)
