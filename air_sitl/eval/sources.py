@@ -19,6 +19,7 @@ import csv
 import io
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +27,7 @@ import numpy as np
 from air_sitl.dataset.air_schema import ESTIMATES_DIR, METADATA_CSV
 from air_sitl.dataset.reader import Archive
 from air_sitl.eval.errors import EvalError
-from air_sitl.eval.trajectory import NO_FRAME, NO_TIME, Estimate, Truth
+from air_sitl.eval.trajectory import F64, I64, NO_FRAME, NO_TIME, Bools, Estimate, Truth
 from air_sitl.frames import geodetic2ned
 from air_sitl.state import GeoPoint
 
@@ -138,8 +139,24 @@ def _check_time_order(t_ns: list[int], lines: list[int], where: str) -> None:
         prev_t, prev_line = t, line
 
 
+@dataclass(frozen=True, slots=True)
+class _Layout:
+    """Where the columns of an estimates CSV are."""
+
+    width: int
+    frame: int | None
+    time: int | None
+    enu: list[int] | None
+    geo: list[int] | None
+    latency: int | None
+
+
 def parse_csv(text: str, where: str, name: str, home: GeoPoint | None) -> Estimate:
-    """Estimates in the bus recorder's CSV format (see the module docstring)."""
+    """Estimates in the bus recorder's CSV format (see the module docstring).
+
+    Parsed column-wise with numpy; a file that does not pass is parsed again row by row to
+    name the first bad line and value.
+    """
     if not text.strip():
         msg = f"{where}: empty file (expected a header: sim_time_ns,frame,east_m,north_m,up_m,...)"
         raise EvalError(msg)
@@ -149,30 +166,153 @@ def parse_csv(text: str, where: str, name: str, home: GeoPoint | None) -> Estima
     if "frame" not in col and "sim_time_ns" not in col:
         msg = f"{where}: line 1: no frame or sim_time_ns column (header {','.join(header)!r})"
         raise EvalError(msg)
-    enu = [col[c] for c in ENU_COLUMNS] if all(c in col for c in ENU_COLUMNS) else None
-    geo = [col[c] for c in GEO_COLUMNS] if all(c in col for c in GEO_COLUMNS) else None
-    if enu is None and geo is None:
+    layout = _Layout(
+        width=len(header),
+        frame=col.get("frame"),
+        time=col.get("sim_time_ns"),
+        enu=[col[c] for c in ENU_COLUMNS] if all(c in col for c in ENU_COLUMNS) else None,
+        geo=[col[c] for c in GEO_COLUMNS] if all(c in col for c in GEO_COLUMNS) else None,
+        latency=col.get("latency_wall_ms"),
+    )
+    if layout.enu is None and layout.geo is None:
         msg = (
             f"{where}: line 1: no position columns (expected {','.join(ENU_COLUMNS)} or "
             f"{','.join(GEO_COLUMNS)}; header {','.join(header)!r})"
         )
         raise EvalError(msg)
-    i_frame, i_time = col.get("frame"), col.get("sim_time_ns")
-    i_latency = col.get("latency_wall_ms")
+    table = [
+        (line, fields)
+        for line, fields in enumerate(reader, start=2)
+        if fields and not (len(fields) == 1 and not fields[0].strip())
+    ]
+    fast = _columns(table, layout, home)
+    if fast is None:
+        fast = _rows(table, layout, home, where)  # raises on the first bad value
+    line, frame, t_ns, pos, latency = fast
+    return Estimate(
+        name=name,
+        where=where,
+        line=line,
+        frame=frame,
+        t_ns=t_ns,
+        pos_enu_m=pos,
+        latency_wall_ms=latency,
+    )
+
+
+_Parsed = tuple[I64, I64, I64, F64, F64 | None]
+
+
+def _float_column(cells: list[str]) -> F64 | None:
+    """Numbers of one column ('' and nan: NaN); None when a cell is text or infinite."""
+    arr = np.array([c or "nan" for c in cells], dtype=np.str_)
+    try:
+        values = arr.astype(np.float64)
+    except ValueError:
+        return None
+    return None if np.isinf(values).any() else values
+
+
+def _int_column(cells: list[str]) -> tuple[I64, Bools] | None:
+    """Integers of one column and where they are present; None when a cell is not one."""
+    arr = np.array(cells, dtype=np.str_)
+    present = arr != ""
+    out = np.zeros(arr.shape[0], dtype=np.int64)
+    try:
+        out[present] = arr[present].astype(np.int64)
+    except (ValueError, OverflowError):
+        return None
+    return out, present
+
+
+def _triple_columns(table: list[tuple[int, list[str]]], idx: list[int]) -> F64 | None:
+    columns = [_float_column([f[k] for _, f in table]) for k in idx]
+    if any(c is None for c in columns):
+        return None
+    pos = np.column_stack([c for c in columns if c is not None])
+    finite = np.isfinite(pos)
+    if (finite.any(axis=1) & ~finite.all(axis=1)).any():
+        return None
+    return pos
+
+
+def _columns(
+    table: list[tuple[int, list[str]]], layout: _Layout, home: GeoPoint | None
+) -> _Parsed | None:
+    """The whole table column-wise; None when any row needs the row-by-row diagnosis."""
+    n = len(table)
+    if any(len(f) != layout.width for _, f in table):
+        return None
+    frame = np.full(n, NO_FRAME, dtype=np.int64)
+    t_ns = np.full(n, NO_TIME, dtype=np.int64)
+    has_frame = np.zeros(n, dtype=bool)
+    has_time = np.zeros(n, dtype=bool)
+    for index, target, present in ((layout.frame, frame, has_frame), (layout.time, t_ns, has_time)):
+        if index is None:
+            continue
+        parsed = _int_column([f[index] for _, f in table])
+        if parsed is None:
+            return None
+        values, mask = parsed
+        target[mask] = values[mask]
+        present[:] = mask
+    if not (has_frame | has_time).all():
+        return None
+    times = t_ns[has_time]
+    if times.size > 1 and (np.diff(times) <= 0).any():
+        return None
+    pos = np.full((n, 3), np.nan)
+    if layout.enu is not None:
+        enu = _triple_columns(table, layout.enu)
+        if enu is None:
+            return None
+        pos = enu
+    if layout.geo is not None:
+        geo = _triple_columns(table, layout.geo)
+        if geo is None:
+            return None
+        need = np.flatnonzero(~np.isfinite(pos).all(axis=1) & np.isfinite(geo).all(axis=1))
+        if need.size and home is None:
+            return None
+        for k in need:
+            assert home is not None
+            lat, lon, alt = (float(v) for v in geo[k])
+            north, east, down = geodetic2ned(
+                lat, lon, alt, home.lat_deg, home.lon_deg, home.alt_amsl_m
+            )
+            pos[k] = (east, north, -down)
+    latency = None
+    if layout.latency is not None:
+        latency = _float_column([f[layout.latency] for _, f in table])
+        if latency is None:
+            return None
+    line = np.array([k for k, _ in table], dtype=np.int64)
+    return line, frame, t_ns, pos, latency
+
+
+def _rows(
+    table: list[tuple[int, list[str]]], layout: _Layout, home: GeoPoint | None, where: str
+) -> _Parsed:
+    """Row by row, raising :class:`EvalError` on the first bad line and value."""
     lines: list[int] = []
     frames: list[int] = []
     times: list[int] = []
     positions: list[Triple] = []
     latencies: list[float] = []
     nan3 = (math.nan, math.nan, math.nan)
-    for line, fields in enumerate(reader, start=2):
-        if not fields or (len(fields) == 1 and not fields[0].strip()):
-            continue
-        if len(fields) != len(header):
-            msg = f"{where}: line {line}: {len(fields)} fields, expected {len(header)}"
+    enu, geo = layout.enu, layout.geo
+    for line, fields in table:
+        if len(fields) != layout.width:
+            msg = f"{where}: line {line}: {len(fields)} fields, expected {layout.width}"
             raise EvalError(msg)
-        frame = None if i_frame is None else _integer(fields[i_frame], where, line, "frame")
-        t = None if i_time is None else _integer(fields[i_time], where, line, "sim_time_ns")
+        frame = (
+            None if layout.frame is None else _integer(fields[layout.frame], where, line, "frame")
+        )
+        t = (
+            None
+            if layout.time is None
+            else _integer(fields[layout.time], where, line, "sim_time_ns")
+        )
         if frame is None and t is None:
             msg = f"{where}: line {line}: neither a frame nor a sim_time_ns"
             raise EvalError(msg)
@@ -192,17 +332,15 @@ def parse_csv(text: str, where: str, name: str, home: GeoPoint | None) -> Estima
         frames.append(NO_FRAME if frame is None else frame)
         times.append(NO_TIME if t is None else t)
         positions.append(nan3 if pos is None else pos)
-        if i_latency is not None:
-            latencies.append(_number(fields[i_latency], where, line, "latency_wall_ms"))
+        if layout.latency is not None:
+            latencies.append(_number(fields[layout.latency], where, line, "latency_wall_ms"))
     _check_time_order(times, lines, where)
-    return Estimate(
-        name=name,
-        where=where,
-        line=np.array(lines, dtype=np.int64),
-        frame=np.array(frames, dtype=np.int64),
-        t_ns=np.array(times, dtype=np.int64),
-        pos_enu_m=np.array(positions, dtype=np.float64).reshape(-1, 3),
-        latency_wall_ms=None if i_latency is None else np.array(latencies, dtype=np.float64),
+    return (
+        np.array(lines, dtype=np.int64),
+        np.array(frames, dtype=np.int64),
+        np.array(times, dtype=np.int64),
+        np.array(positions, dtype=np.float64).reshape(-1, 3),
+        None if layout.latency is None else np.array(latencies, dtype=np.float64),
     )
 
 
