@@ -74,10 +74,8 @@ def umeyama(est_m: F64, truth_m: F64, *, with_scale: bool) -> Alignment | None:
 
 def fit(method: str, est_m: F64, truth_m: F64) -> Alignment | None:
     """The alignment ``method`` of the estimate onto the truth; None when not computable."""
-    if method == "none":
-        return IDENTITY
-    if est_m.shape[0] == 0:
-        return None
+    if method == "none" or est_m.shape[0] == 0:
+        return IDENTITY  # nothing estimated: nothing to move, every frame is a miss
     if method == "posyaw":
         return posyaw(est_m, truth_m)
     if method in ("se3", "sim3"):

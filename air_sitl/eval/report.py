@@ -96,7 +96,9 @@ def score(truth: Truth, est: Estimate, align: str = "none", archive: str = "") -
         "distance_m": distance,
         "horizontal_error_m": metrics.stats(h_err),
         "error_3d_m": metrics.stats(e3),
-        "recall": metrics.recall(h_err, n),
+        "recall": metrics.recall(h_err, n)
+        if fitted is not None
+        else dict.fromkeys(metrics.recall(empty, n), None),
         "final_error_m": final,
         "drift_pct": None if final is None or distance <= 0.0 else final / distance * 100.0,
         "rpe": rpe(None),

@@ -222,3 +222,16 @@ def test_longest_run() -> None:
     assert longest_run(np.array([False, True, True, False, True])) == 2
     assert longest_run(np.zeros(3, dtype=bool)) == 0
     assert longest_run(np.ones(3, dtype=bool)) == 3
+
+
+def test_an_alignment_that_cannot_be_computed_gives_null_figures_not_zeros() -> None:
+    truth = make_truth(wiggly(100))
+    two = np.array([10, 60], dtype=np.int64)
+    report = score(truth, by_frame(truth.pos_enu_m[two], two), "se3").report
+    assert report["estimated_frames"] == 2 and report["availability"] == 0.02
+    assert report["horizontal_error_m"]["rmse"] is None
+    assert report["recall"] == {"5m": None, "10m": None, "25m": None, "50m": None}
+    assert report["final_error_m"] is None
+    # with nothing estimated every frame is a miss, whatever the alignment
+    none = score(truth, by_frame(np.full((100, 3), np.nan)), "sim3").report
+    assert none["recall"] == {"5m": 0.0, "10m": 0.0, "25m": 0.0, "50m": 0.0}
