@@ -145,6 +145,11 @@ def _wrap_pi(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def _winding_up(out: float, lo: float, hi: float, push: float) -> bool:
+    """True while ``out`` sits at a limit and ``push`` drives it further in (anti-windup)."""
+    return (out >= hi and push > 0.0) or (out <= lo and push < 0.0)
+
+
 class Controller:
     """The control laws of every phase; state is a handful of plain floats (integrators).
 
@@ -218,6 +223,10 @@ class Controller:
         v = airspeed_m_s if airspeed_m_s > 0.5 * g.min_airspeed_m_s else 0.5 * g.min_airspeed_m_s
         return _clamp((g.ref_airspeed_m_s / v) ** 2, 0.3, 3.0)
 
+    def _integrate(self, value: float, rate: float, limit: float) -> float:
+        """One step of an integrator, kept within [-limit, limit]."""
+        return _clamp(value + rate * self.dt_s, -limit, limit)
+
     def _aileron(self, state: VehicleState, bank_cmd_rad: float, scale: float) -> float:
         g = self.gains
         err = _clamp(bank_cmd_rad, -g.max_bank_rad, g.max_bank_rad) - state.roll_rad
@@ -225,10 +234,8 @@ class Controller:
         out = _clamp(scale * raw, -1.0, 1.0)
         # Anti-windup: integrate only in the air and while the output is not pushed further
         # into its limit.
-        if not (state.on_ground or (out >= 1.0 and err > 0.0) or (out <= -1.0 and err < 0.0)):
-            self._roll_i = _clamp(
-                self._roll_i + g.roll_ki * err * self.dt_s, -g.roll_i_limit, g.roll_i_limit
-            )
+        if not (state.on_ground or _winding_up(out, -1.0, 1.0, err)):
+            self._roll_i = self._integrate(self._roll_i, g.roll_ki * err, g.roll_i_limit)
         return out
 
     def _elevator(self, state: VehicleState, pitch_cmd_rad: float, scale: float) -> float:
@@ -242,12 +249,10 @@ class Controller:
         q_ff = GRAVITY_M_S2 / v * math.sin(phi) ** 2 / cos_phi
         fb = -g.pitch_kp * err + g.pitch_kd * (state.rate_frd_rad_s[1] - q_ff)
         out = _clamp(self._pitch_i + scale * fb, -1.0, 1.0)
-        # The integrator is the elevator trim; elevator + = nose down, hence the minus sign.
-        if not ((out <= -1.0 and err > 0.0) or (out >= 1.0 and err < 0.0)):
-            self._pitch_i = _clamp(
-                self._pitch_i - scale * g.pitch_ki * err * self.dt_s,
-                -g.pitch_i_limit,
-                g.pitch_i_limit,
+        # The integrator is the elevator trim; elevator + = nose down, hence the minus signs.
+        if not _winding_up(out, -1.0, 1.0, -err):
+            self._pitch_i = self._integrate(
+                self._pitch_i, -(scale * g.pitch_ki * err), g.pitch_i_limit
             )
         return out
 
@@ -292,10 +297,8 @@ class Controller:
         speed_dem = _clamp(target.airspeed_m_s, g.min_airspeed_m_s, g.max_airspeed_m_s)
         # Pitch for airspeed: too fast -> pitch up. The balance integrator trims the attitude.
         speed_err = state.airspeed_m_s - speed_dem
-        self._balance_i = _clamp(
-            self._balance_i + g.climb_speed_k * 0.2 * speed_err * self.dt_s,
-            -g.energy_i_limit,
-            g.energy_i_limit,
+        self._balance_i = self._integrate(
+            self._balance_i, g.climb_speed_k * 0.2 * speed_err, g.energy_i_limit
         )
         pitch_cmd = g.climb_pitch_rad + g.climb_speed_k * speed_err + self._balance_i
         pitch_cmd = max(pitch_cmd, g.trim_pitch_rad)
@@ -356,23 +359,16 @@ class Controller:
         thr_ff = g.trim_throttle + g.throttle_ff * ste_dem + 0.25 * turn * g.trim_throttle
         throttle = thr_ff + g.throttle_kp * ste_err + self._throttle_i
         throttle_out = _clamp(throttle, 0.0, 1.0)
-        if not ((throttle >= 1.0 and ste_err > 0.0) or (throttle <= 0.0 and ste_err < 0.0)):
-            self._throttle_i = _clamp(
-                self._throttle_i + g.throttle_ki * ste_err * self.dt_s,
-                -g.energy_i_limit,
-                g.energy_i_limit,
+        if not _winding_up(throttle, 0.0, 1.0, ste_err):
+            self._throttle_i = self._integrate(
+                self._throttle_i, g.throttle_ki * ste_err, g.energy_i_limit
             )
         # Energy balance -> pitch.
         seb_err = (gamma_dem - acc_dem) - (gamma - acc)
         pitch = g.trim_pitch_rad + gamma_dem + g.balance_kp * seb_err + self._balance_i
-        if not (
-            (pitch >= g.max_pitch_rad and seb_err > 0.0)
-            or (pitch <= g.min_pitch_rad and seb_err < 0.0)
-        ):
-            self._balance_i = _clamp(
-                self._balance_i + g.balance_ki * seb_err * self.dt_s,
-                -g.energy_i_limit,
-                g.energy_i_limit,
+        if not _winding_up(pitch, g.min_pitch_rad, g.max_pitch_rad, seb_err):
+            self._balance_i = self._integrate(
+                self._balance_i, g.balance_ki * seb_err, g.energy_i_limit
             )
         return pitch, throttle_out
 
@@ -406,7 +402,7 @@ class Controller:
             # Glide: pitch for the approach airspeed, throttle idle.
             speed_dem = _clamp(target.airspeed_m_s, g.min_airspeed_m_s, g.max_airspeed_m_s)
             speed_err = state.airspeed_m_s - speed_dem
-            self._balance_i = _clamp(self._balance_i + 0.01 * speed_err * self.dt_s, -0.2, 0.2)
+            self._balance_i = self._integrate(self._balance_i, 0.01 * speed_err, 0.2)
             pitch_cmd = g.trim_pitch_rad - 0.06 + 0.05 * speed_err + self._balance_i
             bank = target.roll_rad
         else:

@@ -88,11 +88,16 @@ NewParser = Callable[[], object]
 
 
 class Link:
-    """Base of the three link kinds."""
+    """Base of the three link kinds: the peers, and the one socket each link binds."""
 
-    spec: LinkSpec
-    encoder: object  # codec.Encoder of this link (its own sequence numbers)
-    channels: dict[Address, Channel]
+    _sock: socket.socket
+
+    def __init__(self, spec: LinkSpec, encoder: object, receive: ReceiveFn, new_parser: NewParser):
+        self.spec = spec
+        self.encoder = encoder  # codec.Encoder of this link (its own sequence numbers)
+        self.channels: dict[Address, Channel] = {}
+        self._receive = receive
+        self._new_parser = new_parser
 
     def register(self, sel: selectors.BaseSelector) -> None:
         """Add this link's sockets to the selector."""
@@ -113,18 +118,15 @@ class Link:
     @property
     def local_address(self) -> Address:
         """Where the link's socket is bound (the real port when the URL said 0)."""
-        raise NotImplementedError
+        host, port = self._sock.getsockname()[:2]
+        return str(host), int(port)
 
 
 class UdpLink(Link):
     """``udpout`` (send first to HOST:PORT, answer whoever replies) or ``udpin`` (bind)."""
 
     def __init__(self, spec: LinkSpec, encoder: object, receive: ReceiveFn, new_parser: NewParser):
-        self.spec = spec
-        self.encoder = encoder
-        self.channels = {}
-        self._receive = receive
-        self._new_parser = new_parser
+        super().__init__(spec, encoder, receive, new_parser)
         self._sock = socket.socket(_family(spec.host), socket.SOCK_DGRAM)
         self._sock.setblocking(False)
         try:
@@ -142,12 +144,6 @@ class UdpLink(Link):
             self._sock.close()
             msg = f"--mavlink {spec}: cannot open the UDP socket: {err.strerror}"
             raise MavlinkError(msg) from None
-
-    @property
-    def local_address(self) -> Address:
-        """Bound address."""
-        host, port = self._sock.getsockname()[:2]
-        return str(host), int(port)
 
     def _channel(self, address: Address) -> Channel:
         ch = self.channels.get(address)
@@ -202,11 +198,7 @@ class TcpServerLink(Link):
     """``tcpin``: accept any number of clients; each gets every frame while it keeps up."""
 
     def __init__(self, spec: LinkSpec, encoder: object, receive: ReceiveFn, new_parser: NewParser):
-        self.spec = spec
-        self.encoder = encoder
-        self.channels = {}
-        self._receive = receive
-        self._new_parser = new_parser
+        super().__init__(spec, encoder, receive, new_parser)
         self._sel: selectors.BaseSelector | None = None
         self._sock = socket.socket(_family(spec.host), socket.SOCK_STREAM)
         self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -218,12 +210,6 @@ class TcpServerLink(Link):
             self._sock.close()
             msg = f"--mavlink {spec}: cannot listen: {err.strerror}"
             raise MavlinkError(msg) from None
-
-    @property
-    def local_address(self) -> Address:
-        """Listening address."""
-        host, port = self._sock.getsockname()[:2]
-        return str(host), int(port)
 
     def register(self, sel: selectors.BaseSelector) -> None:
         """Watch the listening socket."""

@@ -174,16 +174,7 @@ def _read_fence(geo: JsonObject, path: PathLike) -> tuple[MissionItem, ...]:
         command = FENCE_POLYGON_COMMANDS[0] if inclusion else FENCE_POLYGON_COMMANDS[1]
         for vertex in vertices:
             lat, lon = _latlon(polygon, "polygon", vertex, "an array of [latitude, longitude]", 2)
-            out.append(
-                MissionItem(
-                    command=command,
-                    frame=MavFrame.GLOBAL,
-                    param1=float(len(vertices)),
-                    param4=0.0,
-                    lat_deg=lat,
-                    lon_deg=lon,
-                )
-            )
+            out.append(_point_item(command, MavFrame.GLOBAL, lat, lon, param1=float(len(vertices))))
     circles = geo.array("circles", "an array of circles") if geo.has("circles") else []
     for c, raw in enumerate(circles):
         circle = JsonObject(raw, path, f"geoFence circle {c}")
@@ -192,29 +183,14 @@ def _read_fence(geo: JsonObject, path: PathLike) -> tuple[MissionItem, ...]:
             circle.get("circle", "an object"), path, f"geoFence circle {c}", "circle."
         )
         lat, lon = _latlon(shape, "center", shape.get("center", "[lat, lon]"), "[lat, lon]", 2)
-        out.append(
-            MissionItem(
-                command=FENCE_CIRCLE_COMMANDS[0] if inclusion else FENCE_CIRCLE_COMMANDS[1],
-                frame=MavFrame.GLOBAL,
-                param1=shape.number("radius", "a radius in metres"),
-                param4=0.0,
-                lat_deg=lat,
-                lon_deg=lon,
-            )
-        )
+        command = FENCE_CIRCLE_COMMANDS[0] if inclusion else FENCE_CIRCLE_COMMANDS[1]
+        radius = shape.number("radius", "a radius in metres")
+        out.append(_point_item(command, MavFrame.GLOBAL, lat, lon, param1=radius))
     if geo.has("breachReturn"):
         expected = "[latitude, longitude, altitude]"
         lat, lon, alt = _latlon(geo, "breachReturn", geo.obj["breachReturn"], expected, 3)
-        out.append(
-            MissionItem(
-                command=MavCmd.NAV_FENCE_RETURN_POINT,
-                frame=MavFrame.GLOBAL_RELATIVE_ALT,
-                param4=0.0,
-                lat_deg=lat,
-                lon_deg=lon,
-                alt_m=alt,
-            )
-        )
+        command = MavCmd.NAV_FENCE_RETURN_POINT
+        out.append(_point_item(command, MavFrame.GLOBAL_RELATIVE_ALT, lat, lon, alt_m=alt))
     return tuple(out)
 
 
@@ -225,17 +201,30 @@ def _read_rally(rally: JsonObject) -> tuple[MissionItem, ...]:
         lat, lon, alt = _latlon(
             rally, "points", point, "an array of [latitude, longitude, altitude]", 3
         )
-        out.append(
-            MissionItem(
-                command=MavCmd.NAV_RALLY_POINT,
-                frame=MavFrame.GLOBAL_RELATIVE_ALT,
-                param4=0.0,
-                lat_deg=lat,
-                lon_deg=lon,
-                alt_m=alt,
-            )
-        )
+        command = MavCmd.NAV_RALLY_POINT
+        out.append(_point_item(command, MavFrame.GLOBAL_RELATIVE_ALT, lat, lon, alt_m=alt))
     return tuple(out)
+
+
+def _point_item(
+    command: int,
+    frame: int,
+    lat_deg: float,
+    lon_deg: float,
+    *,
+    param1: float = 0.0,
+    alt_m: float = 0.0,
+) -> MissionItem:
+    """A fence or rally item at a point (``param4`` 0, as QGC uploads them)."""
+    return MissionItem(
+        command=command,
+        frame=frame,
+        param1=param1,
+        param4=0.0,
+        lat_deg=lat_deg,
+        lon_deg=lon_deg,
+        alt_m=alt_m,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
