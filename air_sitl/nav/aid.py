@@ -3,7 +3,8 @@
 Arrival (:meth:`AidControl.push`, at the caller's *now*): a measurement without a position is
 empty; NaN/inf, a bad covariance, an unknown frame, a stamp in the future or behind the fusion
 horizon, or one closer than ``aid_min_interval_ns`` to the previous accepted one (a flood) is
-rejected and counted. Accepted ones wait in a buffer for the delayed horizon.
+rejected and counted, as is one older than the previous accepted one (out of order).
+Accepted ones wait in a buffer for the delayed horizon.
 
 Fusion (at the measurement's own time): horizontal position, a 2-D update with a chi-square
 gate. Start: a first measurement when no other horizontal position source exists resets the
@@ -90,6 +91,9 @@ class AidControl:
             c.reject(AidResult.REJECTED_STALE.value)
             return AidResult.REJECTED_STALE
         last = self.last_accepted_ns
+        if last is not None and t < last:
+            c.reject(AidResult.REJECTED_ORDER.value)
+            return AidResult.REJECTED_ORDER
         if last is not None and t - last < self.params.aid_min_interval_ns:
             c.reject(AidResult.REJECTED_RATE.value)
             return AidResult.REJECTED_RATE

@@ -124,10 +124,14 @@ class NavFilter:
         ekf.predict(d.dang, d.dvel, d.dt)
         t_d = d.t_ns
         self._t_delayed = t_d
-        self.mag.fuse_due(ekf, t_d)
-        self.baro.fuse_due(ekf, t_d, self.gnss.last_alt_amsl_m)
-        self._fuse_gnss_due(t_d)
-        self._fuse_aids_due(t_d)
+        if self.mag.buffer:
+            self.mag.fuse_due(ekf, t_d)
+        if self.baro.buffer:
+            self.baro.fuse_due(ekf, t_d, self.gnss.last_alt_amsl_m)
+        if self.gnss.buffer:
+            self._fuse_gnss_due(t_d)
+        if self.aids:
+            self._fuse_aids_due(t_d)
         if self.airspeed.buffer:
             self.airspeed.fuse_due(ekf, t_d, self.vel_valid)
             if self.airspeed.wind_started and not self.vel_valid:
@@ -145,8 +149,6 @@ class NavFilter:
 
     def _fuse_gnss_due(self, t_d: int) -> None:
         gnss = self.gnss
-        if not gnss.buffer:
-            return
         was_started = gnss.started
         fused_before = gnss.counters.fused
         gnss.fuse_due(self.ekf, t_d)
@@ -156,8 +158,6 @@ class NavFilter:
             self.baro.calibrate(gnss.last_alt_amsl_m, self.params.gnss_pos_noise_m**2 * 4, 0.2)
 
     def _fuse_aids_due(self, t_d: int) -> None:
-        if not self.aids:
-            return
         gnss_fusing = self.gnss.fusing(t_d)
         now = self._t_imu or t_d
         for name, aid in self.aids.items():

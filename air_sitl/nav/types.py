@@ -74,6 +74,7 @@ class AidResult(enum.Enum):
     REJECTED_FUTURE = "future"  # stamped after now
     REJECTED_STALE = "stale"  # stamped behind the fusion horizon
     REJECTED_RATE = "rate"  # closer in time than the minimum interval to the previous one
+    REJECTED_ORDER = "order"  # older than the previous accepted one of the same aid
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
