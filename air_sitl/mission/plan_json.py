@@ -190,7 +190,7 @@ def _read_fence(geo: JsonObject, path: PathLike) -> tuple[MissionItem, ...]:
         expected = "[latitude, longitude, altitude]"
         lat, lon, alt = _latlon(geo, "breachReturn", geo.obj["breachReturn"], expected, 3)
         command = MavCmd.NAV_FENCE_RETURN_POINT
-        out.append(_point_item(command, MavFrame.GLOBAL_RELATIVE_ALT, lat, lon, alt_m=alt))
+        out.append(_point_item(command, MavFrame.GLOBAL_RELATIVE_ALT, lat, lon, alt=alt))
     return tuple(out)
 
 
@@ -202,28 +202,16 @@ def _read_rally(rally: JsonObject) -> tuple[MissionItem, ...]:
             rally, "points", point, "an array of [latitude, longitude, altitude]", 3
         )
         command = MavCmd.NAV_RALLY_POINT
-        out.append(_point_item(command, MavFrame.GLOBAL_RELATIVE_ALT, lat, lon, alt_m=alt))
+        out.append(_point_item(command, MavFrame.GLOBAL_RELATIVE_ALT, lat, lon, alt=alt))
     return tuple(out)
 
 
 def _point_item(
-    command: int,
-    frame: int,
-    lat_deg: float,
-    lon_deg: float,
-    *,
-    param1: float = 0.0,
-    alt_m: float = 0.0,
+    command: int, frame: int, lat: float, lon: float, *, param1: float = 0.0, alt: float = 0.0
 ) -> MissionItem:
     """A fence or rally item at a point (``param4`` 0, as QGC uploads them)."""
     return MissionItem(
-        command=command,
-        frame=frame,
-        param1=param1,
-        param4=0.0,
-        lat_deg=lat_deg,
-        lon_deg=lon_deg,
-        alt_m=alt_m,
+        command=command, frame=frame, param1=param1, param4=0.0, lat_deg=lat, lon_deg=lon, alt_m=alt
     )
 
 
