@@ -8,7 +8,7 @@ loader turns into a :class:`~air_sitl.errors.PlanError`.
 
 DO_JUMP convention: in a :class:`~air_sitl.mission.items.Mission` (and in MAVLink), DO_JUMP's
 ``param1`` is the 0-based sequence index of the target item. Plan files store a QGC
-``doJumpId`` there instead; :mod:`air_sitl.mission.plan_file` converts on read and write.
+``doJumpId`` there instead; :mod:`air_sitl.mission.plan_json` converts on read and write.
 """
 
 from __future__ import annotations
