@@ -345,22 +345,66 @@ def _rows(
 
 
 def parse_tum(text: str, where: str, name: str) -> Estimate:
-    """A TUM trajectory ``t x y z qx qy qz qw`` (simulated seconds, ENU metres from home)."""
+    """A TUM trajectory ``t x y z qx qy qz qw`` (simulated seconds, ENU metres from home).
+
+    Parsed column-wise with numpy; a file that does not pass is parsed again line by line to
+    name the first bad line and value.
+    """
     if not text.strip():
         msg = f"{where}: empty file (expected TUM lines: {' '.join(TUM_COLUMNS)})"
         raise EvalError(msg)
+    table = [
+        (line, raw.split())
+        for line, raw in enumerate(text.splitlines(), start=1)
+        if raw.strip() and not raw.lstrip().startswith("#")
+    ]
+    if not table:
+        msg = f"{where}: no TUM lines (only comments)"
+        raise EvalError(msg)
+    fast = _tum_columns(table)
+    line, t_ns, pos = fast if fast is not None else _tum_rows(table, where)
+    return Estimate(
+        name=name,
+        where=where,
+        line=line,
+        frame=np.full(line.shape[0], NO_FRAME, dtype=np.int64),
+        t_ns=t_ns,
+        pos_enu_m=pos,
+        latency_wall_ms=None,
+    )
+
+
+def _tum_columns(table: list[tuple[int, list[str]]]) -> tuple[I64, I64, F64] | None:
+    """The TUM table column-wise; None when a line needs the line-by-line diagnosis."""
+    if any(len(parts) != len(TUM_COLUMNS) for _, parts in table):
+        return None
+    try:
+        values = np.array([parts for _, parts in table], dtype=np.str_).astype(np.float64)
+    except ValueError:
+        return None
+    if np.isinf(values).any() or np.isnan(values[:, 0]).any():
+        return None
+    finite = np.isfinite(values[:, 1:4])
+    if (finite.any(axis=1) & ~finite.all(axis=1)).any():
+        return None
+    t_ns = np.round(values[:, 0] * 1e9).astype(np.int64)
+    if t_ns.size > 1 and (np.diff(t_ns) <= 0).any():
+        return None
+    line = np.array([k for k, _ in table], dtype=np.int64)
+    return line, t_ns, values[:, 1:4].copy()
+
+
+def _tum_rows(table: list[tuple[int, list[str]]], where: str) -> tuple[I64, I64, F64]:
+    """Line by line, raising :class:`EvalError` on the first bad line and value."""
     lines: list[int] = []
     times: list[int] = []
     positions: list[Triple] = []
     nan3 = (math.nan, math.nan, math.nan)
-    for line, raw in enumerate(text.splitlines(), start=1):
-        s = raw.strip()
-        if not s or s.startswith("#"):
-            continue
-        parts = s.split()
+    for line, parts in table:
         if len(parts) != len(TUM_COLUMNS):
+            shown = " ".join(parts)[:60]
             msg = (
-                f"{where}: line {line}: {len(parts)} columns in {s[:60]!r}, expected "
+                f"{where}: line {line}: {len(parts)} columns in {shown!r}, expected "
                 f"{len(TUM_COLUMNS)} ({' '.join(TUM_COLUMNS)})"
             )
             raise EvalError(msg)
@@ -374,18 +418,11 @@ def parse_tum(text: str, where: str, name: str) -> Estimate:
         lines.append(line)
         times.append(round(t_s * 1e9))
         positions.append(nan3 if pos is None else pos)
-    if not lines:
-        msg = f"{where}: no TUM lines (only comments)"
-        raise EvalError(msg)
     _check_time_order(times, lines, where)
-    return Estimate(
-        name=name,
-        where=where,
-        line=np.array(lines, dtype=np.int64),
-        frame=np.full(len(lines), NO_FRAME, dtype=np.int64),
-        t_ns=np.array(times, dtype=np.int64),
-        pos_enu_m=np.array(positions, dtype=np.float64).reshape(-1, 3),
-        latency_wall_ms=None,
+    return (
+        np.array(lines, dtype=np.int64),
+        np.array(times, dtype=np.int64),
+        np.array(positions, dtype=np.float64).reshape(-1, 3),
     )
 
 
