@@ -12,6 +12,7 @@ import pytest
 from air_sitl.cli import main
 from air_sitl.dataset.estimates import fill_svo_columns
 from air_sitl.eval import evaluate, evaluate_many
+from air_sitl.frames import ned2geodetic
 
 from .helpers import HEADER, rows, truth_of, write_csv, write_estimate
 
@@ -261,3 +262,18 @@ def test_terminal_table_has_a_column_per_estimate(
     assert len(out) <= 40
     assert out[1].split() == ["mine", "svo"]
     assert out[2].split()[-2:] == ["posyaw", "posyaw"]
+
+
+def test_lat_lon_estimates_are_scored_from_the_archive_home(line: Path) -> None:
+    home = json.loads((line / "manifest.json").read_text())["home"]
+    truth = truth_of(line)
+    lines = []
+    for k in range(0, truth.frames, 3):
+        e, n, u = truth.pos_enu_m[k] + (0.0, 7.0, 0.0)
+        lat, lon, alt = ned2geodetic(n, e, -u, home["lat_deg"], home["lon_deg"], home["alt_amsl_m"])
+        lines.append(f"{truth.t_ns[k]},{k},nan,nan,nan,{lat:.9f},{lon:.9f},{alt:.4f},,,,,2.5,0")
+    write_csv(line / "estimates" / "geo.csv", lines)
+    report = evaluate(line, "geo")
+    assert report["estimated_frames"] == len(lines)
+    assert report["horizontal_error_m"]["max"] == pytest.approx(7.0, abs=0.01)
+    assert report["latency_ms"] == {"median": 2.5, "p95": 2.5}
