@@ -98,8 +98,7 @@ class AirspeedControl:
         beta = by / bx
 
         def cross(u: tuple[float, float, float]) -> tuple[float, float, float]:
-            return (u[1] * a[2] - u[2] * a[1], u[2] * a[0] - u[0] * a[2],
-                    u[0] * a[1] - u[1] * a[0])
+            return (u[1] * a[2] - u[2] * a[1], u[2] * a[0] - u[0] * a[2], u[0] * a[1] - u[1] * a[0])
 
         # d(body_i)/d(dtheta) = c_i x a (global attitude error); d/dv = c_i; d/dwind = -c_i.
         x0, x1 = cross(c0), cross(c1)

@@ -107,15 +107,19 @@ class OutputPredictor:
         self.cv = (cv[0] + dv_nav[0], cv[1] + dv_nav[1], cv[2] + dv_nav[2])
         self.t_ns = t_ns
 
-    def carry(self, dx: list[float], window_s: float, cv0: tuple[float, float, float],
-              cp0: tuple[float, float, float]) -> None:
+    def carry(
+        self,
+        dx: list[float],
+        window_s: float,
+        cv0: tuple[float, float, float],
+        cp0: tuple[float, float, float],
+    ) -> None:
         """Apply a correction ``dx`` made to the delayed state ``window_s`` ago (first order).
 
         ``cv0``/``cp0`` are the running sums at the delayed time: the differences with the
         current sums are the specific-force delta velocity (and position) over the window.
         """
-        if window_s < 0.0:
-            window_s = 0.0
+        window_s = max(window_s, 0.0)
         ex, ey, ez = dx[6], dx[7], dx[8]
         # Gyro and accelerometer bias corrections act over the window too.
         bgx, bgy, bgz = dx[9], dx[10], dx[11]

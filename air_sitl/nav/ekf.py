@@ -135,17 +135,16 @@ def rotate_global(
     return (qw * inv, qx * inv, qy * inv, qz * inv)
 
 
-# Index arrays of the entries of F that change at each covariance step.
+# Index arrays of the entries of F that change at each covariance step: position-velocity,
+# position-attitude, velocity-attitude, velocity-accel bias, attitude-gyro bias.
 _F_ROWS = np.array(
-    [0, 1, 2, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5]
-    + [3, 3, 3, 4, 4, 4, 5, 5, 5]
-    + [6, 6, 6, 7, 7, 7, 8, 8, 8]
-)
+    (0, 1, 2, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7,
+     8, 8, 8)
+)  # fmt: skip
 _F_COLS = np.array(
-    [3, 4, 5, 7, 8, 6, 8, 6, 7, 7, 8, 6, 8, 6, 7]
-    + [12, 13, 14, 12, 13, 14, 12, 13, 14]
-    + [9, 10, 11, 9, 10, 11, 9, 10, 11]
-)
+    (3, 4, 5, 7, 8, 6, 8, 6, 7, 7, 8, 6, 8, 6, 7, 12, 13, 14, 12, 13, 14, 12, 13, 14, 9, 10, 11,
+     9, 10, 11, 9, 10, 11)
+)  # fmt: skip
 _DIAG = np.arange(N_STATES)
 
 
@@ -179,8 +178,9 @@ class ErrorStateEkf:
         d += [p.init_wind_m_s**2] * 2
         self.P = np.diag(np.array(d, dtype=np.float64))
 
-    def predict(self, dang: tuple[float, float, float], dvel: tuple[float, float, float],
-                dt: float) -> None:
+    def predict(
+        self, dang: tuple[float, float, float], dvel: tuple[float, float, float], dt: float
+    ) -> None:
         """Advance the nominal state by one summed IMU delta; the covariance every few."""
         bg, ba = self.bg, self.ba
         dang = (dang[0] - bg[0] * dt, dang[1] - bg[1] * dt, dang[2] - bg[2] * dt)

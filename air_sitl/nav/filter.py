@@ -320,8 +320,9 @@ class NavFilter:
             heading=AidStatus.of("heading", self.mag.counters, fusing=self.mag.started),
             aids=aids,
             vel_ratio=self.gnss.vel_ratio,
-            pos_horiz_ratio=max([self.gnss.pos_ratio] + [a.counters.test_ratio for a in
-                                                          self.aids.values()]),
+            pos_horiz_ratio=max(
+                [self.gnss.pos_ratio] + [a.counters.test_ratio for a in self.aids.values()]
+            ),
             pos_vert_ratio=self.baro.ratio,
             mag_ratio=self.mag.ratio,
             tas_ratio=self.airspeed.tas_ratio,
@@ -334,4 +335,3 @@ class NavFilter:
         """(var_n, cov_ne, var_e) of the delayed state, m^2 (consistency checks)."""
         P = self.ekf.P
         return float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
-

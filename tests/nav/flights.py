@@ -40,7 +40,9 @@ class Recording:
 
 @functools.lru_cache(maxsize=8)
 def record(
-    plan: str = "UC-200", seconds: float = 180.0, wind: tuple[float, float] = (5.0, 270.0),
+    plan: str = "UC-200",
+    seconds: float = 180.0,
+    wind: tuple[float, float] = (5.0, 270.0),
     seed: int = 1,
 ) -> Recording:
     """Fly ``plan`` from an air start for ``seconds`` and keep every 5 ms step."""
@@ -92,8 +94,9 @@ def horizontal_error(nav: NavFilter, state: VehicleState) -> float:
     return math.hypot(est.pos_ned_m[0] - state.pos_ned_m[0], est.pos_ned_m[1] - state.pos_ned_m[1])
 
 
-def enu_aid(name: str, t_ns: int, north: float, east: float, up: float = 0.0,
-            sigma: float | None = None) -> AidMeasurement:
+def enu_aid(
+    name: str, t_ns: int, north: float, east: float, up: float = 0.0, sigma: float | None = None
+) -> AidMeasurement:
     return AidMeasurement(name=name, sim_time_ns=t_ns, position=(east, north, up), sigma_m=sigma)
 
 
@@ -113,8 +116,9 @@ class Point:
 
     @property
     def error_h_m(self) -> float:
-        return math.hypot(self.est_ned_m[0] - self.truth_ned_m[0],
-                          self.est_ned_m[1] - self.truth_ned_m[1])
+        return math.hypot(
+            self.est_ned_m[0] - self.truth_ned_m[0], self.est_ned_m[1] - self.truth_ned_m[1]
+        )
 
     @property
     def error_ne_m(self) -> tuple[float, float]:
@@ -145,8 +149,16 @@ def fly(
         feed(nav, step, gnss=deny_after_s is None or t_s < deny_after_s)
         if i % trace_every == 0:
             e = nav.estimate()
-            trace.append(Point(t_s, e.pos_ned_m, step.state.pos_ned_m, e.std_h_m,
-                               nav.horizontal_covariance(), nav.status().source))
+            trace.append(
+                Point(
+                    t_s,
+                    e.pos_ned_m,
+                    step.state.pos_ned_m,
+                    e.std_h_m,
+                    nav.horizontal_covariance(),
+                    nav.status().source,
+                )
+            )
     return nav, trace
 
 

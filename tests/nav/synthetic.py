@@ -41,14 +41,27 @@ class Straight:
             n, e, d = truth_ned(t)
             lat, lon, alt = ned2geodetic(n, e, d, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m)
             nav.fuse_gnss(
-                GpsFix(sim_time_ns=t, lat_deg=lat, lon_deg=lon, alt_amsl_m=alt,
-                       vel_ned_m_s=(SPEED_M_S, 0.0, 0.0), fix_type=3, satellites=14,
-                       eph_m=1.5, epv_m=3.0),
+                GpsFix(
+                    sim_time_ns=t,
+                    lat_deg=lat,
+                    lon_deg=lon,
+                    alt_amsl_m=alt,
+                    vel_ned_m_s=(SPEED_M_S, 0.0, 0.0),
+                    fix_type=3,
+                    satellites=14,
+                    eph_m=1.5,
+                    epv_m=3.0,
+                ),
                 t,
             )
-        nav.predict(ImuSample(sim_time_ns=t, gyro_frd_rad_s=(0.0, 0.0, 0.0),
-                              accel_frd_m_s2=(0.0, 0.0, -self._g),
-                              q_ahrs_body_to_ned_wxyz=(1.0, 0.0, 0.0, 0.0)))
+        nav.predict(
+            ImuSample(
+                sim_time_ns=t,
+                gyro_frd_rad_s=(0.0, 0.0, 0.0),
+                accel_frd_m_s2=(0.0, 0.0, -self._g),
+                q_ahrs_body_to_ned_wxyz=(1.0, 0.0, 0.0, 0.0),
+            )
+        )
         self.t_ns += STEP_NS
 
     def run(self, seconds: float) -> None:

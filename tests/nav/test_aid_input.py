@@ -82,10 +82,22 @@ def dirty() -> AidedStraight:
 def test_each_bad_input_has_its_verdict(dirty: AidedStraight) -> None:
     R = AidResult
     assert dirty.results == [
-        R.REJECTED_INVALID, R.REJECTED_INVALID, R.REJECTED_INVALID, R.REJECTED_INVALID,
-        R.REJECTED_INVALID, R.REJECTED_INVALID, R.REJECTED_INVALID, R.REJECTED_INVALID,
-        R.REJECTED_FRAME, R.REJECTED_FUTURE, R.REJECTED_STALE, R.REJECTED_INVALID,
-        R.REJECTED_INVALID, R.EMPTY, R.EMPTY, R.EMPTY,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+        R.REJECTED_FRAME,
+        R.REJECTED_FUTURE,
+        R.REJECTED_STALE,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+        R.EMPTY,
+        R.EMPTY,
+        R.EMPTY,
         R.ACCEPTED,  # the jump: accepted on arrival, gated at its time
     ]
 
@@ -98,7 +110,11 @@ def test_bad_input_counted(dirty: AidedStraight, clean: AidedStraight) -> None:
     assert d.fused == c.fused
     assert d.rejected == 14 and c.rejected == 0
     assert d.rejected_by_reason == {
-        "invalid": 10, "frame": 1, "future": 1, "stale": 1, "gate": 1,
+        "invalid": 10,
+        "frame": 1,
+        "future": 1,
+        "stale": 1,
+        "gate": 1,
     }
     assert d.resets == 0
 
@@ -150,8 +166,11 @@ def test_other_frames_and_covariance_are_used() -> None:
             if kind == 0:
                 return [AidMeasurement(name="ned", sim_time_ns=t, position=(n, e, d), frame="ned")]
             if kind == 1:
-                return [AidMeasurement(name="geo", sim_time_ns=t, position=(lat, lon, alt),
-                                       frame="wgs84")]
+                return [
+                    AidMeasurement(
+                        name="geo", sim_time_ns=t, position=(lat, lon, alt), frame="wgs84"
+                    )
+                ]
             cov = (16.0, 2.0, 0.0, 2.0, 9.0, 0.0, 0.0, 0.0, 25.0)
             return [AidMeasurement(name="cov", sim_time_ns=t, position=(e, n, -d), cov_m2=cov)]
         return []
@@ -169,8 +188,14 @@ def test_gnss_and_baro_bad_input_counted() -> None:
     run.run(5.0)
     t = run.t_ns
     nav = run.nav
-    base = dict(sim_time_ns=t, alt_amsl_m=200.0, vel_ned_m_s=(15.0, 0.0, 0.0), satellites=14,
-                eph_m=1.5, epv_m=3.0)
+    base = dict(
+        sim_time_ns=t,
+        alt_amsl_m=200.0,
+        vel_ned_m_s=(15.0, 0.0, 0.0),
+        satellites=14,
+        eph_m=1.5,
+        epv_m=3.0,
+    )
     assert not nav.fuse_gnss(GpsFix(lat_deg=math.nan, lon_deg=0.0, fix_type=3, **base), t)
     assert not nav.fuse_gnss(GpsFix(lat_deg=38.5, lon_deg=-121.5, fix_type=0, **base), t)
     assert not nav.fuse_baro(BaroSample(sim_time_ns=t, alt_amsl_m=math.inf), t)

@@ -1,0 +1,152 @@
+"""Pieces of the filter on their own: fusion maths, extra sensors, status, determinism."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from air_sitl.frames import euler2quat
+from air_sitl.nav import NavFilter
+from air_sitl.nav.ekf import ErrorStateEkf, integrate
+from air_sitl.nav.fusion import _inverse, fuse_direct, fuse_scalar
+from air_sitl.nav.params import NavParams
+from air_sitl.nav.sensors_extra import AirspeedSensor, Barometer, Magnetometer
+from air_sitl.state import VehicleState
+from tests.nav.synthetic import Straight
+
+
+def _ekf(seed: int) -> ErrorStateEkf:
+    rng = np.random.default_rng(seed)
+    ekf = ErrorStateEkf(NavParams(), 9.8)
+    a = rng.standard_normal((17, 17))
+    ekf.P = a @ a.T + np.eye(17)
+    return ekf
+
+
+@pytest.mark.parametrize("m", [1, 2, 3])
+def test_inverse_matches_numpy(m: int) -> None:
+    rng = np.random.default_rng(m)
+    a = rng.standard_normal((m, m))
+    s = a @ a.T + np.eye(m)
+    assert np.allclose(_inverse(s.tolist()), np.linalg.inv(s))  # type: ignore[arg-type]
+    assert _inverse((-s).tolist()) is None
+
+
+def test_fuse_direct_is_the_textbook_update() -> None:
+    ekf = _ekf(1)
+    P0 = ekf.P.copy()
+    H = np.zeros((2, 17))
+    H[0, 3] = H[1, 4] = 1.0
+    R = np.array([[2.0, 0.3], [0.3, 1.0]])
+    y = np.array([0.5, -0.2])
+    K = P0 @ H.T @ np.linalg.inv(H @ P0 @ H.T + R)
+    res = fuse_direct(ekf, 3, y.tolist(), R.tolist(), gate=100.0)
+    assert res.fused
+    assert np.allclose(ekf.P, (np.eye(17) - K @ H) @ P0)
+    assert np.allclose(ekf.pending, K @ y)
+
+
+def test_fuse_scalar_is_the_textbook_update_and_gates() -> None:
+    ekf = _ekf(2)
+    P0 = ekf.P.copy()
+    h = np.random.default_rng(3).standard_normal(17)
+    s = float(h @ P0 @ h) + 0.5
+    res = fuse_scalar(ekf, h.tolist(), 0.7, 0.5, gate=100.0)
+    assert res.fused and res.test_ratio == pytest.approx(0.49 / s / 1e4)
+    k = P0 @ h / s
+    assert np.allclose(ekf.P, P0 - np.outer(k, h @ P0))
+    assert np.allclose(ekf.pending, k * 0.7)
+    big = fuse_scalar(ekf, h.tolist(), 1e6, 0.5, gate=5.0)
+    assert not big.fused and big.test_ratio > 1.0
+
+
+def test_integrate_holds_level_flight_and_turns() -> None:
+    g = 9.8
+    q = euler2quat(0.0, 0.0, 0.0)
+    p, v = (0.0, 0.0, 0.0), (15.0, 0.0, 0.0)
+    for _ in range(50):  # 1 s of level flight at 15 m/s north, 20 ms deltas
+        p, v, q, _dv = integrate(p, v, q, (0.0, 0.0, 0.0), (0.0, 0.0, -g * 0.02), 0.02, g)
+    assert p == pytest.approx((15.0, 0.0, 0.0), abs=1e-9)
+    # A pure yaw rate of 0.1 rad/s for 10 s turns the attitude by 1 rad.
+    q = (1.0, 0.0, 0.0, 0.0)
+    for _ in range(500):
+        _p, _v, q, _dv = integrate(p, v, q, (0.0, 0.0, 0.002), (0.0, 0.0, 0.0), 0.02, g)
+    assert 2.0 * math.atan2(q[3], q[0]) == pytest.approx(1.0)
+
+
+def _state(t_ns: int) -> VehicleState:
+    return VehicleState(
+        sim_time_ns=t_ns,
+        lat_deg=38.5,
+        lon_deg=-121.5,
+        alt_amsl_m=207.0,
+        alt_agl_m=200.0,
+        pos_ned_m=(0.0, 0.0, -200.0),
+        q_body_to_ned_wxyz=euler2quat(0.0, 0.0, 0.5),
+        roll_rad=0.0,
+        pitch_rad=0.0,
+        yaw_rad=0.5,
+        vel_ned_m_s=(15.0, 0.0, 0.0),
+        rate_frd_rad_s=(0.0, 0.0, 0.0),
+        specific_force_frd_m_s2=(0.0, 0.0, -9.8),
+        airspeed_m_s=15.0,
+        on_ground=False,
+    )
+
+
+def test_extra_sensors_are_seeded_and_at_their_rates() -> None:
+    def readings(seed: int) -> list[tuple[float, ...]]:
+        baro, tas, mag = Barometer(seed=seed), AirspeedSensor(seed=seed), Magnetometer(seed=seed)
+        out = []
+        for k in range(2000):  # 10 s of 5 ms steps
+            s = _state(k * 5_000_000)
+            b, a, m = baro.sample(s), tas.sample(s), mag.sample(s)
+            out.append((
+                math.nan if b is None else b.alt_amsl_m,
+                math.nan if a is None else a.airspeed_m_s,
+                math.nan if m is None else m.heading_rad,
+            ))  # fmt: skip
+        return out
+
+    one, again, other = readings(1), readings(1), readings(2)
+    assert str(one) == str(again) and str(one) != str(other)
+    arr = np.array(one)
+    assert np.isfinite(arr[:, 0]).sum() == 200  # 20 Hz
+    assert np.isfinite(arr[:, 1]).sum() == 100  # 10 Hz
+    assert np.isfinite(arr[:, 2]).sum() == 100
+    baro = arr[np.isfinite(arr[:, 0]), 0]
+    assert abs(np.mean(baro) - 207.0) < 8.0 and 0.2 < np.std(baro) < 1.0
+    heading = arr[np.isfinite(arr[:, 2]), 2]
+    assert abs(np.mean(heading) - 0.5) < 0.1
+
+
+def test_status_json_block() -> None:
+    run = Straight()
+    run.run(3.0)
+    block = run.nav.status().to_json()
+    json.dumps(block)
+    assert block["source"] == "gnss"
+    assert block["gnss"]["fused"] > 5
+    assert block["aid"] == []
+    assert block["flags"]["pos_horiz_abs"] is True
+
+
+def test_estimate_before_alignment_has_no_valid_flags() -> None:
+    from tests.nav.synthetic import HOME
+
+    nav = NavFilter(HOME)
+    e = nav.estimate()
+    assert not e.flags.attitude and not e.flags.pos_horiz_rel
+    assert e.lat_deg == pytest.approx(HOME.lat_deg)
+
+
+def test_same_inputs_same_outputs() -> None:
+    from tests.nav.flights import fly, record
+
+    rec = record("UC-200", 180.0)
+    _, one = fly(rec, deny_after_s=20.0, until_s=40.0, trace_every=1)
+    _, two = fly(rec, deny_after_s=20.0, until_s=40.0, trace_every=1)
+    assert one == two
