@@ -1,14 +1,18 @@
 """Cost and accuracy of the navigation filter (air_sitl.nav) on recorded JSBSim flights.
 
 Usage: python benchmarks/bench_nav.py [--scenarios UC-200,FL-200,FR-200] [--seconds 240]
-                                      [--cost-only]
+                                      [--cost-only] [--archive DIR ...]
 
 Cost: the filter fed as a flight will feed it (IMU 200 Hz, GNSS 5 Hz, baro 20 Hz, airspeed and
 compass 10 Hz; then the same with GNSS denied and a 20 Hz position aid), in microseconds per
 200 Hz step of process CPU time (the machine is shared), beside floors measured in the same
 run: a bare loop over the same steps calling one no-op function per step, and the same feeding
 of a filter whose methods do nothing. Accuracy: horizontal error p95 and mean NEES with GNSS,
-and the dead-reckoning error 60 s and 120 s after GNSS is cut at 60 s.
+and the dead-reckoning error 60 s and 120 s after GNSS is cut at 60 s. ``--archive DIR``
+(an archive written by fly/dataset: imu.csv, frames.csv, trajectory.csv) feeds the recorded
+IMU from take-off and the recorded GNSS of the capture window (barometer, airspeed and compass
+simulated from trajectory.csv) and scores the capture window, then the same with GNSS cut
+for its second half.
 """
 
 from __future__ import annotations
@@ -147,12 +151,132 @@ def accuracy(scenario: str, seconds: float) -> None:
     )
 
 
+def archive(folder: Path) -> None:
+    import csv
+    from types import SimpleNamespace
+
+    from air_sitl.frames import quat2euler
+    from air_sitl.nav import NavFilter
+    from air_sitl.nav.sensors_extra import AirspeedSensor, Barometer, Magnetometer
+    from air_sitl.state import GeoPoint, GpsFix, ImuSample
+    from tests.nav.flights import percentile
+
+    def rows(name: str) -> list[dict[str, str]]:
+        with (folder / name).open(newline="") as f:
+            return list(csv.DictReader(f))
+
+    imu = rows("imu.csv")
+    frames = rows("frames.csv")
+    traj = rows("trajectory.csv")
+    t0 = traj[0]
+    home_ned = (float(t0["north_m"]), float(t0["east_m"]), float(t0["down_m"]))
+    assert max(abs(x) for x in home_ned) < 1.0, "trajectory.csv does not start at home"
+    home = GeoPoint(
+        lat_deg=float(t0["lat_deg"]),
+        lon_deg=float(t0["lon_deg"]),
+        alt_amsl_m=float(t0["alt_amsl_m"]) + float(t0["down_m"]),
+    )
+    fixes: dict[int, GpsFix] = {}
+    for r in frames:
+        t = int(r["gps_time_ns"] or -1)
+        if t >= 0 and t not in fixes and r["gps_fix_type"] == "3":
+            fixes[t] = GpsFix(
+                sim_time_ns=t,
+                lat_deg=float(r["gps_lat_deg"]),
+                lon_deg=float(r["gps_lon_deg"]),
+                alt_amsl_m=float(r["gps_alt_amsl_m"]),
+                vel_ned_m_s=(
+                    float(r["gps_vn_m_s"]),
+                    float(r["gps_ve_m_s"]),
+                    float(r["gps_vd_m_s"]),
+                ),
+                fix_type=3,
+                satellites=int(r["gps_satellites"]),
+                eph_m=float(r["gps_eph_m"]),
+                epv_m=float(r["gps_epv_m"]),
+            )
+    truth = {
+        int(r["sim_time_ns"]): (
+            float(r["north_m"]),
+            float(r["east_m"]),
+            SimpleNamespace(
+                sim_time_ns=int(r["sim_time_ns"]),
+                alt_amsl_m=float(r["alt_amsl_m"]),
+                airspeed_m_s=float(r["airspeed_m_s"]),
+                yaw_rad=quat2euler(
+                    (float(r["qw"]), float(r["qx"]), float(r["qy"]), float(r["qz"]))
+                )[2],
+            ),
+        )
+        for r in traj
+    }
+    capture = [int(r["sim_time_ns"]) for r in frames]
+    c0, c1 = capture[0], capture[-1]
+    samples = [
+        ImuSample(
+            sim_time_ns=int(r["sim_time_ns"]),
+            gyro_frd_rad_s=(float(r["gyro_x_rad_s"]), float(r["gyro_y_rad_s"]),
+                            float(r["gyro_z_rad_s"])),
+            accel_frd_m_s2=(float(r["accel_x_m_s2"]), float(r["accel_y_m_s2"]),
+                            float(r["accel_z_m_s2"])),
+            q_ahrs_body_to_ned_wxyz=(float(r["ahrs_qw"]), float(r["ahrs_qx"]),
+                                     float(r["ahrs_qy"]), float(r["ahrs_qz"])),
+        )
+        for r in imu
+    ]  # fmt: skip
+
+    def run(deny_from_ns: int | None) -> list[tuple[int, float, float]]:
+        nav = NavFilter(home)
+        baro, tas, mag = Barometer(seed=0), AirspeedSensor(seed=0), Magnetometer(seed=0)
+        out = []
+        for s in samples:
+            t = s.sim_time_ns
+            tr = truth.get(t)
+            if tr is not None:
+                st = tr[2]
+                for reading, fuse in (
+                    (mag.sample(st), nav.fuse_heading),  # type: ignore[arg-type]
+                    (baro.sample(st), nav.fuse_baro),  # type: ignore[arg-type]
+                    (tas.sample(st), nav.fuse_airspeed),  # type: ignore[arg-type]
+                ):
+                    if reading is not None:
+                        fuse(reading, t)  # type: ignore[operator]
+            fix = fixes.get(t)
+            if fix is not None and (deny_from_ns is None or t < deny_from_ns):
+                nav.fuse_gnss(fix, t)
+            nav.predict(s)
+            if tr is not None and c0 + 10 * 10**9 <= t <= c1:
+                e = nav.estimate()
+                out.append((t, e.pos_ned_m[0] - tr[0], e.pos_ned_m[1] - tr[1]))
+        return out
+
+    import math
+
+    errs = [math.hypot(dn, de) for _, dn, de in run(None)]
+    mid = (c0 + c1) // 2
+    denied = run(mid)
+    after = [(t - mid) / 1e9 for t, _, _ in denied]
+    dr = [math.hypot(dn, de) for t, dn, de in denied if t >= mid]
+    at = {round(dt): math.hypot(dn, de) for dt, (_, dn, de) in zip(after, denied, strict=True)}
+    marks = ", ".join(f"{k} s {at[k]:.1f} m" for k in (30, 60, 120) if k in at)
+    print(
+        f"{folder.name}: IMU from take-off, GNSS of the capture window ({(c1 - c0) / 1e9:.0f} s):"
+        f" p95 {percentile(errs, 95):.2f} m, max {max(errs):.2f} m; GNSS cut at mid-capture:"
+        f" {marks}, end ({max(after):.0f} s) {dr[-1]:.1f} m"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenarios", default="UC-200,FL-200,FR-200")
     parser.add_argument("--seconds", type=float, default=240.0)
     parser.add_argument("--cost-only", action="store_true")
+    parser.add_argument("--archive", type=Path, action="append", default=[])
     args = parser.parse_args()
+    if args.archive:
+        for folder in args.archive:
+            archive(folder)
+        return
     names = [s.strip() for s in args.scenarios.split(",") if s.strip()]
     cost(names[0], min(args.seconds, 120.0))
     if not args.cost_only:
