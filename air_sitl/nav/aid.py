@@ -17,6 +17,9 @@ of outliers does not). Stop: no accepted measurement for ``aid_timeout_ns``: the
 from __future__ import annotations
 
 import math
+from numbers import Integral, Real
+
+import numpy as np
 
 from air_sitl.frames import geodetic2ned
 from air_sitl.nav.buffer import TimedBuffer
@@ -32,14 +35,30 @@ AidItem = tuple[float, float, float, float, float]
 
 
 def _finite(values: object, n: int) -> tuple[float, ...] | None:
-    """``values`` as n finite floats, or None (wrong type, length, NaN, inf)."""
+    """``values`` (any nesting: a 3x3 list or array is 9 values) as n finite floats, or None
+    (wrong type, length, NaN, inf)."""
     try:
-        out = tuple(float(x) for x in values)  # type: ignore[attr-defined]
-    except (TypeError, ValueError):
+        arr = np.asarray(values, dtype=np.float64).ravel()
+    except (TypeError, ValueError, OverflowError):
         return None
-    if len(out) != n or not all(math.isfinite(x) for x in out):
+    if arr.size != n or not bool(np.isfinite(arr).all()):
         return None
-    return out
+    return tuple(arr.tolist())
+
+
+def _is_empty(position: object) -> bool:
+    """No position: None, or every coordinate None or NaN ("no estimate for this frame")."""
+    if position is None:
+        return True
+    if isinstance(position, str | bytes):
+        return False
+    try:
+        values = list(position)  # type: ignore[call-overload]
+    except TypeError:
+        return False
+    return bool(values) and all(
+        v is None or (isinstance(v, float | np.floating) and math.isnan(v)) for v in values
+    )
 
 
 class AidControl:
@@ -67,23 +86,20 @@ class AidControl:
     def push(self, m: AidMeasurement, now_ns: int, horizon_start_ns: int) -> AidResult:
         c = self.counters
         c.received += 1
-        pos = m.position
-        if pos is None or (
-            isinstance(pos, tuple | list)
-            and all(x is None or (isinstance(x, float) and math.isnan(x)) for x in pos)
-        ):
+        if _is_empty(m.position):
             c.empty += 1
             return AidResult.EMPTY
         try:
             frame = AidFrame(m.frame)
-        except ValueError:
+        except (ValueError, TypeError):
             c.reject(AidResult.REJECTED_FRAME.value)
             return AidResult.REJECTED_FRAME
         item = self._parse(m, frame)
-        if item is None or not isinstance(m.sim_time_ns, int):
+        stamp = m.sim_time_ns
+        if item is None or isinstance(stamp, bool) or not isinstance(stamp, Integral):
             c.reject(AidResult.REJECTED_INVALID.value)
             return AidResult.REJECTED_INVALID
-        t = m.sim_time_ns
+        t = int(stamp)
         if t > now_ns:
             c.reject(AidResult.REJECTED_FUTURE.value)
             return AidResult.REJECTED_FUTURE
@@ -134,7 +150,10 @@ class AidControl:
             vnn, vee = max(vnn, floor), max(vee, floor)
         else:
             sigma = self.params.aid_sigma_m if m.sigma_m is None else m.sigma_m
-            if not (isinstance(sigma, int | float) and math.isfinite(sigma) and sigma > 0.0):
+            if isinstance(sigma, bool) or not isinstance(sigma, Real):
+                return None
+            sigma = float(sigma)
+            if not (math.isfinite(sigma) and sigma > 0.0):
                 return None
             vnn = vee = max(sigma * sigma, floor)
             vne = 0.0

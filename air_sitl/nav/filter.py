@@ -232,8 +232,14 @@ class NavFilter:
         return self.mag.push(sample, now, self._horizon_start(now))
 
     def fuse_aid(self, measurement: AidMeasurement, now_ns: int) -> AidResult:
-        """Check and buffer one external position (never raises on bad content)."""
-        name = measurement.name if isinstance(measurement.name, str) else "?"
+        """Check and buffer one external position (never raises on bad content).
+
+        ``now_ns`` is the simulated time of arrival; the measurement's own ``sim_time_ns`` is
+        the time it refers to (at most ``fusion_horizon_ns`` before ``now_ns``).
+        """
+        name = getattr(measurement, "name", None)
+        if not isinstance(name, str):
+            name = "?"
         aid = self.aids.get(name)
         if aid is None:
             if len(self.aids) >= MAX_AIDS:
@@ -241,7 +247,12 @@ class NavFilter:
                 self.aid_overflow.reject("too_many_aids")
                 return AidResult.REJECTED_INVALID
             aid = self.aids[name] = AidControl(name, self.params, self.home)
-        return aid.push(measurement, now_ns, self._horizon_start(now_ns))
+        try:
+            return aid.push(measurement, now_ns, self._horizon_start(now_ns))
+        except (AttributeError, TypeError, ValueError, OverflowError):
+            # Not an AidMeasurement at all (a bus payload parsed wrong): counted, not raised.
+            aid.counters.reject(AidResult.REJECTED_INVALID.value)
+            return AidResult.REJECTED_INVALID
 
     # ------------------------------------------------------------------ outputs
 

@@ -205,3 +205,36 @@ def test_gnss_and_baro_bad_input_counted() -> None:
     assert status.baro.rejected_by_reason == {"invalid": 1}
     run.run(1.0)
     assert run.error_m() < 0.5
+
+
+def test_odd_types_never_raise() -> None:
+    import numpy as np
+
+    run = AidedStraight()
+    run.run(11.0)
+    nav, t = run.nav, run.t_ns
+    n, e, d = truth_ned(t)
+    odd = [
+        AidMeasurement(name="x", sim_time_ns=np.int64(t), position=np.array([e, n, -d])),  # type: ignore[arg-type]
+        AidMeasurement(name="y", sim_time_ns=t, position=(e, n, -d), cov_m2=np.eye(3) * 4.0),  # type: ignore[arg-type]
+        AidMeasurement(name="z", sim_time_ns=t, position=np.full(3, np.nan)),  # type: ignore[arg-type]
+        AidMeasurement(name="w", sim_time_ns=t, position=(e, n, -d), frame=["enu"]),  # type: ignore[arg-type]
+        AidMeasurement(name="v", sim_time_ns=True, position=(e, n, -d)),
+        AidMeasurement(name=3, sim_time_ns=t, position=(e, n, -d), sigma_m="5"),  # type: ignore[arg-type]
+        None,
+        "garbage",
+    ]
+    results = [nav.fuse_aid(m, t) for m in odd]  # type: ignore[arg-type]
+    R = AidResult
+    assert results == [
+        R.ACCEPTED,
+        R.ACCEPTED,
+        R.EMPTY,
+        R.REJECTED_FRAME,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+        R.REJECTED_INVALID,
+    ]
+    run.run(1.0)
+    assert run.error_m() < 0.5
