@@ -1,17 +1,15 @@
 #!/usr/bin/env python3
-"""An external localization process on the bus: attitude-compensated frame-to-frame VO.
+"""An external localization process on the bus: the package's ``vo`` method, hand-wired.
 
 The pattern every estimator follows: join the bus, read ``camera/info`` and the latest
 ``mission/status`` (home) and ``gps`` with a query, subscribe to ``imu`` and ``camera/image``,
-publish one estimate per frame on ``air/<vehicle>/estimate/<name>``.
+publish one estimate per frame on ``air/<vehicle>/estimate/<name>`` (no position when it
+cannot tell: lockstep counts that as an answer too).
 
-The method, deliberately simple: features tracked between consecutive frames (Shi-Tomasi +
-pyramidal Lucas-Kanade) are cast as rays through the camera, rotated by the AHRS attitude of
-each exposure (so bank and pitch do not look like motion), and intersected with the flat
-ground at the height above home. The ground point of a feature seen from frame k-1 fixes where
-frame k must have been to see it where it is now; the median over features is the position
-step. It starts from the last GNSS fix and the GNSS altitude gives the height (when GNSS is
-denied, the last height is kept); horizontally it is pure odometry and drifts.
+The method is :class:`air_sitl.localize.vo.VisualOdometry` (attitude-compensated
+frame-to-frame VO), given the GNSS fix at the first frame only, then pure odometry: it
+drifts. ``air-sitl localize --bus --method vo`` runs the same method with a complete driver
+(IMU history, capture end, any registered method); this file shows the bus contract in full.
 
 Run: ``python bridges/example_localizer.py --name ex`` next to ``air-sitl fly --zenoh ...``.
 """
@@ -20,17 +18,10 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 import sys
 import threading
 import time
 from collections import deque
-from dataclasses import dataclass
-from typing import Any
-
-import cv2
-import numpy as np
-import numpy.typing as npt
 
 from air_sitl.bus import codec
 from air_sitl.bus.args import add_connection_arguments, bus_config_from_args
@@ -38,101 +29,10 @@ from air_sitl.bus.keys import KeySpace, check_chunk
 from air_sitl.bus.session import Bus, Message, open_bus
 from air_sitl.bus.signals import wait_until_signalled
 from air_sitl.errors import AirSitlError, BusError
-from air_sitl.frames import geodetic2ned, quat2matrix
+from air_sitl.localize.base import GnssFix, LocalizerContext, Observation
+from air_sitl.localize.online import camera_from_info
+from air_sitl.localize.vo import VisualOdometry
 from air_sitl.state import GeoPoint, Quat
-
-Mat3 = npt.NDArray[np.float64]
-Gray = npt.NDArray[Any]  # 8-bit grey image (OpenCV's stubs type arrays loosely)
-MIN_TRACKS = 12
-
-
-@dataclass(slots=True)
-class _Previous:
-    """What the last frame left for the next one."""
-
-    points_px: npt.NDArray[Any]  # float32 features in the reduced image, (N, 1, 2)
-    image: Gray
-    r_cam_to_ned: Mat3
-    pos_ned_m: npt.NDArray[np.float64]  # estimated camera position (north, east, down)
-
-
-class VisualOdometry:
-    """The estimator: one ``step`` per frame, in frame order."""
-
-    def __init__(self, info: codec.CameraInfo, home: GeoPoint, *, scale: int = 2) -> None:
-        self.home = home
-        self.scale = scale  # frames decoded at 1/scale resolution (fast, plenty for the flow)
-        f = info.focal_px
-        cx, cy = (info.width_px - 1) / 2.0, (info.height_px - 1) / 2.0
-        self.k_inv = np.linalg.inv(np.array([[f, 0, cx], [0, f, cy], [0, 0, 1.0]]))
-        self.r_cam_to_body = np.array(quat2matrix(info.q_cam_to_body_wxyz))
-        self.prev: _Previous | None = None
-        self.height_m: float | None = None
-        self.velocity_ned_m: npt.NDArray[np.float64] = np.zeros(3)  # per frame
-        self.lost = 0
-
-    def gps_height(self, fix_alt_amsl_m: float) -> None:
-        """Feed a GNSS altitude (smoothed: the vertical noise is several metres)."""
-        h = max(1.0, fix_alt_amsl_m - self.home.alt_amsl_m)
-        self.height_m = h if self.height_m is None else 0.9 * self.height_m + 0.1 * h
-
-    def _rays_ned(self, pts: npt.NDArray[Any], r_cam_to_ned: Mat3) -> Mat3:
-        full = (pts.reshape(-1, 2).astype(np.float64) + 0.5) * self.scale - 0.5
-        homog = np.column_stack([full, np.ones(len(full))])
-        rays_cam = homog @ self.k_inv.T
-        rays: Mat3 = rays_cam @ r_cam_to_ned.T
-        return rays
-
-    def step(
-        self, jpeg: bytes, q_body_to_ned: Quat, start_ned_m: tuple[float, float] | None
-    ) -> npt.NDArray[np.float64] | None:
-        """Position (north, east, down) of the camera at this frame; None before a start."""
-        flag = cv2.IMREAD_REDUCED_GRAYSCALE_2 if self.scale == 2 else cv2.IMREAD_GRAYSCALE
-        image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), flag)
-        if image is None or self.height_m is None:
-            return None
-        r = np.array(quat2matrix(q_body_to_ned)) @ self.r_cam_to_body
-        h = self.height_m
-        prev = self.prev
-        if prev is None:
-            if start_ned_m is None:
-                return None
-            pos = np.array([start_ned_m[0], start_ned_m[1], -h])
-        else:
-            pos = self._track(prev, image, r, h)
-        pts = cv2.goodFeaturesToTrack(image, maxCorners=200, qualityLevel=0.01, minDistance=8)
-        if pts is None:
-            pts = np.zeros((0, 1, 2), np.float32)
-        self.prev = _Previous(pts, image, r, pos)
-        return pos
-
-    def _track(self, prev: _Previous, image: Gray, r: Mat3, h: float) -> npt.NDArray[np.float64]:
-        guess = prev.pos_ned_m + self.velocity_ned_m
-        guess[2] = -h
-        if len(prev.points_px) < MIN_TRACKS:
-            self.lost += 1
-            return guess
-        nxt, status, _err = cv2.calcOpticalFlowPyrLK(
-            prev.image, image, prev.points_px, prev.points_px.copy(), winSize=(21, 21), maxLevel=3
-        )
-        ok = status.reshape(-1) == 1
-        if ok.sum() < MIN_TRACKS:
-            self.lost += 1
-            return guess
-        rays_a = self._rays_ned(prev.points_px[ok], prev.r_cam_to_ned)
-        rays_b = self._rays_ned(nxt[ok], r)
-        down_ok = (rays_a[:, 2] > 0.05) & (rays_b[:, 2] > 0.05)
-        if down_ok.sum() < MIN_TRACKS:
-            self.lost += 1
-            return guess
-        rays_a, rays_b = rays_a[down_ok], rays_b[down_ok]
-        h_prev = -prev.pos_ned_m[2]
-        ground = prev.pos_ned_m + rays_a * (h_prev / rays_a[:, 2:3])  # down = 0 on the ground
-        cams = ground - rays_b * (h / rays_b[:, 2:3])
-        pos: npt.NDArray[np.float64] = np.median(cams, axis=0)
-        pos[2] = -h
-        self.velocity_ned_m = pos - prev.pos_ned_m
-        return pos
 
 
 class Localizer:
@@ -140,16 +40,12 @@ class Localizer:
 
     def __init__(self, bus: Bus, keys: KeySpace, name: str, *, wait_s: float) -> None:
         self.bus = bus
-        self.keys = keys
         self.key_out = keys.estimate(name)
         self._lock = threading.Condition()
         self._imu: deque[tuple[int, Quat]] = deque(maxlen=2000)
-        self._last_fix: tuple[float, float, float] | None = None
-        self._fix_fresh = False
-        self.frames = 0
-        self.published = 0
+        self._fix: GnssFix | None = None
+        self.frames = self.published = 0
         self.last_frame = -1
-        self.errors = 0
         bus.subscribe(keys.imu, self._on_imu)
         bus.subscribe(keys.gps, self._on_gps)
         info = codec.decode_camera_info(self._ask(keys.info, wait_s).payload)
@@ -158,12 +54,9 @@ class Localizer:
         if not isinstance(h, dict):
             msg = f"{keys.mission_status}: no home in the status"
             raise BusError(msg)
-        home = GeoPoint(
-            lat_deg=float(h["lat_deg"]),
-            lon_deg=float(h["lon_deg"]),
-            alt_amsl_m=float(h["alt_amsl_m"]),
-        )
-        self.vo = VisualOdometry(info, home)
+        home = GeoPoint(lat_deg=h["lat_deg"], lon_deg=h["lon_deg"], alt_amsl_m=h["alt_amsl_m"])
+        self.vo = VisualOdometry()
+        self.vo.reset(LocalizerContext(home=home, camera=camera_from_info(info)))
         for key, handler in ((keys.gps, self._on_gps), (keys.imu, self._on_imu)):
             with contextlib.suppress(BusError):  # the latest value, if there is one yet
                 handler(Message(key, bus.query(key, timeout_s=2.0).payload, None))
@@ -189,10 +82,16 @@ class Localizer:
 
     def _on_gps(self, message: Message) -> None:
         m = codec.loads(message.payload, message.key)
-        fix = (float(m["lat_deg"]), float(m["lon_deg"]), float(m["alt_amsl_m"]))
+        v = m["vel_ned_m_s"]
+        fix = GnssFix(
+            sim_time_ns=int(m["sim_time_ns"]),
+            lat_deg=float(m["lat_deg"]),
+            lon_deg=float(m["lon_deg"]),
+            alt_amsl_m=float(m["alt_amsl_m"]),
+            vel_ned_m_s=(float(v[0]), float(v[1]), float(v[2])),
+        )
         with self._lock:
-            self._last_fix = fix
-            self._fix_fresh = True
+            self._fix = fix
 
     def _attitude_at(self, t_ns: int) -> Quat | None:
         """The AHRS attitude at the exposure (the IMU sample of that step comes first, but on
@@ -210,37 +109,32 @@ class Localizer:
         meta = codec.decode_frame_meta(message.attachment)
         if meta.frame <= self.last_frame:
             return  # a repeat: already answered
+        first = self.last_frame < 0
         self.last_frame = meta.frame
         self.frames += 1
         q = self._attitude_at(meta.sim_time_ns)
         with self._lock:
-            fix, fresh = self._last_fix, self._fix_fresh
-            self._fix_fresh = False
-        home = self.vo.home
-        start = None
-        if fix is not None:
-            if fresh:
-                self.vo.gps_height(fix[2])
-            n, e, _d = geodetic2ned(
-                fix[0], fix[1], fix[2], home.lat_deg, home.lon_deg, home.alt_amsl_m
+            fix = self._fix if first else None  # GNSS at the first frame only
+        est = None
+        if q is not None:
+            obs = Observation(
+                frame=meta.frame,
+                sim_time_ns=meta.sim_time_ns,
+                image_bgr=None,
+                imu=(),
+                q_ahrs_body_to_ned_wxyz=q,
+                airspeed_m_s=None,
+                baro_alt_rel_m=None,  # no barometer on the bus: the fix's height is held
+                gnss=fix,
+                jpeg=message.payload,
             )
-            start = (n, e)
-        pos = None if q is None else self.vo.step(message.payload, q, start)
-        if pos is None:
-            self.errors += 1
-            enu = (math.nan, math.nan, math.nan)
-        else:
-            enu = (float(pos[1]), float(pos[0]), float(-pos[2]))
-        # Every frame gets an answer (NaN while the estimator cannot tell): lockstep relies on it.
-        payload = codec.dumps(
-            {"frame": meta.frame, "sim_time_ns": meta.sim_time_ns, "enu_m": _json_vec(enu)}
+            est = self.vo.step(obs)
+        # Every frame gets an answer (no position while the estimator cannot tell).
+        enu = None if est is None else est.enu_m
+        self._out.put(
+            codec.encode_estimate(frame=meta.frame, sim_time_ns=meta.sim_time_ns, enu_m=enu)
         )
-        self._out.put(payload)
         self.published += 1
-
-
-def _json_vec(v: tuple[float, float, float]) -> list[float | None]:
-    return [None if math.isnan(c) else c for c in v]
 
 
 def build_parser() -> argparse.ArgumentParser:
