@@ -248,7 +248,7 @@ class ParamStore:
 
 
 @dataclass(frozen=True, slots=True)
-class NavParams:
+class GuidanceParams:
     """The parameters guidance needs, converted to SI units once per change."""
 
     trim_m_s: float
@@ -269,7 +269,7 @@ class NavParams:
     land_airspeed_m_s: float
 
     @classmethod
-    def from_store(cls, p: ParamStore) -> NavParams:
+    def from_store(cls, p: ParamStore) -> GuidanceParams:
         """Snapshot of the store."""
         lo = p.get("FW_AIRSPD_MIN")
         return cls(

@@ -23,7 +23,7 @@ import math
 from collections import deque
 from collections.abc import Callable
 
-from air_sitl.autopilot.params import NavParams, ParamStore
+from air_sitl.autopilot.params import GuidanceParams, ParamStore
 from air_sitl.autopilot.tasks import (
     IdleTask,
     LandTask,
@@ -62,7 +62,7 @@ class MissionSequencer:
         self.home = home
         self.params = params
         self._np_version = -1
-        self._np = NavParams.from_store(params)
+        self._np = GuidanceParams.from_store(params)
         self.mode = FlightMode.IDLE
         self.armed = False
         self.capturing = False
@@ -143,14 +143,14 @@ class MissionSequencer:
 
     # ------------------------------------------------------------------------------ update
     @property
-    def nav_params(self) -> NavParams:
+    def guidance_params(self) -> GuidanceParams:
         """Current parameters, re-read when the store changed."""
         if self.params.version != self._np_version:
-            self._np = NavParams.from_store(self.params)
+            self._np = GuidanceParams.from_store(self.params)
             self._np_version = self.params.version
         return self._np
 
-    def _speed(self, p: NavParams, course_rad: float = 0.0) -> float:
+    def _speed(self, p: GuidanceParams, course_rad: float = 0.0) -> float:
         if self._speed_override is not None:
             if not self._ground_speed_mode:
                 return p.clamp_speed(self._speed_override)
@@ -181,7 +181,7 @@ class MissionSequencer:
     def update(self, state: VehicleState) -> NavOutput:
         """Advance the state machine and return guidance for ``state``."""
         self._state = state
-        p = self.nav_params
+        p = self.guidance_params
         if self._deferred is not None:
             deferred, self._deferred = self._deferred, None
             deferred()
@@ -209,7 +209,7 @@ class MissionSequencer:
     def _tick_now(self) -> Tick:
         """A tick for the last state (commands create tasks between updates)."""
         assert self._state is not None
-        p = self.nav_params
+        p = self.guidance_params
         tick = Tick(self._state, p, 0.0)
         tick.speed = self._speed(p, tick.course)
         return tick

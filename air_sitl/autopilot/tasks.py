@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 
 from air_sitl.autopilot import guidance
-from air_sitl.autopilot.params import NavParams
+from air_sitl.autopilot.params import GuidanceParams
 from air_sitl.autopilot.target import ControlPhase, ControlTarget
 from air_sitl.mission.geometry import Point
 from air_sitl.state import VehicleState
@@ -30,7 +30,7 @@ _NAN = math.nan
 
 @dataclass(frozen=True, slots=True)
 class NavOutput:
-    """What the executor asks for at one guidance update, and how well the path is tracked."""
+    """What the sequencer asks for at one guidance update, and how well the path is tracked."""
 
     target: ControlTarget
     cross_track_m: float = _NAN
@@ -43,7 +43,7 @@ class Tick:
 
     __slots__ = ("alt", "course", "gs", "now_ns", "p", "pe", "pn", "speed", "state", "ve", "vn")
 
-    def __init__(self, state: VehicleState, p: NavParams, speed_m_s: float) -> None:
+    def __init__(self, state: VehicleState, p: GuidanceParams, speed_m_s: float) -> None:
         self.state = state
         self.p = p
         self.speed = speed_m_s
@@ -126,7 +126,7 @@ class TakeoffTask(Task):
         else:
             self.stage = ControlPhase.CRUISE
 
-    def _climbout_top(self, p: NavParams) -> float:
+    def _climbout_top(self, p: GuidanceParams) -> float:
         height = self.alt - self.ground_alt
         return self.alt - min(p.climbout_diff_m, 0.5 * height)
 
@@ -273,7 +273,7 @@ class LoiterTask(Task):
         self.amount = amount
         self.approach = True
         self.established = False  # on the circle at least once
-        self.announced = False  # the executor has acted on ``established``
+        self.announced = False  # the sequencer has acted on ``established``
         self.established_ns = 0
         self.swept_rad = 0.0
         self._last_angle = 0.0
