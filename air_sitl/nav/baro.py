@@ -3,7 +3,8 @@
 Start: the first reading sets the height (minus an offset taken against GNSS when a fix is
 there). Fuse: height above home = baro altitude - offset - home altitude. The offset (turn-on
 error plus slow drift) is tracked by a scalar Kalman filter against GNSS altitude while GNSS
-is fusing, and frozen during denial (EKF2 estimates a baro bias the same way).
+is fusing, and frozen during denial (EKF2 estimates a baro bias the same way). Reset: after
+``baro_reset_timeout_ns`` of continuous rejection the height jumps to the barometer.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ class BaroControl:
         self.offset_var_m2 = 25.0
         self.last_alt_m: float | None = None
         self.last_fused_ns: int | None = None
+        self.first_reject_ns: int | None = None
         self.ratio = 0.0
 
     def push(self, sample: BaroSample, now_ns: int, horizon_start_ns: int) -> bool:
@@ -65,12 +67,16 @@ class BaroControl:
         p = self.params
         for t_m, alt in self.buffer.pop_due(t_ns):
             self.last_alt_m = alt
-            if not self.started:
-                if gnss_alt_m is not None:
+            first = self.first_reject_ns
+            if not self.started or (first is not None and t_m - first >= p.baro_reset_timeout_ns):
+                if not self.started and gnss_alt_m is not None:
                     self.offset_m = alt - gnss_alt_m
                 height = alt - self.offset_m - self.home_alt_m
                 ekf.reset_states(POS + 2, (-height,), p.baro_noise_m**2)
+                if self.started:
+                    self.counters.resets += 1
                 self.started = True
+                self.first_reject_ns = None
                 self.last_fused_ns = t_m
                 self.counters.fused += 1
                 continue
@@ -82,5 +88,8 @@ class BaroControl:
             if r.fused:
                 self.counters.fused += 1
                 self.last_fused_ns = t_m
+                self.first_reject_ns = None
             else:
                 self.counters.reject("gate")
+                if first is None:
+                    self.first_reject_ns = t_m

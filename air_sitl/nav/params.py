@@ -48,6 +48,7 @@ class NavParams:
     baro_gate: float = 5.0
     baro_bias_noise_m_sqrt_s: float = 0.05
     baro_timeout_ns: int = 1_000_000_000
+    baro_reset_timeout_ns: int = 5_000_000_000
 
     # Airspeed (EKF2_EAS_NOISE, EKF2_TAS_GATE) and synthetic sideslip (EKF2_FUSE_BETA).
     airspeed_noise_m_s: float = 1.4

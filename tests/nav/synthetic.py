@@ -28,6 +28,7 @@ class Straight:
         self.nav = NavFilter(HOME, params)
         self.t_ns = 0
         self.gnss = True
+        self.baro_offset_m = 0.0
         self._g = normal_gravity_m_s2(HOME.lat_deg, HOME.alt_amsl_m)
 
     def step(self) -> None:
@@ -36,7 +37,12 @@ class Straight:
         if t % 100_000_000 == 0:
             nav.fuse_heading(HeadingSample(sim_time_ns=t, heading_rad=0.0), t)
             nav.fuse_airspeed(AirspeedSample(sim_time_ns=t, airspeed_m_s=SPEED_M_S), t)
-            nav.fuse_baro(BaroSample(sim_time_ns=t, alt_amsl_m=HOME.alt_amsl_m + HEIGHT_M), t)
+            nav.fuse_baro(
+                BaroSample(
+                    sim_time_ns=t, alt_amsl_m=HOME.alt_amsl_m + HEIGHT_M + self.baro_offset_m
+                ),
+                t,
+            )
         if self.gnss and t % 200_000_000 == 0:
             n, e, d = truth_ned(t)
             lat, lon, alt = ned2geodetic(n, e, d, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m)

@@ -238,3 +238,20 @@ def test_odd_types_never_raise() -> None:
     ]
     run.run(1.0)
     assert run.error_m() < 0.5
+
+
+def test_baro_step_rejected_then_reset_after_timeout() -> None:
+    """A 100 m barometer step without GNSS (the only height source): gated, then after 5 s
+    of rejection the height follows it. (With GNSS the offset calibration absorbs it.)"""
+    from tests.nav.synthetic import HEIGHT_M
+
+    run = Straight()
+    run.run(10.0)
+    run.gnss = False
+    run.baro_offset_m = 100.0
+    run.run(4.0)
+    assert abs(-run.nav.estimate().pos_ned_m[2] - HEIGHT_M) < 2.0
+    run.run(3.0)
+    assert abs(-run.nav.estimate().pos_ned_m[2] - HEIGHT_M - 100.0) < 2.0
+    baro = run.nav.status().baro
+    assert baro.resets == 1 and baro.rejected >= 45
