@@ -232,7 +232,7 @@ def error_cdf(scored: Sequence[Scored], path: Path) -> Path:
         ax.axvline(d, color="0.5", lw=0.8, ls="--", zorder=0)
         ax.annotate(
             f"{d:g} m",
-            (d, 1.0),
+            (d, 1.03),
             xytext=(0, 3),
             textcoords="offset points",
             ha="center",
@@ -242,7 +242,7 @@ def error_cdf(scored: Sequence[Scored], path: Path) -> Path:
             rotation=90,
         )
     ax.set_xlim(0.0, x_max)
-    ax.set_ylim(0.0, 1.0)
+    ax.set_ylim(0.0, 1.03)
     ax.set_xlabel("horizontal error (m)")
     ax.set_ylabel("share of all capture frames with error <= x")
     ax.grid(True, lw=0.4, alpha=0.5)
