@@ -63,7 +63,7 @@ class Observation:
     airspeed_m_s: float | None  # true airspeed measurement
     baro_alt_rel_m: float | None  # barometric height above home
     gnss: GnssFix | None  # a fix given at this frame, or None
-    jpeg: bytes | None = None  # the encoded frame when the source has it (decode cheaply)
+    jpeg: bytes | None = None  # the encoded frame (both drivers have it; see needs_image)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -99,7 +99,10 @@ class Localizer(Protocol):
     """A localization method: one object, reset once per flight, stepped once per frame."""
 
     name: str
-    needs_image: bool  # False: drivers skip decoding (``image_bgr`` None)
+    # True: drivers decode every frame to BGR (``image_bgr``). False: they do not
+    # (``image_bgr`` None); ``jpeg`` carries the encoded frame either way, so a method that
+    # wants it in grey at reduced size decodes it itself, cheaper (vo, mapmatch do).
+    needs_image: bool
 
     def reset(self, context: LocalizerContext) -> None:
         """Start a new flight (drop all state)."""
