@@ -84,34 +84,42 @@ class AirspeedControl:
 
     def _fuse_beta(self, ekf: ErrorStateEkf) -> None:
         """Synthetic sideslip: the air velocity has no body-y component (beta = 0)."""
-        p = self.params
-        r = rotation_matrix(ekf.q)
-        vn, ve, vd = ekf.v
-        a = (vn - ekf.wind[0], ve - ekf.wind[1], vd)
-        # Body air velocity = R^T a; column i of R is body axis i in NED.
-        c0 = (r[0], r[3], r[6])
-        c1 = (r[1], r[4], r[7])
-        bx = c0[0] * a[0] + c0[1] * a[1] + c0[2] * a[2]
-        by = c1[0] * a[0] + c1[1] * a[1] + c1[2] * a[2]
-        if bx < 1.0:
+        model = sideslip(ekf.q, ekf.v, ekf.wind)
+        if model is None:
             return
-        beta = by / bx
-
-        def cross(u: tuple[float, float, float]) -> tuple[float, float, float]:
-            return (u[1] * a[2] - u[2] * a[1], u[2] * a[0] - u[0] * a[2], u[0] * a[1] - u[1] * a[0])
-
-        # d(body_i)/d(dtheta) = c_i x a (global attitude error); d/dv = c_i; d/dwind = -c_i.
-        x0, x1 = cross(c0), cross(c1)
-        inv = 1.0 / bx
-        k = by * inv * inv
-
-        def d(u1: float, u0: float) -> float:
-            return u1 * inv - u0 * k
-
-        h = [0.0] * N_STATES
-        for i in range(3):
-            h[VEL + i] = d(c1[i], c0[i])
-            h[ATT + i] = d(x1[i], x0[i])
-        h[WIND], h[WIND + 1] = -h[VEL], -h[VEL + 1]
+        beta, h = model
+        p = self.params
         res = fuse_scalar(ekf, h, -beta, p.beta_noise_rad**2, p.beta_gate)
         self.beta_ratio = res.test_ratio
+
+
+def sideslip(
+    q: tuple[float, float, float, float],
+    v: tuple[float, float, float],
+    wind: tuple[float, float],
+) -> tuple[float, list[float]] | None:
+    """Sideslip (body y / body x air velocity) and its Jacobian on the error state; None when
+    the air does not come from ahead (below 1 m/s along the body x axis)."""
+    r = rotation_matrix(q)
+    vn, ve, vd = v
+    a = (vn - wind[0], ve - wind[1], vd)
+    # Body air velocity = R^T a; column i of R is body axis i in NED.
+    c0 = (r[0], r[3], r[6])
+    c1 = (r[1], r[4], r[7])
+    bx = c0[0] * a[0] + c0[1] * a[1] + c0[2] * a[2]
+    by = c1[0] * a[0] + c1[1] * a[1] + c1[2] * a[2]
+    if bx < 1.0:
+        return None
+    beta = by / bx
+    # d(body_i)/d(dtheta) = c_i x a (global attitude error); d/dv = c_i; d/dwind = -c_i;
+    # d(beta) = d(by) / bx - by d(bx) / bx^2.
+    x0 = (c0[1] * a[2] - c0[2] * a[1], c0[2] * a[0] - c0[0] * a[2], c0[0] * a[1] - c0[1] * a[0])
+    x1 = (c1[1] * a[2] - c1[2] * a[1], c1[2] * a[0] - c1[0] * a[2], c1[0] * a[1] - c1[1] * a[0])
+    inv = 1.0 / bx
+    k = by * inv * inv
+    h = [0.0] * N_STATES
+    for i in range(3):
+        h[VEL + i] = c1[i] * inv - c0[i] * k
+        h[ATT + i] = x1[i] * inv - x0[i] * k
+    h[WIND], h[WIND + 1] = -h[VEL], -h[VEL + 1]
+    return beta, h

@@ -75,6 +75,19 @@ def fuse_direct(
     """
     m = len(innovation)
     P = ekf.P
+    if m == 1:  # the common scalar case (height) in fewer numpy calls
+        col = P[:, first].copy()
+        s0 = float(col[first]) + R[0][0]
+        if not (s0 > 0.0 and math.isfinite(s0)):
+            return REJECTED_BAD
+        y0 = innovation[0]
+        ratio = y0 * y0 / (s0 * gate * gate)
+        if ratio > 1.0 and not force:
+            return FusionResult(False, ratio)
+        k = col * (1.0 / s0)
+        P -= np.outer(k, col)
+        ekf.correct((k * y0).tolist())
+        return FusionResult(True, ratio)
     pht = P[:, first : first + m].copy()
     block = pht[first : first + m].tolist()
     s = [[block[r][c] + R[r][c] for c in range(m)] for r in range(m)]

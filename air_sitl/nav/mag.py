@@ -57,18 +57,12 @@ class MagControl:
                 self.first_reject_ns = None
                 self.counters.fused += 1
                 continue
-            r = rotation_matrix(ekf.q)
-            r00, r10, r20 = r[0], r[3], r[6]
-            d = r00 * r00 + r10 * r10
-            if d < 1e-6:  # pointing straight up or down: heading undefined
+            model = yaw_model(ekf.q)
+            if model is None:  # pointing straight up or down: heading undefined
                 self.counters.empty += 1
                 continue
-            yaw = math.atan2(r10, r00)
+            yaw, h = model
             y = math.remainder(yaw_meas - yaw, 2.0 * math.pi)
-            h = [0.0] * N_STATES
-            h[ATT] = -r00 * r20 / d
-            h[ATT + 1] = -r10 * r20 / d
-            h[ATT + 2] = 1.0
             res = fuse_scalar(ekf, h, y, p.heading_noise_rad**2, p.heading_gate)
             self.ratio = self.counters.test_ratio = res.test_ratio
             if res.fused:
@@ -78,3 +72,18 @@ class MagControl:
                 self.counters.reject("gate")
                 if self.first_reject_ns is None:
                     self.first_reject_ns = t_m
+
+
+def yaw_model(q: tuple[float, float, float, float]) -> tuple[float, list[float]] | None:
+    """Yaw (ZYX heading) of q and its Jacobian on the global attitude error; None when the
+    body x axis is vertical."""
+    r = rotation_matrix(q)
+    r00, r10, r20 = r[0], r[3], r[6]
+    d = r00 * r00 + r10 * r10
+    if d < 1e-6:
+        return None
+    h = [0.0] * N_STATES
+    h[ATT] = -r00 * r20 / d
+    h[ATT + 1] = -r10 * r20 / d
+    h[ATT + 2] = 1.0
+    return math.atan2(r10, r00), h

@@ -150,3 +150,43 @@ def test_same_inputs_same_outputs() -> None:
     _, one = fly(rec, deny_after_s=20.0, until_s=40.0, trace_every=1)
     _, two = fly(rec, deny_after_s=20.0, until_s=40.0, trace_every=1)
     assert one == two
+
+
+def _perturbed(q, v, wind, k: int, eps: float):  # type: ignore[no-untyped-def]
+    """The nominal state moved by ``eps`` along error-state component k."""
+    from air_sitl.nav.ekf import rotate_global
+
+    v, wind = list(v), list(wind)
+    if 3 <= k < 6:
+        v[k - 3] += eps
+    elif 6 <= k < 9:
+        dtheta = [0.0, 0.0, 0.0]
+        dtheta[k - 6] = eps
+        q = rotate_global(q, tuple(dtheta))
+    elif k >= 15:
+        wind[k - 15] += eps
+    return q, tuple(v), tuple(wind)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_sideslip_and_yaw_jacobians_match_finite_differences(seed: int) -> None:
+    from air_sitl.nav.airspeed import sideslip
+    from air_sitl.nav.mag import yaw_model
+
+    rng = np.random.default_rng(seed)
+    roll, pitch, yaw = rng.uniform(-0.5, 0.5), rng.uniform(-0.3, 0.3), rng.uniform(-3, 3)
+    q = euler2quat(roll, pitch, yaw)
+    v = (15 * math.cos(yaw) + 1.0, 15 * math.sin(yaw) - 2.0, 0.5)
+    wind = (rng.normal(), rng.normal())
+    eps = 1e-6
+
+    def yaw_of(q, v, w):  # type: ignore[no-untyped-def]
+        return yaw_model(q)
+
+    for name, model in (("sideslip", sideslip), ("yaw", yaw_of)):
+        _, h = model(q, v, wind)
+        for k in [*range(3, 9), 15, 16]:
+            up = model(*_perturbed(q, v, wind, k, eps))[0]
+            down = model(*_perturbed(q, v, wind, k, -eps))[0]
+            numeric = (up - down) / (2 * eps)
+            assert h[k] == pytest.approx(numeric, abs=1e-6), (name, k)
