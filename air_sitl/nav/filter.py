@@ -16,7 +16,7 @@ from air_sitl.nav.aid import AidControl
 from air_sitl.nav.airspeed import AirspeedControl
 from air_sitl.nav.baro import BaroControl
 from air_sitl.nav.buffer import ImuDelta, OutputPredictor
-from air_sitl.nav.ekf import POS, VEL, ErrorStateEkf, normal_gravity_m_s2
+from air_sitl.nav.ekf import POS, VEL, ErrorStateEkf, integrate, normal_gravity_m_s2
 from air_sitl.nav.gnss import GnssControl
 from air_sitl.nav.mag import MagControl
 from air_sitl.nav.params import NavParams
@@ -274,13 +274,24 @@ class NavFilter:
         )
 
     def estimate(self) -> NavEstimate:
-        """The state at the newest IMU time (output predictor, extrapolated < 1 filter step)."""
+        """The state at the newest IMU time: the output predictor advanced over the IMU
+        samples summed since its last step (fewer than one filter period)."""
         out = self.output
         ekf = self.ekf
         t = self._t_imu if self._t_imu is not None else 0
-        lead = (t - out.t_ns) * 1e-9 if self.aligned else 0.0
-        v = out.v
-        p = (out.p[0] + v[0] * lead, out.p[1] + v[1] * lead, out.p[2] + v[2] * lead)
+        p, v, q = out.p, out.v, out.q
+        dt = self._acc_dt
+        if self.aligned and dt > 0.0:
+            s, bg, ba = self._acc, ekf.bg, ekf.ba
+            p, v, q, _ = integrate(
+                p,
+                v,
+                q,
+                (s[0] - bg[0] * dt, s[1] - bg[1] * dt, s[2] - bg[2] * dt),
+                (s[3] - ba[0] * dt, s[4] - ba[1] * dt, s[5] - ba[2] * dt),
+                dt,
+                out.g,
+            )
         h = self.home
         lat, lon, alt = ned2geodetic(p[0], p[1], p[2], h.lat_deg, h.lon_deg, h.alt_amsl_m)
         P = ekf.P
@@ -290,7 +301,7 @@ class NavFilter:
             sim_time_ns=t,
             pos_ned_m=p,
             vel_ned_m_s=v,
-            q_body_to_ned_wxyz=out.q,
+            q_body_to_ned_wxyz=q,
             lat_deg=lat,
             lon_deg=lon,
             alt_amsl_m=alt,
