@@ -1,8 +1,9 @@
-"""Atomic file writes: a temporary name beside the target, then a rename into place.
+"""Atomic file writes (a temporary name beside the target, then a rename), JSON objects read
+back, deterministic zips.
 
 A reader (or a crash) never sees half a file: the target holds the old content or the new one.
 Every writer of an archive file (JPEG frames, camera.yaml, summary and manifest JSON, the
-rewritten ``metadata.csv``) goes through here.
+rewritten ``metadata.csv``) goes through here; so does packing an archive as a zip.
 """
 
 from __future__ import annotations
@@ -10,10 +11,11 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import zipfile
 from pathlib import Path
 from typing import Any
 
-from air_sitl.errors import DatasetError
+from air_sitl.errors import AirSitlError, DatasetError
 
 TMP_SUFFIX = ".tmp"  # the temporary name of a file being written: <name>.tmp
 
@@ -52,6 +54,36 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes, *, fsync: bool
         raise write_error(final, err) from None
 
 
+def parse_json_object(data: bytes | str, where: str, error: type[AirSitlError]) -> dict[str, Any]:
+    """One JSON object; ``error`` naming ``where`` when ``data`` is not one."""
+    try:
+        value = json.loads(data)
+    except (UnicodeDecodeError, json.JSONDecodeError) as err:
+        msg = f"{where}: not a JSON object ({err})"
+        raise error(msg) from None
+    if not isinstance(value, dict):
+        msg = f"{where}: expected a JSON object, got {type(value).__name__}"
+        raise error(msg)
+    return value
+
+
 def write_json_atomic(path: Path, content: Any) -> None:
     """Write ``content`` as indented JSON, synced to disk, atomically (DatasetError on failure)."""
     write_bytes_atomic(path, (json.dumps(content, indent=2) + "\n").encode("utf-8"), fsync=True)
+
+
+def zip_folder(folder: Path, out: Path) -> None:
+    """Pack ``folder`` as ``out`` (stored, fixed timestamps: the same bytes every time)."""
+    tmp = out.with_name(out.name + TMP_SUFFIX)
+    files = sorted(p for p in folder.rglob("*") if p.is_file() and not p.name.startswith("."))
+    with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_STORED) as zf:
+        for path in files:
+            info = zipfile.ZipInfo(
+                f"{folder.name}/{path.relative_to(folder).as_posix()}", (1980, 1, 1, 0, 0, 0)
+            )
+            info.external_attr = 0o644 << 16
+            info.compress_type = zipfile.ZIP_STORED
+            with path.open("rb") as src, zf.open(info, "w") as dst:
+                while block := src.read(1 << 20):
+                    dst.write(block)
+    tmp.replace(out)

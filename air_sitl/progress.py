@@ -1,12 +1,14 @@
-"""Terminal progress bar and the one-screen flight summary (presentation only)."""
+"""Terminal progress: a flight's bar and summary, many jobs' lines (presentation only)."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import IO, Any
 
 from air_sitl.clock import NS_PER_S
 from air_sitl.mission.items import Mission
+from air_sitl.recording.batch import Outcome
 from air_sitl.runner import Flight
 from air_sitl.state import SimSample
 
@@ -54,3 +56,81 @@ def print_summary(summary: dict[str, Any], out: Path, stream: IO[str]) -> None:
         f"  output           {out}",
     ]
     stream.write("\n".join(lines) + "\n")
+
+
+class JobsDisplay:
+    """One progress line per job plus an overall one (redrawn in place on a terminal)."""
+
+    def __init__(self, names: list[str], expected: dict[str, int], stream: IO[str], tty: bool):
+        self.names = names
+        self.expected = expected
+        self.stream = stream
+        self.tty = tty
+        self.frames = dict.fromkeys(names, 0)
+        self.sim_s = dict.fromkeys(names, 0.0)
+        self.state = dict.fromkeys(names, "waiting")
+        self.start = time.monotonic()
+        self._drawn = 0
+        self._last = 0.0
+
+    def _bar(self, done: int, total: int, width: int = 24) -> str:
+        frac = min(1.0, done / total) if total > 0 else 0.0
+        filled = int(frac * width)
+        return f"[{'#' * filled}{'.' * (width - filled)}] {100 * frac:5.1f}%"
+
+    def update(self, name: str, frames: int, sim_s: float) -> None:
+        """A progress report from a job."""
+        if self.state[name] == "waiting":
+            self.state[name] = "flying"
+            if not self.tty:
+                self.stream.write(f"{name}: flying\n")
+        self.frames[name] = frames
+        self.sim_s[name] = sim_s
+        self.draw()
+
+    def done(self, outcome: Outcome) -> None:
+        """A job finished."""
+        name = outcome.name
+        if outcome.error:
+            self.state[name] = "FAILED"
+            line = f"{name}: FAILED: {outcome.error}"
+        else:
+            self.frames[name] = outcome.images
+            ok = "done" if outcome.mission_completed else "done (mission NOT completed)"
+            self.state[name] = ok
+            line = (
+                f"{name}: {ok}: {outcome.images} frames, {outcome.distance_m:.0f} m, "
+                f"{outcome.sim_time_s:.0f} s simulated in {outcome.wall_s:.0f} s"
+            )
+        if not self.tty:
+            finished = sum(1 for s in self.state.values() if s not in ("waiting", "flying"))
+            self.stream.write(f"[{finished}/{len(self.names)}] {line}\n")
+            self.stream.flush()
+        self.draw(force=True)
+
+    def draw(self, *, force: bool = False) -> None:
+        """Redraw every line (terminal only, at most 10 times a second)."""
+        if not self.tty:
+            return
+        now = time.monotonic()
+        if not force and now - self._last < 0.1:
+            return
+        self._last = now
+        lines = []
+        for name in self.names:
+            lines.append(
+                f"{name:>16} {self._bar(self.frames[name], self.expected.get(name, 0))} "
+                f"{self.frames[name]:6d} frames  sim {self.sim_s[name]:6.0f} s  {self.state[name]}"
+            )
+        total = sum(self.frames.values())
+        total_expected = sum(self.expected.get(n, 0) for n in self.names)
+        wall = now - self.start
+        lines.append(
+            f"{'overall':>16} {self._bar(total, total_expected)} {total:6d} frames  "
+            f"{wall:6.0f} s wall  {total / wall if wall > 0 else 0:5.0f} frames/s"
+        )
+        if self._drawn:
+            self.stream.write(f"\x1b[{self._drawn}F")
+        self.stream.write("\n".join(f"{line}\x1b[K" for line in lines) + "\n")
+        self.stream.flush()
+        self._drawn = len(lines)

@@ -15,6 +15,7 @@ from typing import Any
 
 from air_sitl.bus.keys import CONTRACT_VERSION
 from air_sitl.errors import BusError
+from air_sitl.files import parse_json_object
 from air_sitl.state import AutopilotStatus, GeoPoint, GpsFix, ImuSample, Quat, Vec3, VehicleState
 
 JSON_ENCODING = "application/json"
@@ -30,15 +31,7 @@ def dumps(message: dict[str, Any]) -> bytes:
 
 def loads(payload: bytes, what: str) -> dict[str, Any]:
     """Parse one JSON object; BusError naming ``what`` when it is not one."""
-    try:
-        value = json.loads(payload)
-    except (UnicodeDecodeError, json.JSONDecodeError) as err:
-        msg = f"{what}: not a JSON object ({err})"
-        raise BusError(msg) from None
-    if not isinstance(value, dict):
-        msg = f"{what}: expected a JSON object, got {type(value).__name__}"
-        raise BusError(msg)
-    return value
+    return parse_json_object(payload, what, BusError)
 
 
 def encode_imu(imu: ImuSample) -> bytes:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -41,9 +41,7 @@ class BusHookup(Closeable):
     bus: Bus | None = None
     publisher: BusPublisher | None = None
     log: EstimateLog | None = None
-    out: Path | None = None
-    lockstep_wait_s: list[float] = field(default_factory=list)
-    _lockstep: Any = None
+    _lockstep: LockstepFrameSource | None = None
 
     @property
     def needs_camera(self) -> bool:
@@ -60,7 +58,6 @@ class BusHookup(Closeable):
         frame_source: FrameSource | None,
     ) -> tuple[list[Sink], FrameSource | None]:
         """Sinks to add to the flight, and the FrameSource to use instead of ``frame_source``."""
-        self.out = out
         opts = self.options
         if opts is None or self.bus is None:
             return [], frame_source

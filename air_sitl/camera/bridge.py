@@ -14,6 +14,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import cv2
 
+from air_sitl.camera.options import close_map
 from air_sitl.camera.render import Renderer, render_camera_frame
 from air_sitl.state import CameraFrame, SimSample
 
@@ -75,6 +76,4 @@ class CameraBridge:
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
-        close = getattr(self.renderer.map, "close", None)
-        if callable(close):
-            close()
+        close_map(self.renderer.map)

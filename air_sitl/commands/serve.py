@@ -1,34 +1,31 @@
 """``air-sitl serve``: a PX4-like vehicle on MAVLink links, flown by ground stations.
 
-The vehicle starts on the ground at home, disarmed; clients (QGroundControl, MAVSDK, MAVProxy,
-pymavlink) connect, upload a mission, arm and start it. It runs until SIGINT or SIGTERM.
+Parses the options into a FlightSetup and serves it (:mod:`air_sitl.serving`) until SIGINT or
+SIGTERM.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-import queue
 import signal
 import sys
 import threading
 from pathlib import Path
 from types import FrameType
 
-from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
+from air_sitl.builder import FlightSetup
 from air_sitl.bus.hookup import bus_sinks_from_args
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import OptionError
 from air_sitl.mavlink.codec import load_signing_key
 from air_sitl.mavlink.links import DEFAULT_LINKS, parse_link
-from air_sitl.mavlink.vehicle import EndpointOptions, Job, VehicleEndpoint
 from air_sitl.mission.items import Mission
 from air_sitl.mission.plan_file import load_mission
 from air_sitl.options import OPEN_END_NS, FlightOptions, flight_options_from_args
-from air_sitl.recording import CaptureRecorder
-from air_sitl.runner import Flight, InboxItem, home_of
-from air_sitl.sinks import FrameSource, Sink
+from air_sitl.runner import home_of
+from air_sitl.serving import serve_vehicle
 from air_sitl.state import GeoPoint
 
 HELP = "run a PX4-like MAVLink vehicle that ground stations connect to, upload missions to and fly"
@@ -89,73 +86,28 @@ def run(args: argparse.Namespace) -> int:
             )
     key = load_signing_key(args.signing_key) if args.signing_key else None
     setup = _setup(args, options)
+    stop = threading.Event()
 
-    inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
+        stop.set()
 
-    def post(job: Job) -> None:
-        def on_flight(flight: Flight) -> None:
-            job(flight.autopilot)
-
-        inbox.put(on_flight)
-
-    home = setup.home
-    endpoint = VehicleEndpoint(
-        specs, home=home, mission=setup.mission, post=post, options=EndpointOptions(signing_key=key)
-    )
-    hookup = bus_sinks_from_args(args)
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        addresses = endpoint.open()
-        sinks: list[Sink] = [endpoint.sink]
-        camera: FrameSource | None = None
-        recorder = None
-        if args.out or hookup.needs_camera:
-            camera = open_camera(setup, open_setup_map(setup))
-        if args.out:
-            recorder = CaptureRecorder(Path(args.out), setup)
-            sinks.append(recorder)
-        bus_sinks, camera = hookup.attach(
-            home=home,
-            out=Path(args.out) if args.out else None,
-            camera=setup.camera if camera is not None else None,
-            seed=options.seed,
-            frame_source=camera,
-        )
-        sinks.extend(bus_sinks)
-        flight = build_flight(setup, sinks=sinks, camera=camera, auto_start=False)
-        endpoint.attach(flight.autopilot, flight.autopilot.params)
-        if recorder is not None:
-            recorder.autopilot = flight.autopilot
-        endpoint.start()
-        if not args.quiet:
-            links = ", ".join(
-                f"{spec} (local {host}:{port})"
-                for spec, (host, port) in zip(specs, addresses, strict=True)
-            )
-            print(
-                f"air-sitl serve: vehicle ready at {home.lat_deg:.7f},{home.lon_deg:.7f},"
-                f"{home.alt_amsl_m:.1f} speed {options.speed:g}; links: {links}",
-                flush=True,
-            )
-        stop = threading.Event()
-
-        def on_signal(signum: int, _frame: FrameType | None) -> None:
-            stop.set()
-
-        previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-        try:
-            flight.run(
-                stop=lambda _sample: stop.is_set(),
+        with bus_sinks_from_args(args) as hookup:
+            c = serve_vehicle(
+                setup,
+                specs,
+                stop=stop,
                 max_sim_time_ns=_max_sim_ns(args, options.max_sim_time_s),
-                inbox=inbox,
+                bus=hookup,
+                out=Path(args.out) if args.out else None,
+                signing_key=key,
+                quiet=bool(args.quiet),
             )
-        finally:
-            for s, handler in previous.items():
-                signal.signal(s, handler)
     finally:
-        endpoint.close()
-        hookup.close()
+        for s, handler in previous.items():
+            signal.signal(s, handler)
     if not args.quiet:
-        c = endpoint.counters
         print(
             f"air-sitl serve: stopped; {c.messages} messages received, {c.dropped} frames "
             f"dropped ({c.parse_errors} parse errors, {c.unknown_ids} unknown, "

@@ -9,7 +9,6 @@ Every file of an archive is byte-identical across runs with the same inputs and 
 from __future__ import annotations
 
 import hashlib
-import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -21,7 +20,7 @@ from air_sitl.dataset.air_schema import (
     SUMMARY_JSON,
 )
 from air_sitl.errors import DatasetError
-from air_sitl.files import TMP_SUFFIX, write_json_atomic
+from air_sitl.files import TMP_SUFFIX, parse_json_object, write_json_atomic
 
 MANIFEST_FORMAT = "air-sitl-archive"
 MANIFEST_VERSION = 1
@@ -92,14 +91,11 @@ def read_manifest(folder: Path) -> dict[str, Any] | None:
     if not path.exists():
         return None
     try:
-        content = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        msg = f"{path}: not a readable JSON manifest ({err})"
+        data = path.read_bytes()
+    except OSError as err:
+        msg = f"{path}: cannot read the manifest: {err.strerror}"
         raise DatasetError(msg) from None
-    if not isinstance(content, dict):
-        msg = f"{path}: expected a JSON object, found {type(content).__name__}"
-        raise DatasetError(msg)
-    return content
+    return parse_json_object(data, str(path), DatasetError)
 
 
 def refresh_manifest(folder: Path, changed: Mapping[str, str] | None = None) -> None:

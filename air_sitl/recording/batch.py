@@ -1,0 +1,157 @@
+"""Many recordings at once: one job per scenario and map date, in worker processes or inline.
+
+``run_jobs`` flies jobs in ``workers`` spawned processes (or inline with one), reports each
+job's progress and outcome through callbacks, and returns the outcomes in the jobs' order.
+A job's error comes back as one line in its outcome: the other jobs fly on.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import ctypes.util
+import multiprocessing
+import queue
+import signal
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from air_sitl.builder import FlightSetup
+from air_sitl.errors import AirSitlError
+from air_sitl.files import zip_folder
+from air_sitl.recording.archive import RecordingRequest, record_flight
+from air_sitl.runner import Flight
+from air_sitl.state import SimSample
+
+ReportFn = Callable[[str, int, float], None]  # (job name, capture frames, simulated s)
+
+_PROGRESS: Any = None  # the workers' progress queue (set by the pool initializer)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Job:
+    """One recording: a scenario at one map date."""
+
+    name: str  # folder name: scenario, or scenario@date
+    setup: FlightSetup
+    out: Path
+    resume: bool
+    zip: bool
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Outcome:
+    """How one job ended: its stats, or a one-line error."""
+
+    name: str
+    images: int = 0
+    distance_m: float = 0.0
+    mission_completed: bool = False
+    sim_time_s: float = 0.0
+    wall_s: float = 0.0
+    error: str | None = None
+
+
+def _init_worker(progress: Any) -> None:
+    global _PROGRESS  # noqa: PLW0603  (one queue per worker process)
+    _PROGRESS = progress
+    _die_with_parent()
+
+
+def _die_with_parent() -> None:
+    """Linux: a worker gets SIGKILL when the parent dies (a killed ``dataset`` leaves no
+    orphan still writing into a folder that ``--resume`` is about to continue)."""
+    pr_set_pdeathsig = 1
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+def _report_to_parent(name: str, frames: int, sim_s: float) -> None:
+    if _PROGRESS is not None:
+        _PROGRESS.put((name, frames, sim_s))
+
+
+def _run_in_worker(job: Job) -> Outcome:
+    return run_job(job, _report_to_parent)
+
+
+def run_job(job: Job, report_to: ReportFn | None = None) -> Outcome:
+    """Fly one job; errors come back as one line. ``report_to`` hears every simulated second."""
+    start = time.monotonic()
+
+    def report(sample: SimSample, flight: Flight) -> None:
+        if report_to is not None:
+            report_to(job.name, flight.stats.capture_frames, sample.state.sim_time_ns / 1e9)
+
+    try:
+        result = record_flight(
+            RecordingRequest(setup=job.setup, out=job.out, resume=job.resume),
+            progress=report,
+        )
+        if job.zip:
+            zip_folder(job.out, job.out.with_name(job.out.name + ".zip"))
+    except AirSitlError as err:
+        return Outcome(name=job.name, error=str(err), wall_s=time.monotonic() - start)
+    except OSError as err:
+        return Outcome(name=job.name, error=f"{job.out}: {err}", wall_s=time.monotonic() - start)
+    manifest = result.manifest or {}
+    summary = result.summary
+    return Outcome(
+        name=job.name,
+        images=int(manifest.get("frame_count", summary.get("capture_frames", 0))),
+        distance_m=float(summary.get("capture_distance_m") or 0.0),
+        mission_completed=result.mission_completed,
+        sim_time_s=float(summary.get("sim_time_s") or 0.0),
+        wall_s=time.monotonic() - start,
+    )
+
+
+def run_jobs(
+    jobs: Sequence[Job],
+    workers: int,
+    *,
+    on_progress: ReportFn,
+    on_done: Callable[[Outcome], None],
+    first: Callable[[Job], float] = lambda job: 0.0,
+) -> list[Outcome]:
+    """Fly ``jobs`` in ``workers`` processes (inline when 1), the lowest ``first(job)`` first;
+    the outcomes come back in the order of ``jobs``."""
+    if workers <= 1:
+        outcomes = []
+        for job in jobs:
+            outcome = run_job(job, on_progress)
+            on_done(outcome)
+            outcomes.append(outcome)
+        return outcomes
+    # Spawned, not forked: a fork copies the parent's threads' locks (OpenCV's thread pool,
+    # zenoh) in whatever state they are, and a worker can hang on one; a caller that had
+    # rendered in-process before running a pool hung this way.
+    ctx = multiprocessing.get_context("spawn")
+    progress = ctx.Queue()
+    done: dict[str, Outcome] = {}
+    with ProcessPoolExecutor(
+        max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(progress,)
+    ) as pool:
+        futures: dict[Future[Outcome], Job] = {
+            pool.submit(_run_in_worker, job): job for job in sorted(jobs, key=first)
+        }
+        pending = set(futures)
+        while pending:
+            with contextlib.suppress(queue.Empty):
+                on_progress(*progress.get(timeout=0.2))
+            for fut in [f for f in pending if f.done()]:
+                pending.discard(fut)
+                try:
+                    outcome = fut.result()
+                except Exception as err:  # a crashed worker: report it, keep the others
+                    outcome = Outcome(name=futures[fut].name, error=f"worker failed: {err!r}")
+                done[outcome.name] = outcome
+                on_done(outcome)
+    return [done[job.name] for job in jobs]

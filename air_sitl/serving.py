@@ -1,0 +1,90 @@
+"""A served vehicle: the flight of a FlightSetup behind MAVLink links, flown by ground stations.
+
+The vehicle starts on the ground at home, disarmed; clients (QGroundControl, MAVSDK, MAVProxy,
+pymavlink) connect, upload a mission, arm and start it. The MAVLink endpoint's threads post
+their commands to the simulation thread through the flight's inbox. ``out`` records each
+capture window as an archive (:class:`~air_sitl.recording.CaptureRecorder`).
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+from collections.abc import Sequence
+from pathlib import Path
+
+from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
+from air_sitl.bus.hookup import BusHookup
+from air_sitl.mavlink.codec import ParseCounters
+from air_sitl.mavlink.links import LinkSpec
+from air_sitl.mavlink.vehicle import EndpointOptions, Job, VehicleEndpoint
+from air_sitl.recording import CaptureRecorder
+from air_sitl.runner import Flight, InboxItem
+from air_sitl.sinks import FrameSource, Sink
+
+
+def serve_vehicle(
+    setup: FlightSetup,
+    links: Sequence[LinkSpec],
+    *,
+    stop: threading.Event,
+    max_sim_time_ns: int,
+    bus: BusHookup,
+    out: Path | None = None,
+    signing_key: bytes | None = None,
+    quiet: bool = False,
+) -> ParseCounters:
+    """Fly ``setup`` for MAVLink clients until ``stop`` is set; what the links received."""
+    inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
+
+    def post(job: Job) -> None:
+        def on_flight(flight: Flight) -> None:
+            job(flight.autopilot)
+
+        inbox.put(on_flight)
+
+    home = setup.home
+    endpoint = VehicleEndpoint(
+        list(links),
+        home=home,
+        mission=setup.mission,
+        post=post,
+        options=EndpointOptions(signing_key=signing_key),
+    )
+    try:
+        addresses = endpoint.open()
+        sinks: list[Sink] = [endpoint.sink]
+        camera: FrameSource | None = None
+        recorder = None
+        if out is not None or bus.needs_camera:
+            camera = open_camera(setup, open_setup_map(setup))
+        if out is not None:
+            recorder = CaptureRecorder(out, setup)
+            sinks.append(recorder)
+        bus_sinks, camera = bus.attach(
+            home=home,
+            out=out,
+            camera=setup.camera if camera is not None else None,
+            seed=setup.options.seed,
+            frame_source=camera,
+        )
+        sinks.extend(bus_sinks)
+        flight = build_flight(setup, sinks=sinks, camera=camera, auto_start=False)
+        endpoint.attach(flight.autopilot, flight.autopilot.params)
+        if recorder is not None:
+            recorder.autopilot = flight.autopilot
+        endpoint.start()
+        if not quiet:
+            where = ", ".join(
+                f"{spec} (local {host}:{port})"
+                for spec, (host, port) in zip(links, addresses, strict=True)
+            )
+            print(
+                f"air-sitl serve: vehicle ready at {home.lat_deg:.7f},{home.lon_deg:.7f},"
+                f"{home.alt_amsl_m:.1f} speed {setup.options.speed:g}; links: {where}",
+                flush=True,
+            )
+        flight.run(stop=lambda _sample: stop.is_set(), max_sim_time_ns=max_sim_time_ns, inbox=inbox)
+    finally:
+        endpoint.close()
+    return endpoint.counters
