@@ -130,12 +130,14 @@ def fly(
     params: NavParams | None = None,
     *,
     deny_after_s: float | None = None,
+    deny_until_s: float = math.inf,
     aid: AidSource | None = None,
     until_s: float | None = None,
     trace_every: int = 20,
 ) -> tuple[NavFilter, list[Point]]:
-    """Run the filter over ``rec``: GNSS cut after ``deny_after_s``, aid measurements from
-    ``aid(step, t_s)`` fed before each step's prediction; trace every ``trace_every`` steps."""
+    """Run the filter over ``rec``: GNSS cut from ``deny_after_s`` (to ``deny_until_s``), aid
+    measurements from ``aid(step, t_s)`` fed before each step's prediction; trace every
+    ``trace_every`` steps."""
     nav = NavFilter(rec.home, params)
     t0 = rec.steps[0].imu.sim_time_ns
     trace: list[Point] = []
@@ -146,7 +148,8 @@ def fly(
         if aid is not None:
             for m, now in aid(step, t_s):
                 nav.fuse_aid(m, now)
-        feed(nav, step, gnss=deny_after_s is None or t_s < deny_after_s)
+        denied = deny_after_s is not None and deny_after_s <= t_s < deny_until_s
+        feed(nav, step, gnss=not denied)
         if i % trace_every == 0:
             e = nav.estimate()
             trace.append(

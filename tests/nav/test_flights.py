@@ -228,3 +228,12 @@ def test_aid_lost_after_one_second(circle: Recording) -> None:
     assert at(trace, stop - 0.5).source == "aid:map"
     assert trace[-1].source == "dead_reckoning"
     assert not nav.status().aids[0].fusing
+
+
+def test_gnss_back_after_denial_pulls_the_estimate_back(line: Recording) -> None:
+    nav, trace = fly(line, deny_after_s=DENY_S, deny_until_s=DENY_S + 90.0, until_s=DENY_S + 110)
+    assert at(trace, DENY_S + 89.0).source == "dead_reckoning"
+    assert at(trace, DENY_S + 91.0).source == "gnss"
+    assert all(p.error_h_m < 1.0 for p in between(trace, DENY_S + 100.0, 1e9))
+    assert nav.status().gnss.resets == 0  # fused back through the gate: no jump needed
+    assert nav.status().gnss_denied_s == pytest.approx(90.0, abs=1.5)
