@@ -1,10 +1,26 @@
 """Onboard navigation: an error-state EKF fed by the simulated IMU, GNSS, barometer, airspeed,
 magnetic heading and external position aids, fused on a delayed horizon (PX4 EKF2's design).
 
-``ekf`` holds the state and prediction, ``fusion`` the one gated update every source uses,
-one module per aiding source decides when to start, fuse, reset and stop it (``gnss``,
-``baro``, ``airspeed``, ``mag``, ``aid``), ``buffer`` the delayed horizon and output
-predictor, ``status`` the counters, ``filter`` the public :class:`NavFilter`.
+State (``ekf``): position and velocity NED from home, attitude body->NED, gyro and
+accelerometer biases, horizontal wind; 17 error states with a global attitude error (Sola
+2017). The IMU is summed into 20 ms deltas for the nominal state and the covariance is
+propagated every 80 ms. Every source goes through one gated update (``fusion``) and has a
+module deciding when to start, fuse, reset and stop it: ``gnss`` (horizontal position and 3-D
+velocity), ``baro`` (the height reference, its offset calibrated against GNSS), ``airspeed``
+(true airspeed and synthetic zero sideslip: wind), ``mag`` (heading), ``aid`` (external
+horizontal positions, one control per name). ``buffer`` holds the delayed horizon and the
+output predictor, ``status`` the counters, ``filter`` the public :class:`NavFilter`::
+
+    nav = NavFilter(home)                        # NavParams() defaults
+    for sample in flight:                        # every 5 ms physics step
+        if sample.gps is not None:
+            nav.fuse_gnss(sample.gps)            # also fuse_baro, fuse_airspeed, fuse_heading
+        nav.predict(sample.imu)
+        estimate = nav.estimate()                # NavEstimate at the newest IMU time
+    nav.fuse_aid(AidMeasurement(name="map", sim_time_ns=t, position=(east, north, up)), now_ns)
+    nav.status().to_json()                       # counters for summary.json's "nav" block
+
+Barometer, airspeed sensor and magnetometer models live in ``sensors_extra`` for now.
 """
 
 from air_sitl.nav.filter import NavFilter
