@@ -112,6 +112,22 @@ def q_cam_to_body_wxyz(camera: CameraModel) -> tuple[float, float, float, float]
     return matrix_to_quat([[float(r[i][j]) for j in range(3)] for i in range(3)])
 
 
+def camera_from_settings(settings: Mapping[str, Any]) -> CameraModel:
+    """The CameraModel of :meth:`CameraModel.settings` (a remote render request carries them).
+
+    A malformed mapping raises KeyError, TypeError, ValueError or IndexError.
+    """
+    rpy = tuple(float(a) for a in settings["mount_rpy_deg"])
+    return CameraModel(
+        width_px=int(settings["width_px"]),
+        height_px=int(settings["height_px"]),
+        hfov_deg=float(settings["hfov_deg"]),
+        mount_rpy_deg=(rpy[0], rpy[1], rpy[2]),
+        noise_sigma=float(settings["noise_sigma"]),
+        jpeg_quality=int(settings["jpeg_quality"]),
+    )
+
+
 def camera_fields(camera: CameraModel) -> dict[str, Any]:
     """The model's settings and intrinsics as JSON values (what a manifest records)."""
     return {

@@ -16,7 +16,7 @@ from air_sitl.bus.keys import KeySpace
 from air_sitl.bus.remote_camera import CameraBridgeServer, RenderedFrame, RenderFn, RenderSettings
 from air_sitl.bus.session import open_bus
 from air_sitl.bus.signals import wait_until_signalled
-from air_sitl.camera.model import CameraModel
+from air_sitl.camera.info import camera_from_settings
 from air_sitl.camera.options import (
     add_camera_arguments,
     add_map_arguments,
@@ -83,17 +83,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _renderer(choice: MapChoice, settings: RenderSettings, maps: list[MapSource]) -> RenderFn:
     """A render function for one (home, camera, seed): the in-process camera's Renderer."""
-    c = settings.camera
     try:
-        rpy = tuple(float(a) for a in c["mount_rpy_deg"])
-        camera = CameraModel(
-            width_px=int(c["width_px"]),
-            height_px=int(c["height_px"]),
-            hfov_deg=float(c["hfov_deg"]),
-            mount_rpy_deg=(rpy[0], rpy[1], rpy[2]),
-            noise_sigma=float(c["noise_sigma"]),
-            jpeg_quality=int(c["jpeg_quality"]),
-        )
+        camera = camera_from_settings(settings.camera)
     except (KeyError, TypeError, ValueError, IndexError) as err:
         msg = f"camera/render: bad camera settings ({err!r})"
         raise BusError(msg) from None
