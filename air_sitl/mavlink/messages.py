@@ -6,33 +6,11 @@ The codec turns MISSION_* frames into these and back; the sans-IO state machine 
 
 from __future__ import annotations
 
-import enum
 from dataclasses import dataclass
 
 from air_sitl.mission.items import MissionItem, MissionType
 
 MISSION_TYPE_ALL = 255  # MAV_MISSION_TYPE_ALL: only valid in MISSION_CLEAR_ALL
-
-
-class MissionResult(enum.IntEnum):
-    """MAV_MISSION_RESULT."""
-
-    ACCEPTED = 0
-    ERROR = 1
-    UNSUPPORTED_FRAME = 2
-    UNSUPPORTED = 3
-    NO_SPACE = 4
-    INVALID = 5
-    INVALID_PARAM1 = 6
-    INVALID_PARAM2 = 7
-    INVALID_PARAM3 = 8
-    INVALID_PARAM4 = 9
-    INVALID_PARAM5_X = 10
-    INVALID_PARAM6_Y = 11
-    INVALID_PARAM7 = 12
-    INVALID_SEQUENCE = 13
-    DENIED = 14
-    OPERATION_CANCELLED = 15
 
 
 @dataclass(frozen=True, slots=True)

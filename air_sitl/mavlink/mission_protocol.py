@@ -24,10 +24,9 @@ from air_sitl.mavlink.messages import (
     MissionMessage,
     MissionRequest,
     MissionRequestList,
-    MissionResult,
     Peer,
 )
-from air_sitl.mission.items import MissionItem, MissionType
+from air_sitl.mission.items import MissionItem, MissionResult, MissionType
 from air_sitl.mission.validate import ItemProblem, check_item, check_mission
 
 ITEM_TIMEOUT_NS = 250_000_000  # re-request a missing item after this long
@@ -91,9 +90,8 @@ def _list_check(items: Sequence[MissionItem], mission_type: MissionType) -> Item
 
 
 def _result_of(problem: ItemProblem) -> MissionResult:
-    name = problem.result.removeprefix("MAV_MISSION_")
     try:
-        return MissionResult[name]
+        return problem.result_code
     except KeyError:
         return MissionResult.ERROR
 

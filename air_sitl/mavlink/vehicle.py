@@ -38,9 +38,9 @@ from air_sitl.mavlink.codec import (
 )
 from air_sitl.mavlink.fence import Zone, breach, zones_of
 from air_sitl.mavlink.links import Channel, Link, LinkSpec, open_link
-from air_sitl.mavlink.messages import MissionResult, Peer
+from air_sitl.mavlink.messages import Peer
 from air_sitl.mavlink.mission_protocol import Failed, MissionProtocol, Replaced, Send
-from air_sitl.mission.items import Mission, MissionItem, MissionType
+from air_sitl.mission.items import Mission, MissionItem, MissionResult, MissionType
 from air_sitl.sinks import FlightResult
 from air_sitl.state import CameraFrame, FlightMode, GeoPoint, GpsFix, SimSample
 

@@ -114,6 +114,27 @@ class MissionType(enum.IntEnum):
     RALLY = 2
 
 
+class MissionResult(enum.IntEnum):
+    """MAV_MISSION_RESULT: how a vehicle answers a mission upload (and validation names it)."""
+
+    ACCEPTED = 0
+    ERROR = 1
+    UNSUPPORTED_FRAME = 2
+    UNSUPPORTED = 3
+    NO_SPACE = 4
+    INVALID = 5
+    INVALID_PARAM1 = 6
+    INVALID_PARAM2 = 7
+    INVALID_PARAM3 = 8
+    INVALID_PARAM4 = 9
+    INVALID_PARAM5_X = 10
+    INVALID_PARAM6_Y = 11
+    INVALID_PARAM7 = 12
+    INVALID_SEQUENCE = 13
+    DENIED = 14
+    OPERATION_CANCELLED = 15
+
+
 @dataclass(frozen=True, slots=True, kw_only=True)
 class MissionItem:
     """One mission item, as in MISSION_ITEM_INT / a QGC SimpleItem.

@@ -27,28 +27,9 @@ from air_sitl.mission.items import (
     MavFrame,
     Mission,
     MissionItem,
+    MissionResult,
     MissionType,
 )
-
-# MAV_MISSION_RESULT values (MAVLink common.xml), by the names ItemProblem.result uses.
-MAV_MISSION_RESULT: dict[str, int] = {
-    "MAV_MISSION_ACCEPTED": 0,
-    "MAV_MISSION_ERROR": 1,
-    "MAV_MISSION_UNSUPPORTED_FRAME": 2,
-    "MAV_MISSION_UNSUPPORTED": 3,
-    "MAV_MISSION_NO_SPACE": 4,
-    "MAV_MISSION_INVALID": 5,
-    "MAV_MISSION_INVALID_PARAM1": 6,
-    "MAV_MISSION_INVALID_PARAM2": 7,
-    "MAV_MISSION_INVALID_PARAM3": 8,
-    "MAV_MISSION_INVALID_PARAM4": 9,
-    "MAV_MISSION_INVALID_PARAM5_X": 10,
-    "MAV_MISSION_INVALID_PARAM6_Y": 11,
-    "MAV_MISSION_INVALID_PARAM7": 12,
-    "MAV_MISSION_INVALID_SEQUENCE": 13,
-    "MAV_MISSION_DENIED": 14,
-    "MAV_MISSION_OPERATION_CANCELLED": 15,
-}
 
 GLOBAL_FRAMES = frozenset(
     {
@@ -114,9 +95,9 @@ class ItemProblem:
     message: str
 
     @property
-    def result_code(self) -> int:
-        """The numeric MAV_MISSION_RESULT."""
-        return MAV_MISSION_RESULT[self.result]
+    def result_code(self) -> MissionResult:
+        """The MAV_MISSION_RESULT value (KeyError for a name MAVLink does not have)."""
+        return MissionResult[self.result.removeprefix("MAV_MISSION_")]
 
 
 def command_name(command: int) -> str:

@@ -24,7 +24,6 @@ from air_sitl.mavlink.messages import (
     MissionMessage,
     MissionRequest,
     MissionRequestList,
-    MissionResult,
     Peer,
 )
 from air_sitl.mavlink.mission_protocol import (
@@ -37,7 +36,7 @@ from air_sitl.mavlink.mission_protocol import (
     Send,
     same_items,
 )
-from air_sitl.mission.items import MavCmd, MavFrame, MissionItem, MissionType
+from air_sitl.mission.items import MavCmd, MavFrame, MissionItem, MissionResult, MissionType
 
 GCS = Peer(255, 190)
 OTHER = Peer(254, 1)

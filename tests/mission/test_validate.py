@@ -7,9 +7,8 @@ import math
 
 import pytest
 
-from air_sitl.mission.items import MavCmd, MavFrame, MissionItem, MissionType
+from air_sitl.mission.items import MavCmd, MavFrame, MissionItem, MissionResult, MissionType
 from air_sitl.mission.validate import (
-    MAV_MISSION_RESULT,
     ItemProblem,
     check_item,
     check_mission,
@@ -103,9 +102,9 @@ def test_item_problems(
 
 def test_result_codes_follow_mavlink() -> None:
     # Spot checks against common.xml MAV_MISSION_RESULT.
-    assert MAV_MISSION_RESULT["MAV_MISSION_UNSUPPORTED_FRAME"] == 2
-    assert MAV_MISSION_RESULT["MAV_MISSION_INVALID_PARAM5_X"] == 10
-    assert MAV_MISSION_RESULT["MAV_MISSION_INVALID_SEQUENCE"] == 13
+    assert MissionResult.UNSUPPORTED_FRAME == 2
+    assert MissionResult.INVALID_PARAM5_X == 10
+    assert MissionResult.INVALID_SEQUENCE == 13
     problem = ItemProblem(index=0, result="MAV_MISSION_INVALID_PARAM7", message="x")
     assert problem.result_code == 12
 
