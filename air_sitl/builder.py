@@ -9,15 +9,16 @@ Recording it into an archive is :mod:`air_sitl.recording`'s part.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.options import open_chosen_map
 from air_sitl.camera.render import Renderer
+from air_sitl.errors import OptionError
 from air_sitl.maps.base import MapSource
-from air_sitl.mission.items import Mission
+from air_sitl.mission.items import LOITER_COMMANDS, MavCmd, MavFrame, Mission, MissionItem
 from air_sitl.mission.plan_file import load_mission
 from air_sitl.options import FlightOptions, MapChoice
 from air_sitl.runner import Flight, assemble_flight, home_of
@@ -31,6 +32,8 @@ class FlightSetup:
 
     ``camera=None`` flies without rendering; ``render_workers=None`` takes one thread per core.
     ``plan`` is the file the mission came from (None for serve's uploaded missions).
+    ``map_source``: a map already open (a sweep worker's, kept from flight to flight);
+    None opens the one ``map`` chooses.
     """
 
     mission: Mission
@@ -41,6 +44,40 @@ class FlightSetup:
     camera: CameraModel | None = None
     map: MapChoice = field(default_factory=MapChoice)
     render_workers: int | None = None
+    map_source: MapSource | None = None
+
+
+# Items whose altitude is a height to fly at; RTL and landing keep theirs.
+_SHIFTED_COMMANDS = frozenset({MavCmd.NAV_TAKEOFF, MavCmd.NAV_WAYPOINT, *LOITER_COMMANDS})
+_RELATIVE_FRAMES = frozenset({MavFrame.GLOBAL_RELATIVE_ALT, MavFrame.GLOBAL_RELATIVE_ALT_INT})
+
+
+def shift_altitudes(mission: Mission, offset_m: float, home: GeoPoint) -> Mission:
+    """``mission`` with every altitude it flies at (take-off, waypoints, loiters, rally points)
+    raised by ``offset_m``; the capture items and their window stay as they are.
+
+    OptionError when a shifted altitude is not above home.
+    """
+    if offset_m == 0.0:
+        return mission
+
+    def shifted(item: MissionItem, index: int, kind: str) -> MissionItem:
+        alt_m = item.alt_m + offset_m
+        above_home_m = alt_m if item.frame in _RELATIVE_FRAMES else alt_m - home.alt_amsl_m
+        if above_home_m <= 0.0:
+            msg = (
+                f"--altitude-offset {offset_m:g}: {mission.source}: {kind} {index}: altitude "
+                f"{item.alt_m:g} m would be {above_home_m:g} m above home (must stay above it)"
+            )
+            raise OptionError(msg)
+        return replace(item, alt_m=alt_m)
+
+    items = tuple(
+        shifted(item, i, "item") if item.command in _SHIFTED_COMMANDS else item
+        for i, item in enumerate(mission.items)
+    )
+    rally = tuple(shifted(item, i, "rally point") for i, item in enumerate(mission.rally))
+    return replace(mission, items=items, rally=rally)
 
 
 def load_setup(
@@ -52,11 +89,16 @@ def load_setup(
     render_workers: int | None = None,
     name: str | None = None,
 ) -> FlightSetup:
-    """Load and validate ``plan`` (PlanError naming the file and item); home is its home."""
+    """Load and validate ``plan`` (PlanError naming the file and item); home is its home.
+
+    ``options.altitude_offset_m`` shifts the plan's altitudes (:func:`shift_altitudes`).
+    """
     mission = load_mission(plan)
+    home = home_of(mission)
+    mission = shift_altitudes(mission, options.altitude_offset_m, home)
     return FlightSetup(
         mission=mission,
-        home=home_of(mission),
+        home=home,
         name=name or mission.name or plan.stem,
         options=options,
         plan=plan,
@@ -68,6 +110,8 @@ def load_setup(
 
 def open_setup_map(setup: FlightSetup) -> MapSource:
     """The map the camera sees (``--map`` default from the scenario name)."""
+    if setup.map_source is not None:
+        return setup.map_source
     return open_chosen_map(setup.map, setup.home, setup.name)
 
 

@@ -31,6 +31,7 @@ class FlightOptions:
     speed: float = 0.0  # 0 = as fast as possible, 1 = real time
     max_sim_time_s: float = 4 * 3600.0
     sensor_noise: float = 1.0  # scale of IMU/AHRS/GNSS noise; 0 = perfect sensors
+    altitude_offset_m: float = 0.0  # added to every flown altitude of the plan (builder.py)
     # GNSS denial windows [start, end) in simulation ns, sorted (OPEN_END_NS: to the end).
     gps_denied_ns: DenialWindows = ()
 
@@ -113,7 +114,8 @@ def seconds_window(name: str, text: str) -> tuple[float, float]:
 
 
 def add_flight_arguments(parser: argparse.ArgumentParser, *, default_speed: float) -> None:
-    """Add --aircraft, --seed, --speed, --air-start, --wind, --turbulence, --max-sim-time."""
+    """Add --aircraft, --seed, --speed, --air-start, --wind, --turbulence, --max-sim-time,
+    --sensor-noise, --altitude-offset."""
     g = parser.add_argument_group("flight")
     g.add_argument(
         "--aircraft",
@@ -145,6 +147,13 @@ def add_flight_arguments(parser: argparse.ArgumentParser, *, default_speed: floa
         default="1",
         help="scale of IMU/AHRS/GNSS noise; 0 = perfect sensors (default 1)",
     )
+    g.add_argument(
+        "--altitude-offset",
+        default="0",
+        metavar="M",
+        help="shift every altitude the plan flies (take-off, waypoints, loiters, rally points) "
+        "by M metres; the capture window is unchanged (default 0)",
+    )
 
 
 def flight_options_from_args(args: argparse.Namespace) -> FlightOptions:
@@ -164,6 +173,11 @@ def flight_options_from_args(args: argparse.Namespace) -> FlightOptions:
         raise OptionError(msg)
     wind = Wind(speed_m_s=wind.speed_m_s, from_deg=wind.from_deg, turbulence=turbulence)
     max_sim = nonneg_number("--max-sim-time", args.max_sim_time)
+    offset_text = str(getattr(args, "altitude_offset", "0"))
+    altitude_offset = _number(offset_text)
+    if not math.isfinite(altitude_offset):
+        msg = f"--altitude-offset: {offset_text!r} is not a number of metres"
+        raise OptionError(msg)
     return FlightOptions(
         aircraft=args.aircraft,
         air_start=bool(args.air_start),
@@ -172,6 +186,7 @@ def flight_options_from_args(args: argparse.Namespace) -> FlightOptions:
         speed=nonneg_number("--speed", args.speed),
         max_sim_time_s=max_sim,
         sensor_noise=nonneg_number("--sensor-noise", args.sensor_noise),
+        altitude_offset_m=altitude_offset,
         gps_denied_ns=gps_denied_from_args(args),
     )
 

@@ -44,6 +44,8 @@ def options_fields(options: FlightOptions) -> dict[str, Any]:
         "seed": options.seed,
         "max_sim_time_s": options.max_sim_time_s,
         "sensor_noise_scale": options.sensor_noise,
+        # only when set, so that archives flown without it keep their manifests and run keys
+        **({"altitude_offset_m": options.altitude_offset_m} if options.altitude_offset_m else {}),
     }
 
 
