@@ -1,0 +1,282 @@
+"""Map matching: which correlator, and how well ``mapmatch`` / ``fused`` do, on real archives.
+
+    python benchmarks/bench_mapmatch.py ARCHIVE [ARCHIVE ...] [--correlators] [--methods]
+        [--step 100] [--limit N]
+
+``--correlators``: every ``--step``-th frame of each archive, rectified with the recorded AHRS
+attitude and the true height plus 0.5 m noise around a prior 0-10 m off the truth (and, to see
+wrong matches, 400 m off), against the reference date (0, or 1 for a date-0 flight). For each
+correlator on the same patches: share of right fixes (< 5 m), median error, the peak ratio
+(second / first peak) of right matches (p95) beside that of wrong ones (p5, 400 m off): the
+gap between them is what a quality gate can use. Orientation correlation is the method's.
+
+``--methods``: ``mapmatch`` and ``fused`` through the offline driver (writing
+``estimates/<method>.csv`` into the archive: pass copies), scored against ``frames.csv``:
+median, p95, max horizontal error, recall at 25 m over all capture frames, availability,
+share of frames > 50 m off, share of frames with an accepted fix, and speed as frames per
+second of this process's CPU time on one OpenCV thread (the one-core figure, whatever else
+the machine runs) and of wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from air_sitl.camera.model import CameraModel
+from air_sitl.dataset.reader import open_archive
+from air_sitl.localize.archive import context_of, observations, run_method
+from air_sitl.localize.base import Localizer
+from air_sitl.localize.mapmatch import open_reference
+from air_sitl.localize.mapmatch_core import (
+    MapMatcher,
+    Rectified,
+    Scored,
+    orientation_correlation,
+)
+
+WRONG_OFFSET_M = 400.0
+RIGHT_M = 5.0
+
+
+# -- correlators on the same rectified patches ------------------------------------------------
+def ncc_grey(rect: Rectified) -> Scored:
+    score = cv2.matchTemplate(
+        rect.reference, rect.patch, cv2.TM_CCOEFF_NORMED, mask=rect.patch_mask
+    )
+    return np.nan_to_num(score).astype(np.float32), 1.0
+
+
+def _grad(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    f = img.astype(np.float32)
+    return cv2.Sobel(f, cv2.CV_32F, 1, 0, ksize=3), cv2.Sobel(f, cv2.CV_32F, 0, 1, ksize=3)
+
+
+def ncc_gradient(rect: Rectified) -> Scored:
+    a = cv2.magnitude(*_grad(rect.patch))
+    b = cv2.magnitude(*_grad(rect.reference))
+    mask = cv2.erode(rect.patch_mask, np.ones((3, 3), np.uint8))
+    score = cv2.matchTemplate(b, a, cv2.TM_CCOEFF_NORMED, mask=mask)
+    return np.nan_to_num(score).astype(np.float32), 1.0
+
+
+def gradient_correlation(rect: Rectified) -> Scored:
+    """Complex gradients (gx + i gy), not normalised: strong edges dominate."""
+    ax, ay = _grad(rect.patch)
+    keep = rect.patch_mask == 0
+    ax[keep] = 0.0
+    ay[keep] = 0.0
+    bx, by = _grad(rect.reference)
+    a = ax + 1j * ay
+    b = bx + 1j * by
+    h, w = b.shape
+    corr = np.fft.ifft2(np.fft.fft2(b) * np.conj(np.fft.fft2(a, (h, w)))).real
+    m = 2 * rect.margin_px + 1
+    norm = math.sqrt(
+        float(np.sum(np.abs(a) ** 2)) * float(np.sum(np.abs(b) ** 2)) * a.size / b.size
+    )
+    return corr[:m, :m].astype(np.float32), norm
+
+
+def orb_ransac(rect: Rectified) -> tuple[float, float, int] | None:
+    """ORB + RANSAC similarity: (shift x, shift y in level px, inliers), None without one."""
+    orb = cv2.ORB_create(nfeatures=600, fastThreshold=10)
+    ka, da = orb.detectAndCompute(rect.patch, rect.patch_mask)
+    kb, db = orb.detectAndCompute(rect.reference, rect.reference_mask)
+    if da is None or db is None or len(ka) < 8 or len(kb) < 8:
+        return None
+    pairs = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(da, db, k=2)
+    good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < 0.8 * p[1].distance]
+    if len(good) < 6:
+        return None
+    src = np.float32([ka[g.queryIdx].pt for g in good])
+    dst = np.float32([kb[g.trainIdx].pt for g in good])
+    m, inl = cv2.estimateAffinePartial2D(src, dst, method=cv2.RANSAC, ransacReprojThreshold=3.0)
+    if m is None:
+        return None
+    ph, pw = rect.patch.shape
+    c = np.array([(pw - 1) / 2.0, (ph - 1) / 2.0, 1.0])
+    moved = m @ c
+    return (
+        float(moved[0] - c[0] - rect.margin_px),
+        float(moved[1] - c[1] - rect.margin_px),
+        int(inl.sum()),
+    )
+
+
+def _truth(archive: Path) -> list[dict[str, str]]:
+    with (archive / "frames.csv").open(encoding="utf-8", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def correlators(archives: list[Path], step: int) -> None:
+    """Print the comparison table of the correlators (see the module docstring)."""
+    scorers = {
+        "ncc-grey": ncc_grey,
+        "ncc-gradient": ncc_gradient,
+        "gradient-corr": gradient_correlation,
+        "orientation": orientation_correlation,
+    }
+    rows_out: dict[str, dict[str, list[float]]] = {
+        k: {"err": [], "ratio": [], "wrong_ratio": [], "cpu": []} for k in [*scorers, "orb-ransac"]
+    }
+    orb_inliers: dict[str, list[float]] = {"right": [], "wrong": []}
+    rng = np.random.default_rng(1)
+    for archive in archives:
+        with open_archive(archive) as arch:
+            context = context_of(arch)
+        home = context.home
+        matcher = MapMatcher(open_reference(context), CameraModel(), home, min_response=-1.0)
+        imu = np.loadtxt(archive / "imu.csv", delimiter=",", skiprows=1)
+        for r in _truth(archive)[::step]:
+            t = int(r["sim_time_ns"])
+            i = int(np.searchsorted(imu[:, 0], t, side="right")) - 1
+            q = (float(imu[i, 7]), float(imu[i, 8]), float(imu[i, 9]), float(imu[i, 10]))
+            east, north = float(r["east_m"]), float(r["north_m"])
+            h = float(r["alt_rel_m"]) + float(rng.normal(0.0, 0.5))
+            jpeg = (archive / r["filename"]).read_bytes()
+            pe, pn = east + float(rng.uniform(-10, 10)), north + float(rng.uniform(-10, 10))
+            for wrong in (False, True):
+                off = WRONG_OFFSET_M if wrong else 0.0
+                rect = matcher.rectify(jpeg, q, h, pe + off, pn, 20.0)
+                if rect is None:
+                    continue
+                for name, fn in scorers.items():
+                    c0 = time.process_time()
+                    res = matcher.locate(rect, fn(rect))
+                    rows_out[name]["cpu"].append(time.process_time() - c0)
+                    if res is None:
+                        continue
+                    if wrong:
+                        rows_out[name]["wrong_ratio"].append(res.peak_ratio)
+                    else:
+                        rows_out[name]["err"].append(
+                            math.hypot(res.east_m - east, res.north_m - north)
+                        )
+                        rows_out[name]["ratio"].append(res.peak_ratio)
+                c0 = time.process_time()
+                orb = orb_ransac(rect)
+                rows_out["orb-ransac"]["cpu"].append(time.process_time() - c0)
+                if orb is None:
+                    continue
+                orb_inliers["wrong" if wrong else "right"].append(orb[2])
+                if not wrong:
+                    s = 1 << rect.level
+                    dn, de = matcher._jac_inv @ np.array([orb[0] * s, orb[1] * s])
+                    err = math.hypot(pe + de - east, pn + dn - north)
+                    rows_out["orb-ransac"]["err"].append(err)
+    n_frames = sum(len(_truth(a)[::step]) for a in archives)
+    print(f"correlators: {n_frames} frames of {', '.join(a.name for a in archives)}")
+    print(f"{'correlator':14s} {'right<5m':>8s} {'median m':>8s} {'ratio p95':>9s} "
+          f"{'wrong p5':>8s} {'gap':>6s} {'ms/match':>8s}")  # fmt: skip
+    for name, d in rows_out.items():
+        err = np.array(d["err"])
+        right = float(np.mean(err < RIGHT_M)) * len(err) / n_frames if len(err) else 0.0
+        ms = 1e3 * float(np.mean(d["cpu"])) if d["cpu"] else math.nan
+        if name == "orb-ransac":
+            ri = orb_inliers["right"]
+            wi = orb_inliers["wrong"]
+            print(f"{name:14s} {right:8.3f} {np.median(err) if len(err) else math.nan:8.2f} "
+                  f"inliers right p5 {np.percentile(ri, 5) if ri else math.nan:.0f}, wrong p95 "
+                  f"{np.percentile(wi, 95) if wi else math.nan:.0f} {ms:8.2f}")  # fmt: skip
+            continue
+        rp95 = float(np.percentile(d["ratio"], 95)) if d["ratio"] else math.nan
+        wp5 = float(np.percentile(d["wrong_ratio"], 5)) if d["wrong_ratio"] else math.nan
+        print(f"{name:14s} {right:8.3f} {np.median(err):8.2f} {rp95:9.2f} {wp5:8.2f} "
+              f"{wp5 - rp95:6.2f} {ms:8.2f}")  # fmt: skip
+    print("(ms/match: scoring and peak search on the rectified patch, CPU time, one thread)")
+
+
+# -- the methods, end to end ------------------------------------------------------------------
+def _make(method: str) -> Localizer:
+    from air_sitl.localize import METHODS
+
+    return METHODS[method]()
+
+
+def run_methods(
+    archives: list[Path], methods: list[str], limit: int | None
+) -> list[dict[str, Any]]:
+    """Score each method on each archive; print one line each; return the figures."""
+    import itertools
+
+    from air_sitl.localize.output import write_estimates
+
+    out = []
+    print(f"{'archive':8s} {'method':9s} {'median':>6s} {'p95':>6s} {'max':>6s} {'rec@25':>6s} "
+          f"{'avail':>6s} {'>50m':>6s} {'fixes':>6s} {'fps cpu':>7s} {'fps wall':>8s}")  # fmt: skip
+    for archive in archives:
+        truth = _truth(archive)
+        for method in methods:
+            loc = _make(method)
+            with open_archive(archive) as arch:
+                context = context_of(arch)
+                source = observations(arch, needs_image=loc.needs_image)
+                if limit is not None:
+                    source = itertools.islice(source, limit)
+                c0, w0 = time.process_time(), time.perf_counter()
+                est = run_method(loc, context, source, total=len(arch))
+                cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+            if limit is None:
+                write_estimates(archive, method, est, context.home)
+            err = np.array([
+                math.inf if e.enu_m is None
+                else math.hypot(e.enu_m[0] - float(r["east_m"]), e.enu_m[1] - float(r["north_m"]))
+                for e, r in zip(est, truth, strict=False)
+            ])  # fmt: skip
+            fin = err[np.isfinite(err)]
+            fig = {
+                "archive": archive.name,
+                "method": method,
+                "frames": len(err),
+                "median_m": float(np.median(fin)),
+                "p95_m": float(np.percentile(fin, 95)),
+                "max_m": float(fin.max()),
+                "recall_25m": float(np.mean(err <= 25.0)),
+                "availability": len(fin) / len(err),
+                "over_50m": float(np.mean(err > 50.0)),
+                "fix_share": float(np.mean([(e.quality or 0.0) >= 0.5 for e in est])),
+                "fps_cpu": len(err) / cpu,
+                "fps_wall": len(err) / wall,
+            }
+            out.append(fig)
+            print(f"{archive.name:8s} {method:9s} {fig['median_m']:6.2f} {fig['p95_m']:6.2f} "
+                  f"{fig['max_m']:6.2f} {fig['recall_25m']:6.3f} {fig['availability']:6.3f} "
+                  f"{fig['over_50m']:6.3f} {fig['fix_share']:6.3f} {fig['fps_cpu']:7.0f} "
+                  f"{fig['fps_wall']:8.0f}", flush=True)  # fmt: skip
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("archives", nargs="+", type=Path)
+    parser.add_argument("--correlators", action="store_true")
+    parser.add_argument("--methods", action="store_true")
+    parser.add_argument("--method", action="append", default=None, help="mapmatch, fused")
+    parser.add_argument("--step", type=int, default=100, help="correlators: every n-th frame")
+    parser.add_argument("--limit", type=int, default=None, help="methods: first n frames")
+    parser.add_argument("--json", type=Path, default=None, help="methods: figures as JSON")
+    args = parser.parse_args(argv)
+    cv2.setNumThreads(1)
+    if not (args.correlators or args.methods):
+        args.correlators = args.methods = True
+    if args.correlators:
+        correlators(args.archives, args.step)
+    if args.methods:
+        figures = run_methods(args.archives, args.method or ["mapmatch", "fused"], args.limit)
+        if args.json is not None:
+            args.json.write_text(json.dumps(figures, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
