@@ -172,8 +172,9 @@ def correlators(archives: list[Path], step: int) -> None:
                 if not wrong:
                     s = 1 << rect.level
                     dn, de = matcher._jac_inv @ np.array([orb[0] * s, orb[1] * s])
-                    err = math.hypot(pe + de - east, pn + dn - north)
-                    rows_out["orb-ransac"]["err"].append(err)
+                    rows_out["orb-ransac"]["err"].append(
+                        math.hypot(pe + de - east, pn + dn - north)
+                    )
     n_frames = sum(len(_truth(a)[::step]) for a in archives)
     print(f"correlators: {n_frames} frames of {', '.join(a.name for a in archives)}")
     print(f"{'correlator':14s} {'right<5m':>8s} {'median m':>8s} {'ratio p95':>9s} "
