@@ -26,22 +26,14 @@ from air_sitl.mavlink.messages import (
     MissionRequest,
     MissionRequestList,
 )
-from air_sitl.mission.items import MavFrame, MissionItem
+from air_sitl.mission.items import GLOBAL_FRAMES, TERRAIN_FRAMES, MissionItem
 
 mav = mavlink2  # the dialect module: message classes and enum constants for the other modules
 Message = Any  # a pymavlink message object
 
 _SIGNING_EPOCH_S = 1_420_070_400  # 2015-01-01, MAVLink 2 signing timestamps count 10 us from it
-GLOBAL_FRAMES = frozenset(
-    {
-        MavFrame.GLOBAL,
-        MavFrame.GLOBAL_RELATIVE_ALT,
-        MavFrame.GLOBAL_INT,
-        MavFrame.GLOBAL_RELATIVE_ALT_INT,
-        MavFrame.GLOBAL_TERRAIN_ALT,
-        MavFrame.GLOBAL_TERRAIN_ALT_INT,
-    }
-)
+# Frames whose x/y travel as degE7 integers in MISSION_ITEM_INT.
+_DEGE7_FRAMES = GLOBAL_FRAMES | TERRAIN_FRAMES
 
 
 def load_signing_key(text: str) -> bytes:
@@ -217,7 +209,7 @@ def item_from_int(
     seq: int,
 ) -> MissionItem:
     """A MissionItem from MISSION_ITEM_INT fields (x, y in degE7 for global frames)."""
-    scale = 1e-7 if frame in GLOBAL_FRAMES else 1.0
+    scale = 1e-7 if frame in _DEGE7_FRAMES else 1.0
     return MissionItem.from_params(
         command,
         frame,
@@ -287,7 +279,7 @@ def from_mission_message(m: MissionMessage, target_system: int, target_component
         i = m.item
         p = i.params[:4]
         if m.int_form:
-            scale = 1e7 if i.frame in GLOBAL_FRAMES else 1.0
+            scale = 1e7 if i.frame in _DEGE7_FRAMES else 1.0
             return mavlink2.MAVLink_mission_item_int_message(
                 *t, m.seq, i.frame, i.command, int(m.current), int(i.autocontinue), *p,
                 _int32(i.lat_deg * scale), _int32(i.lon_deg * scale), i.alt_m, m.mission_type,

@@ -7,8 +7,13 @@ from __future__ import annotations
 import math
 
 from air_sitl.frames import geodetic2ned
-from air_sitl.mission.items import LOITER_COMMANDS, MavCmd, Mission, MissionItem
-from air_sitl.mission.validate import RELATIVE_FRAMES
+from air_sitl.mission.items import (
+    LOITER_COMMANDS,
+    RELATIVE_FRAMES,
+    MavCmd,
+    Mission,
+    MissionItem,
+)
 from air_sitl.state import GeoPoint
 
 # DO_JUMP chains with no navigation item in between end the mission after this many steps.

@@ -106,6 +106,20 @@ class MavFrame(enum.IntEnum):
     GLOBAL_TERRAIN_ALT_INT = 11
 
 
+# Frames with a latitude and longitude: altitude AMSL or above home (GLOBAL_FRAMES, the ones
+# flown), above home (RELATIVE_FRAMES), above the terrain (TERRAIN_FRAMES, refused).
+GLOBAL_FRAMES = frozenset(
+    {
+        MavFrame.GLOBAL,
+        MavFrame.GLOBAL_RELATIVE_ALT,
+        MavFrame.GLOBAL_INT,
+        MavFrame.GLOBAL_RELATIVE_ALT_INT,
+    }
+)
+RELATIVE_FRAMES = frozenset({MavFrame.GLOBAL_RELATIVE_ALT, MavFrame.GLOBAL_RELATIVE_ALT_INT})
+TERRAIN_FRAMES = frozenset({MavFrame.GLOBAL_TERRAIN_ALT, MavFrame.GLOBAL_TERRAIN_ALT_INT})
+
+
 class MissionType(enum.IntEnum):
     """MAV_MISSION_TYPE: the three lists a vehicle stores separately."""
 

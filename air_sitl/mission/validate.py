@@ -21,8 +21,11 @@ from air_sitl.errors import PlanError
 from air_sitl.mission.items import (
     FENCE_COMMANDS,
     FENCE_POLYGON_COMMANDS,
+    GLOBAL_FRAMES,
     MISSION_COMMANDS,
     RALLY_COMMANDS,
+    RELATIVE_FRAMES,
+    TERRAIN_FRAMES,
     MavCmd,
     MavFrame,
     Mission,
@@ -31,16 +34,6 @@ from air_sitl.mission.items import (
     MissionType,
 )
 
-GLOBAL_FRAMES = frozenset(
-    {
-        MavFrame.GLOBAL,
-        MavFrame.GLOBAL_RELATIVE_ALT,
-        MavFrame.GLOBAL_INT,
-        MavFrame.GLOBAL_RELATIVE_ALT_INT,
-    }
-)
-RELATIVE_FRAMES = frozenset({MavFrame.GLOBAL_RELATIVE_ALT, MavFrame.GLOBAL_RELATIVE_ALT_INT})
-TERRAIN_FRAMES = frozenset({MavFrame.GLOBAL_TERRAIN_ALT, MavFrame.GLOBAL_TERRAIN_ALT_INT})
 # DO_* items carry no position; QGC writes them with MAV_FRAME_MISSION, others with a global frame.
 DO_FRAMES = GLOBAL_FRAMES | {MavFrame.MISSION}
 
