@@ -22,7 +22,7 @@ DenialWindows = tuple[tuple[int, int], ...]
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class FlightOptions:
-    """How to fly: aircraft, start, wind, seed and pacing."""
+    """How to fly: aircraft, start, wind, seed, pacing, sensor noise and GNSS denial."""
 
     aircraft: str = DEFAULT_AIRCRAFT
     air_start: bool = False
