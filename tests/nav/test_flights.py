@@ -237,3 +237,15 @@ def test_gnss_back_after_denial_pulls_the_estimate_back(line: Recording) -> None
     assert all(p.error_h_m < 1.0 for p in between(trace, DENY_S + 100.0, 1e9))
     assert nav.status().gnss.resets == 0  # fused back through the gate: no jump needed
     assert nav.status().gnss_denied_s == pytest.approx(90.0, abs=1.5)
+
+
+def test_aid_alone_from_the_start(circle: Recording) -> None:
+    """No GNSS ever: the first aid measurement places the filter, airspeed gives the velocity,
+    and the wind is learned from the aid."""
+    nav, trace = fly(circle, deny_after_s=0.0, aid=truth_aid(start_s=0.0), until_s=60.0)
+    assert percentile([p.error_h_m for p in between(trace, 5.0, 1e9)], 95) < 3.0
+    wn, we = nav.estimate().wind_ned_m_s
+    assert math.hypot(wn, we - 5.0) < 1.5
+    status = nav.status()
+    assert status.gnss_denied_s == 0.0 and status.gnss.received == 0
+    assert status.aids[0].resets == 0 and status.aids[0].rejected == 0
