@@ -12,6 +12,7 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from air_sitl.nav import AidMeasurement, NavFilter, NavParams
 from air_sitl.nav.sensors_extra import AirspeedSensor, Barometer, Magnetometer
@@ -38,6 +39,22 @@ class Recording:
     steps: tuple[Step, ...]
 
 
+def _build(path: Path, options: object) -> tuple[Any, GeoPoint]:
+    """The flight and its home through whichever builder the tree has (the runner is being
+    restructured: ``air_sitl.builder`` first, ``runner.assemble_flight`` as it was)."""
+    try:
+        from air_sitl.builder import build_flight, load_setup
+
+        setup = load_setup(path, options)  # type: ignore[arg-type]
+        return build_flight(setup), setup.home
+    except (ImportError, TypeError, AttributeError):
+        from air_sitl.mission.plan_file import load_mission
+        from air_sitl.runner import assemble_flight
+
+        flight, home, _ = assemble_flight(load_mission(path), options)  # type: ignore[arg-type]
+        return flight, home
+
+
 @functools.lru_cache(maxsize=8)
 def record(
     plan: str = "UC-200",
@@ -52,17 +69,7 @@ def record(
     options = FlightOptions(
         air_start=True, wind=Wind(speed_m_s=wind[0], from_deg=wind[1]), seed=seed
     )
-    path = MISSIONS / f"{plan}.plan"
-    try:  # the single flight builder, once it lands
-        from air_sitl.builder import build_flight, load_setup
-    except ImportError:
-        from air_sitl.mission.plan_file import load_mission
-        from air_sitl.runner import assemble_flight
-
-        flight, home, _ = assemble_flight(load_mission(path), options)
-    else:
-        setup = load_setup(path, options)
-        flight, home = build_flight(setup), setup.home
+    flight, home = _build(MISSIONS / f"{plan}.plan", options)
     baro = Barometer(seed=seed)
     airspeed = AirspeedSensor(seed=seed)
     mag = Magnetometer(seed=seed)
