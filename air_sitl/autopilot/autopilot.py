@@ -12,7 +12,7 @@ import math
 from typing import Protocol
 
 from air_sitl.autopilot.executor import MissionExecutor
-from air_sitl.autopilot.params import ParamStore
+from air_sitl.autopilot.params import GuidanceParams, ParamStore
 from air_sitl.autopilot.target import ControlPhase, ControlTarget
 from air_sitl.errors import PlanError
 from air_sitl.frames import ned2geodetic
@@ -264,8 +264,7 @@ def air_start_pose(
             and item.param2 > 0.0
         ):
             speed = item.param2
-    lo, hi = params.get("FW_AIRSPD_MIN"), params.get("FW_AIRSPD_MAX")
-    speed = min(max(speed, lo), max(lo, hi))
+    speed = GuidanceParams.from_store(params).clamp_speed(speed)
     n, e, alt = item_point(items[first], home)
     if math.isnan(n):
         n, e = 0.0, 0.0

@@ -19,10 +19,12 @@ from dataclasses import dataclass
 
 from air_sitl.errors import PlanError
 from air_sitl.mission.items import (
+    FENCE_CIRCLE_COMMANDS,
     FENCE_COMMANDS,
     FENCE_POLYGON_COMMANDS,
     GLOBAL_FRAMES,
     MISSION_COMMANDS,
+    NAV_COMMANDS,
     RALLY_COMMANDS,
     RELATIVE_FRAMES,
     TERRAIN_FRAMES,
@@ -38,31 +40,10 @@ from air_sitl.mission.items import (
 DO_FRAMES = GLOBAL_FRAMES | {MavFrame.MISSION}
 
 # Commands whose params 5..7 are a position the vehicle flies to, around, or keeps inside.
-POSITION_COMMANDS = (
-    frozenset(
-        {
-            MavCmd.NAV_WAYPOINT,
-            MavCmd.NAV_LOITER_UNLIM,
-            MavCmd.NAV_LOITER_TURNS,
-            MavCmd.NAV_LOITER_TIME,
-            MavCmd.NAV_LAND,
-            MavCmd.NAV_TAKEOFF,
-            MavCmd.NAV_LOITER_TO_ALT,
-        }
-    )
-    | FENCE_COMMANDS
-    | RALLY_COMMANDS
-)
+POSITION_COMMANDS = (NAV_COMMANDS - {MavCmd.NAV_RETURN_TO_LAUNCH}) | FENCE_COMMANDS | RALLY_COMMANDS
 
 # Fence polygons and circles are 2-D: clients send any altitude (QGC 0, others NaN).
-_ALTITUDE_UNUSED = frozenset(
-    {
-        MavCmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION,
-        MavCmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
-        MavCmd.NAV_FENCE_CIRCLE_INCLUSION,
-        MavCmd.NAV_FENCE_CIRCLE_EXCLUSION,
-    }
-)
+_ALTITUDE_UNUSED = frozenset(FENCE_POLYGON_COMMANDS + FENCE_CIRCLE_COMMANDS)
 
 ALLOWED_COMMANDS: dict[MissionType, frozenset[MavCmd]] = {
     MissionType.MISSION: MISSION_COMMANDS,
