@@ -25,6 +25,7 @@ COMMANDS: dict[str, str] = {
     "eval": "eval",
     "localize": "localize",
     "bench": "bench",
+    "sweep": "sweep",
     "render": "render",
     "map": "map_make",
     "camera-bridge": "camera_bridge",

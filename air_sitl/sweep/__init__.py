@@ -1,0 +1,222 @@
+"""``air-sitl sweep``: many runs (fly, localize, eval) from one SPEC, resumable, on a pool or Ray.
+
+    spec = load_spec(Path("sweep.yaml"))                       # validated once (spec.py)
+    outcome = run_sweep(spec, Path("out/sweep"), PoolExecutor(2))   # -> out/sweep/results.jsonl
+    write_report(Path("out/sweep"))                            # report.md + report.png
+
+One concern per module: :mod:`.spec` (the SPEC and each run's options, checked by fly's own
+parser), :mod:`.run` (the work of one run in a worker), :mod:`.executors` (process pool, Ray),
+:mod:`.results` (``results.jsonl``: whole lines, resume), :mod:`.report` (tables and plots).
+The driver here turns runs into tasks, skips the done ones, and writes each row as it comes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any, Protocol
+
+from air_sitl.files import write_json_atomic
+from air_sitl.sweep.errors import SweepError
+from air_sitl.sweep.executors import PoolExecutor, RayExecutor
+from air_sitl.sweep.results import RESULTS, ResultsFile, latest_rows
+from air_sitl.sweep.run import RunTask
+from air_sitl.sweep.spec import KEEP, SweepSpec, describe, load_spec, needs_camera
+
+__all__ = [
+    "PoolExecutor",
+    "RayExecutor",
+    "SweepError",
+    "SweepOutcome",
+    "SweepSpec",
+    "load_spec",
+    "make_tasks",
+    "print_outcome",
+    "run_sweep",
+]
+
+SWEEP_JSON = "sweep.json"  # what the sweep folder holds: the SPEC, its axes and methods
+RUNS_DIR = "runs"
+
+
+class Executor(Protocol):
+    def run(self, tasks: Sequence[RunTask], on_row: Any) -> None: ...
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class SweepOutcome:
+    """What a sweep did: runs in the SPEC, skipped as done, run now, failed now."""
+
+    total: int
+    skipped: int
+    ran: int
+    failed: int
+    interrupted: bool = False
+    hosts: dict[str, int] | None = None  # host -> runs it ran now
+
+
+def _label(path: Path, out: Path) -> str:
+    try:
+        return str(path.relative_to(out))
+    except ValueError:
+        return str(path)
+
+
+def make_tasks(spec: SweepSpec, out: Path, keep: str = "all") -> list[RunTask]:
+    """One task per run of ``spec`` (plan text read once per plan file)."""
+    if keep not in KEEP:
+        msg = f"--keep {keep!r}: expected one of {', '.join(KEEP)}"
+        raise SweepError(msg)
+    out = out.resolve()
+    root = spec.archives if spec.archives is not None else out / RUNS_DIR
+    texts: dict[Path, bytes] = {}
+    tasks = []
+    for run in spec.runs:
+        if run.plan_path not in texts:
+            try:
+                texts[run.plan_path] = run.plan_path.read_bytes()
+            except OSError as err:
+                msg = f"{spec.path}: {run.plan_label}: cannot read the plan: {err.strerror}"
+                raise SweepError(msg) from None
+        archive = root / run.id
+        tasks.append(
+            RunTask(
+                id=run.id,
+                options=run.options,
+                plan_label=run.plan_label,
+                plan_name=run.plan_path.name,
+                plan_text=texts[run.plan_path],
+                argv=run.argv,
+                seed=run.seed,
+                archive=str(archive),
+                archive_label=_label(archive, out),
+                methods=spec.methods,
+                localizers=spec.localizers,
+                align=spec.align,
+                keep=keep,
+            )
+        )
+    return tasks
+
+
+class _Progress:
+    """``sweep [#####.....] 7/16  3f2a.. map-date=1 seed=2: 1.4 s, deadreckon 2.1 m``."""
+
+    def __init__(self, total: int, done: int, stream: IO[str] | None, axes: Sequence[str]):
+        self.total, self.done, self.stream, self.axes = total, done, stream, axes
+        self.tty = stream is not None and stream.isatty()
+
+    def update(self, row: dict[str, Any], what: str) -> None:
+        self.done += 1
+        if self.stream is None:
+            return
+        filled = int(30 * self.done / max(1, self.total))
+        if row.get("error"):
+            result = f"failed: {row['error']}"
+        else:
+            parts = [f"{row['wall_s']:.1f} s"]
+            for name, report in (row.get("eval") or {}).items():
+                median = ((report or {}).get("horizontal_error_m") or {}).get("median")
+                parts.append(f"{name} {'-' if median is None else f'{median:.1f} m'}")
+            result = ", ".join(parts)
+        bar = f"[{'#' * filled}{'.' * (30 - filled)}]"
+        line = f"sweep {bar} {self.done}/{self.total}  {what}: {result}"
+        if self.tty:
+            self.stream.write("\r\x1b[K" + line[:200] + ("\n" if self.done == self.total else ""))
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+
+def _is_done(row: dict[str, Any] | None, spec: SweepSpec, retry_failed: bool) -> bool:
+    if row is None:
+        return False
+    if row.get("error") and retry_failed:
+        return False
+    wanted = {*spec.methods, *(loc.name for loc in spec.localizers)}
+    return row.get("error") is not None or wanted <= set(row.get("eval") or {})
+
+
+def run_sweep(
+    spec: SweepSpec,
+    out: Path,
+    executor: Executor,
+    *,
+    keep: str = "all",
+    retry_failed: bool = False,
+    stream: IO[str] | None = None,
+) -> SweepOutcome:
+    """Run every run of ``spec`` not done yet in ``out``; rows into ``out/results.jsonl``.
+
+    KeyboardInterrupt stops the executor and returns an interrupted outcome: the rows written
+    are whole, and the same call later resumes.
+    """
+    needs_camera(spec)
+    tasks = make_tasks(spec, out, keep)
+    out.mkdir(parents=True, exist_ok=True)
+    results_path = out / RESULTS
+    rows = latest_rows(results_path)
+    todo = [t for t in tasks if not _is_done(rows.get(t.id), spec, retry_failed)]
+    write_json_atomic(
+        out / SWEEP_JSON,
+        {
+            "spec": str(spec.path.resolve()),
+            "axes": list(spec.axes),
+            "methods": list(spec.methods),
+            "localizers": [loc.name for loc in spec.localizers],
+            "align": spec.align,
+            "runs": [t.id for t in tasks],
+        },
+    )
+    by_id = {run.id: run for run in spec.runs}
+    progress = _Progress(len(tasks), len(tasks) - len(todo), stream, spec.axes)
+    failed = 0
+    hosts: dict[str, int] = {}
+    interrupted = False
+    with ResultsFile(results_path) as results:
+
+        def on_row(row: dict[str, Any]) -> None:
+            nonlocal failed
+            results.append(row)
+            failed += bool(row.get("error"))
+            host = row.get("host") or "?"
+            hosts[host] = hosts.get(host, 0) + 1
+            run = by_id[row["id"]]
+            progress.update(row, f"{row['id']} {describe(run, spec.axes)}")
+
+        try:
+            if todo:
+                executor.run(todo, on_row)
+        except KeyboardInterrupt:
+            interrupted = True
+    return SweepOutcome(
+        total=len(tasks),
+        skipped=len(tasks) - len(todo),
+        ran=sum(hosts.values()),
+        failed=failed,
+        interrupted=interrupted,
+        hosts=hosts,
+    )
+
+
+def print_outcome(outcome: SweepOutcome, out: Path, stream: IO[str]) -> None:
+    """The closing lines of a sweep: counts, where the archives are, what to run next."""
+    with contextlib.suppress(Exception):
+        stream.flush()
+    state = "interrupted" if outcome.interrupted else "done"
+    print(
+        f"sweep {state}: {outcome.ran} run now ({outcome.failed} failed), {outcome.skipped} "
+        f"already done, {outcome.total} in the SPEC -> {out / RESULTS}",
+        file=stream,
+    )
+    here = socket.gethostname()
+    others = {h: n for h, n in (outcome.hosts or {}).items() if h not in (here, "?")}
+    for host, n in sorted(others.items()):
+        print(f"  {n} run folder(s) written on {host} (rows: host, archive)", file=stream)
+    if outcome.interrupted:
+        print("  run the same command again to resume", file=stream)
+    else:
+        print(f"  report: air-sitl sweep report {out}", file=stream)

@@ -1,0 +1,195 @@
+"""Where the runs of a sweep execute: a local process pool (default) or Ray tasks.
+
+Both take :class:`~air_sitl.sweep.run.RunTask` objects and hand each finished row to
+``on_row`` in the driver, in completion order; the driver alone writes ``results.jsonl``.
+
+- :class:`PoolExecutor`: ``-j N`` spawned worker processes (forked workers can hang on the
+  threads numpy/OpenCV/zenoh start), one thread each for BLAS and OpenCV, a procedural map
+  kept per worker. A worker dies with the driver (Linux ``PR_SET_PDEATHSIG``), so a killed
+  sweep leaves no orphan writing into a run folder; a worker that dies mid-run (killed,
+  out of memory) is replaced and its run tried once more, then recorded as failed.
+- :class:`RayExecutor`: the same runs as Ray tasks (``ray`` is the optional extra
+  ``air-sitl[ray]``): a local Ray (``--ray``) or a cluster (``--ray ADDRESS``). Each task
+  carries its own plan text and seed, each bus takes a free loopback port, rows come back
+  small, archives stay on the worker's filesystem at the path the task names.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import ctypes.util
+import multiprocessing
+import os
+import signal
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any
+
+from air_sitl.sweep.errors import SweepError
+from air_sitl.sweep.run import THREAD_ENV, RunTask, execute, pin_threads
+
+OnRow = Callable[[dict[str, Any]], None]
+CRASHES_ALLOWED = 1  # a run whose worker died this many times is tried once more, then failed
+
+
+def _die_with_parent() -> None:
+    """Linux: the worker gets SIGKILL when the driver dies."""
+    pr_set_pdeathsig = 1
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+
+
+def _init_worker() -> None:
+    # Ctrl-C reaches the whole process group: the driver alone decides, workers are stopped
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
+    pin_threads()
+
+
+def _crashed_row(task: RunTask, why: str) -> dict[str, Any]:
+    return {
+        "id": task.id,
+        "options": task.options,
+        "summary": None,
+        "eval": {},
+        "error": why,
+        "wall_s": None,
+        "host": None,
+        "archive": task.archive_label,
+    }
+
+
+class PoolExecutor:
+    """``jobs`` spawned worker processes; one run per task."""
+
+    def __init__(self, jobs: int) -> None:
+        self.jobs = jobs
+
+    def _pool(self) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(
+            max_workers=self.jobs,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_init_worker,
+        )
+
+    def run(self, tasks: Sequence[RunTask], on_row: OnRow) -> None:
+        """Run every task; ``on_row`` gets each row as it finishes. Ctrl-C stops the workers."""
+        saved = {name: os.environ.get(name) for name in THREAD_ENV}
+        os.environ.update(dict.fromkeys(THREAD_ENV, "1"))  # inherited by the spawned workers
+        try:
+            self._run(list(tasks), on_row)
+        finally:
+            for name, value in saved.items():
+                if value is None:
+                    os.environ.pop(name, None)
+                else:
+                    os.environ[name] = value
+
+    def _run(self, todo: list[RunTask], on_row: OnRow) -> None:
+        crashes: dict[str, int] = {}
+        while todo:
+            pool = self._pool()
+            futures: dict[Future[dict[str, Any]], RunTask] = {}
+            broken: list[RunTask] = []
+            try:
+                futures = {pool.submit(execute, task): task for task in todo}
+                pending = set(futures)
+                while pending:
+                    done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                    for fut in done:
+                        try:
+                            on_row(fut.result())
+                        except BrokenProcessPool:
+                            broken.append(futures[fut])
+            except BaseException:
+                _terminate(pool)
+                raise
+            pool.shutdown(wait=True)
+            todo = []
+            for task in broken:
+                crashes[task.id] = crashes.get(task.id, 0) + 1
+                if crashes[task.id] > CRASHES_ALLOWED:
+                    on_row(_crashed_row(task, "its worker process died (killed or out of memory)"))
+                else:
+                    todo.append(task)
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool now: pending runs cancelled, running workers killed (their run folders
+    are done again on resume)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in processes:
+        with contextlib.suppress(Exception):
+            proc.kill()
+    for proc in processes:
+        with contextlib.suppress(Exception):
+            proc.join(5)
+
+
+def _ray_execute(task: RunTask) -> dict[str, Any]:
+    pin_threads()
+    return execute(task)
+
+
+class RayExecutor:
+    """The runs as Ray tasks: ``address`` None starts a local Ray of ``num_cpus`` CPUs,
+    otherwise joins that cluster (``auto``, ``ray://HOST:10001``, ``HOST:6379``)."""
+
+    def __init__(self, address: str | None, *, num_cpus: int | None = None) -> None:
+        self.address = address
+        self.num_cpus = num_cpus
+        self.init_s = 0.0
+
+    def run(self, tasks: Sequence[RunTask], on_row: OnRow) -> None:
+        """Run every task on Ray; ``on_row`` gets each row as it finishes."""
+        try:
+            import ray
+        except ImportError:
+            msg = "--ray: ray is not installed (pip install 'air-sitl[ray]')"
+            raise SweepError(msg) from None
+        import time
+
+        start = time.perf_counter()
+        started_here = not ray.is_initialized()
+        if started_here:
+            try:
+                if self.address:
+                    ray.init(address=self.address, log_to_driver=False)
+                else:
+                    ray.init(
+                        num_cpus=self.num_cpus or os.cpu_count() or 1,
+                        include_dashboard=False,
+                        log_to_driver=False,
+                    )
+            except (ConnectionError, RuntimeError, ValueError) as err:
+                where = self.address or "a local Ray"
+                msg = f"--ray {where}: cannot connect: {str(err).splitlines()[0]}"
+                raise SweepError(msg) from None
+        self.init_s = time.perf_counter() - start
+        remote = ray.remote(num_cpus=1, max_retries=0)(_ray_execute)
+        refs: dict[Any, RunTask] = {remote.remote(task): task for task in tasks}
+        pending = list(refs)
+        try:
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                for ref in done:
+                    try:
+                        on_row(ray.get(ref))
+                    except ray.exceptions.RayError as err:
+                        why = str(err).strip().splitlines()
+                        line = why[-1] if why else type(err).__name__
+                        on_row(_crashed_row(refs[ref], f"Ray: {line}"))
+        except BaseException:
+            for ref in pending:
+                with contextlib.suppress(Exception):
+                    ray.cancel(ref, force=True)
+            raise
+        finally:
+            if started_here:
+                ray.shutdown()

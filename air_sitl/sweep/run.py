@@ -1,0 +1,305 @@
+"""The work of one run, in whichever worker runs it: fly, localize with each method, score.
+
+:func:`execute` takes a :class:`RunTask` (small, picklable: the plan's text travels with it, so
+a worker on another host needs no copy of the SPEC's folder) and returns the row of
+``results.jsonl`` (small too); the archive stays where ``RunTask.archive`` says, on the
+worker's filesystem. A run's failure is its row's one-line ``error``, never an exception:
+the sweep goes on. Wall-clock figures of ``summary.json`` (``wall_time_s``,
+``realtime_factor``) stay in the archive and out of the row, which is the same on every
+executor but for ``wall_s`` and ``host``.
+
+Per worker process: a procedural map is opened once and kept for every later run over the
+same map (:data:`_MAPS`); BLAS and OpenCV run one thread (:func:`pin_threads`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from air_sitl.bench.config import ExternalLocalizer
+from air_sitl.errors import AirSitlError
+
+WALL_CLOCK_SUMMARY_KEYS = ("wall_time_s", "realtime_factor")
+THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
+MAPS_KEPT = 4  # procedural maps a worker keeps open (each caches up to 256 MB of tiles)
+SHUTDOWN_GRACE_S = 10.0
+
+_MAPS: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class RunTask:
+    """One run as a worker receives it."""
+
+    id: str
+    options: dict[str, Any]
+    plan_label: str
+    plan_name: str  # file name of the plan (its stem names the scenario)
+    plan_text: bytes
+    argv: tuple[str, ...]
+    seed: int
+    archive: str  # the run's folder on the worker (absolute)
+    archive_label: str  # how the row names it: relative to the sweep folder when inside it
+    methods: tuple[str, ...] = ()
+    localizers: tuple[ExternalLocalizer, ...] = ()
+    align: str = "none"
+    keep: str = "all"
+
+
+def pin_threads() -> None:
+    """One thread for BLAS (environment, for libraries not loaded yet) and OpenCV."""
+    for name in THREAD_ENV:
+        os.environ[name] = "1"
+    import cv2
+
+    cv2.setNumThreads(1)
+
+
+def _finite(value: Any) -> Any:
+    """JSON-safe: NaN and infinities become null, recursively."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
+
+
+def _one_line(err: BaseException) -> str:
+    text = str(err).strip().splitlines()
+    first = text[0] if text else ""
+    if isinstance(err, AirSitlError):
+        return first or type(err).__name__
+    return f"{type(err).__name__}: {first}" if first else type(err).__name__
+
+
+def _cached_map(setup: Any) -> Any:
+    """The procedural map of ``setup``, opened once per worker; None for GeoTIFF maps (a
+    flight closes its map's files when it ends)."""
+    from air_sitl.camera.options import open_chosen_map
+    from air_sitl.maps.open import default_map_for_plan
+    from air_sitl.maps.procedural import KINDS
+
+    spec = setup.map.spec or default_map_for_plan(setup.name)
+    if spec.strip() not in KINDS:
+        return None
+    home = setup.home
+    key = (spec.strip(), setup.map.seed, setup.map.date, home.lat_deg, home.lon_deg)
+    if key in _MAPS:
+        _MAPS.move_to_end(key)
+        return _MAPS[key]
+    source = open_chosen_map(setup.map, home, setup.name)
+    _MAPS[key] = source
+    while len(_MAPS) > MAPS_KEPT:
+        _MAPS.popitem(last=False)
+    return source
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _with_free_port(argv: list[str]) -> list[str]:
+    """A bus on a free loopback port unless the SPEC gave one (runs side by side never
+    share 7447)."""
+    if "--zenoh" in argv and not any(a.startswith("--zenoh-listen") for a in argv):
+        return [*argv, f"--zenoh-listen=tcp/127.0.0.1:{_free_port()}"]
+    return argv
+
+
+def _fly(task: RunTask, plan: Path, out: Path) -> dict[str, Any]:
+    """Fly the run into ``out``, as ``air-sitl fly`` would; its summary.json."""
+    from air_sitl.builder import load_setup
+    from air_sitl.bus.hookup import bus_sinks_from_args
+    from air_sitl.camera.options import camera_from_args, map_choice_from_args
+    from air_sitl.dataset.air_schema import SUMMARY_JSON
+    from air_sitl.options import flight_options_from_args, int_in_range
+    from air_sitl.recording import RecordingRequest, record_flight
+    from air_sitl.sweep.spec import fly_parser
+
+    args = fly_parser().parse_args([str(plan), *_with_free_port(list(task.argv))])
+    setup = load_setup(
+        plan,
+        flight_options_from_args(args),
+        camera=None if args.no_camera else camera_from_args(args),
+        map=map_choice_from_args(args),
+        render_workers=int_in_range("--render-workers", args.render_workers, 0, 64),
+    )
+    if setup.camera is not None:
+        setup = replace(setup, map_source=_cached_map(setup))
+    request = RecordingRequest(setup=setup, out=out, bus=bus_sinks_from_args(args))
+    with request.bus or contextlib.nullcontext():
+        record_flight(request)
+    summary: dict[str, Any] = json.loads((out / SUMMARY_JSON).read_text(encoding="utf-8"))
+    return summary
+
+
+def _row_summary(summary: dict[str, Any], plan_label: str) -> dict[str, Any]:
+    kept = {k: v for k, v in summary.items() if k not in WALL_CLOCK_SUMMARY_KEYS}
+    kept["plan"] = plan_label  # the SPEC's name for it, the same on every host
+    return dict(sorted(kept.items()))
+
+
+def _localize(task: RunTask, out: Path) -> tuple[dict[str, Any], str | None]:
+    """Each method over the archive, then every estimate scored; (reports, first error)."""
+    from air_sitl.eval import evaluate_many
+    from air_sitl.localize.archive import run_archive
+
+    scored: list[str] = []
+    reports: dict[str, Any] = {}
+    error: str | None = None
+    for method in task.methods:
+        try:
+            run_archive(out, method, name=method, seed=task.seed)
+            scored.append(method)
+        except AirSitlError as err:
+            reports[method] = None
+            error = error or f"localize {method}: {_one_line(err)}"
+    for localizer in task.localizers:
+        why = _run_external(task, out, localizer)
+        if why is None:
+            scored.append(localizer.name)
+        else:
+            reports[localizer.name] = None
+            error = error or f"localizer {localizer.name}: {why}"
+    if scored:
+        try:
+            for name, report in zip(scored, evaluate_many(out, scored, task.align), strict=True):
+                report["archive"] = task.archive_label
+                reports[name] = report
+        except AirSitlError as err:
+            error = error or f"eval: {_one_line(err)}"
+    order = [*task.methods, *(loc.name for loc in task.localizers)]
+    return {name: reports.get(name) for name in order}, error
+
+
+def _stop(proc: subprocess.Popen[bytes]) -> None:
+    import signal
+
+    if proc.poll() is not None:
+        return
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(SHUTDOWN_GRACE_S)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
+def _run_external(task: RunTask, out: Path, localizer: ExternalLocalizer) -> str | None:
+    """Fly the run again in lockstep with the localizer program on a free loopback port;
+    its ``estimates/NAME.csv`` into the run's archive. None, or why it failed."""
+    from air_sitl.bench.tasks import localizer_argv
+    from air_sitl.dataset.air_schema import ESTIMATES_DIR, TRAJECTORY_CSV
+    from air_sitl.dataset.manifest import refresh_manifest, sha256_bytes
+    from air_sitl.files import write_bytes_atomic
+
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    with tempfile.TemporaryDirectory(prefix=f"sweep-{task.id}-") as tmp:
+        plan = Path(tmp) / task.plan_name
+        plan.write_bytes(task.plan_text)
+        flight = Path(tmp) / "flight"
+        argv = [a for a in task.argv if not a.startswith("--zenoh")]
+        cmd = [
+            sys.executable, "-m", "air_sitl", "fly", str(plan), *argv, "--out", str(flight),
+            "--quiet", "--zenoh", f"--zenoh-listen={endpoint}", f"--wait-for={localizer.name}",
+        ]  # fmt: skip
+        log_path = out / f"{localizer.name}.log"
+        env = {**os.environ, "AIR_SITL_ZENOH_ENDPOINT": endpoint}
+        fly = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        with log_path.open("wb") as log:
+            try:
+                user = subprocess.Popen(
+                    localizer_argv(localizer, endpoint), stdout=log, stderr=log, env=env
+                )
+            except OSError as err:
+                _stop(fly)
+                return f"cannot start {localizer.argv[0]}: {err.strerror or err}"
+            try:
+                _, fly_err = fly.communicate()
+            finally:
+                _stop(fly)
+                _stop(user)
+        if fly.returncode != 0:
+            lines = fly_err.decode("utf-8", "replace").strip().splitlines()
+            return (lines[-1] if lines else f"fly exited with {fly.returncode}") + (
+                f" (log: {log_path.name})"
+            )
+        if (flight / TRAJECTORY_CSV).read_bytes() != (out / TRAJECTORY_CSV).read_bytes():
+            return "the lockstep flight differs from the run's (trajectory.csv)"
+        relative = f"{ESTIMATES_DIR}/{localizer.name}.csv"
+        data = (flight / relative).read_bytes()
+    write_bytes_atomic(out / relative, data)
+    refresh_manifest(out, {relative: sha256_bytes(data)})
+    return None
+
+
+def _keep(out: Path, keep: str) -> None:
+    """``frames``: the per-frame tables, estimates and summaries, no images; ``none``:
+    estimates and summaries only."""
+    if keep == "all" or not out.is_dir():
+        return
+    from air_sitl.dataset.air_schema import ESTIMATES_DIR, SUMMARY_JSON
+
+    for path in out.iterdir():
+        if path.name in (ESTIMATES_DIR, SUMMARY_JSON):
+            continue
+        if keep == "frames" and path.suffix.lower() != ".jpg":
+            continue
+        if path.is_dir():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+
+
+def execute(task: RunTask) -> dict[str, Any]:
+    """Fly, localize and score one run; its row (errors included, never raised)."""
+    start = time.perf_counter()
+    out = Path(task.archive)
+    summary: dict[str, Any] | None = None
+    reports: dict[str, Any] = {}
+    error: str | None = None
+    try:
+        if out.exists():  # what a killed sweep left of this run: done again from the start
+            shutil.rmtree(out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(prefix=f"sweep-{task.id}-") as tmp:
+            plan = Path(tmp) / task.plan_name
+            plan.write_bytes(task.plan_text)
+            summary = _row_summary(_fly(task, plan, out), task.plan_label)
+        if task.methods or task.localizers:
+            reports, error = _localize(task, out)
+        _keep(out, task.keep)
+    except AirSitlError as err:
+        error = _one_line(err)
+    except Exception as err:  # a bug in one run must not stop the others; its line says which
+        error = _one_line(err)
+    row: dict[str, Any] = _finite(
+        {
+            "id": task.id,
+            "options": task.options,
+            "summary": summary,
+            "eval": reports,
+            "error": error,
+            "wall_s": round(time.perf_counter() - start, 3),
+            "host": socket.gethostname(),
+            "archive": task.archive_label,
+        }
+    )
+    return row
