@@ -61,8 +61,8 @@ class MissionSequencer:
     def __init__(self, mission: Mission, home: GeoPoint, params: ParamStore) -> None:
         self.home = home
         self.params = params
-        self._np_version = -1
-        self._np = GuidanceParams.from_store(params)
+        self._params_version = -1
+        self._guidance_params = GuidanceParams.from_store(params)
         self.mode = FlightMode.IDLE
         self.armed = False
         self.capturing = False
@@ -145,10 +145,10 @@ class MissionSequencer:
     @property
     def guidance_params(self) -> GuidanceParams:
         """Current parameters, re-read when the store changed."""
-        if self.params.version != self._np_version:
-            self._np = GuidanceParams.from_store(self.params)
-            self._np_version = self.params.version
-        return self._np
+        if self.params.version != self._params_version:
+            self._guidance_params = GuidanceParams.from_store(self.params)
+            self._params_version = self.params.version
+        return self._guidance_params
 
     def _speed(self, p: GuidanceParams, course_rad: float = 0.0) -> float:
         if self._speed_override is not None:
