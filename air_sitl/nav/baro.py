@@ -1,7 +1,9 @@
 """Barometer control (EKF2 baro_height_control): the height reference.
 
 Start: the first reading sets the height (minus an offset taken against GNSS when a fix is
-there). Fuse: height above home = baro altitude - offset - home altitude. The offset (turn-on
+there). Fuse: height above home = baro altitude - offset - home altitude, as a down position
+in the tangent plane at home (which the Earth curves away from: d^2 / 2R, 2.7 m at 6 km, is
+added). The offset (turn-on
 error plus slow drift) is tracked by a scalar Kalman filter against GNSS altitude while GNSS
 is fusing, and frozen during denial (EKF2 estimates a baro bias the same way). Reset: after
 ``baro_reset_timeout_ns`` of continuous rejection the height jumps to the barometer.
@@ -17,6 +19,8 @@ from air_sitl.nav.fusion import fuse_direct
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.status import SourceCounters
 from air_sitl.nav.types import BaroSample
+
+CURVATURE_1_M = 0.5 / 6_371_000.0  # 1 / (2 R), mean Earth radius
 
 
 class BaroControl:
@@ -63,6 +67,12 @@ class BaroControl:
         self.offset_m += k * (z - self.offset_m)
         self.offset_var_m2 *= 1.0 - k
 
+    def _down_m(self, ekf: ErrorStateEkf, alt_m: float) -> float:
+        """The tangent-plane down position of a baro altitude at the estimated horizontal
+        position (the curvature term's Jacobian, below 1e-3, is left out)."""
+        n, e = ekf.p[0], ekf.p[1]
+        return -(alt_m - self.offset_m - self.home_alt_m) + (n * n + e * e) * CURVATURE_1_M
+
     def fuse_due(self, ekf: ErrorStateEkf, t_ns: int, gnss_alt_m: float | None) -> None:
         p = self.params
         for t_m, alt in self.buffer.pop_due(t_ns):
@@ -71,8 +81,7 @@ class BaroControl:
             if not self.started or (first is not None and t_m - first >= p.baro_reset_timeout_ns):
                 if not self.started and gnss_alt_m is not None:
                     self.offset_m = alt - gnss_alt_m
-                height = alt - self.offset_m - self.home_alt_m
-                ekf.reset_states(POS + 2, (-height,), p.baro_noise_m**2)
+                ekf.reset_states(POS + 2, (self._down_m(ekf, alt),), p.baro_noise_m**2)
                 if self.started:
                     self.counters.resets += 1
                 self.started = True
@@ -82,7 +91,7 @@ class BaroControl:
                 continue
             lag = (t_ns - t_m) * 1e-9
             # Measured down position minus the predicted one at the reading's time.
-            y = -(alt - self.offset_m - self.home_alt_m) - (ekf.p[2] - ekf.v[2] * lag)
+            y = self._down_m(ekf, alt) - (ekf.p[2] - ekf.v[2] * lag)
             r = fuse_direct(ekf, POS + 2, [y], [[p.baro_noise_m**2]], p.baro_gate)
             self.ratio = self.counters.test_ratio = r.test_ratio
             if r.fused:

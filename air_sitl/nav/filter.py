@@ -151,11 +151,13 @@ class NavFilter:
         gnss = self.gnss
         was_started = gnss.started
         fused_before = gnss.counters.fused
+        last_ns = gnss.last_fused_ns
         gnss.fuse_due(self.ekf, t_d)
         if gnss.started and not was_started:
             self.pos_valid = self.vel_valid = True
         if gnss.counters.fused > fused_before and gnss.last_alt_amsl_m is not None:
-            self.baro.calibrate(gnss.last_alt_amsl_m, self.params.gnss_pos_noise_m**2 * 4, 0.2)
+            dt = 0.0 if last_ns is None else (t_d - last_ns) * 1e-9
+            self.baro.calibrate(gnss.last_alt_amsl_m, gnss.last_epv_m**2, dt)
 
     def _fuse_aids_due(self, t_d: int) -> None:
         gnss_fusing = self.gnss.fusing(t_d)

@@ -38,6 +38,7 @@ class GnssControl:
         self.last_fused_ns: int | None = None
         self.first_reject_ns: int | None = None
         self.last_alt_amsl_m: float | None = None  # of the last fused fix (baro offset)
+        self.last_epv_m = 0.0
         self.pos_ratio = 0.0
         self.vel_ratio = 0.0
 
@@ -80,7 +81,7 @@ class GnssControl:
     def fuse_due(self, ekf: ErrorStateEkf, t_ns: int) -> None:
         p = self.params
         for t_m, it in self.buffer.pop_due(t_ns):
-            n, e, _d, vn, ve, vd, eph, _epv, alt = it
+            n, e, _d, vn, ve, vd, eph, epv, alt = it
             pos_var = max(eph, p.gnss_pos_noise_m) ** 2
             vel_var = p.gnss_vel_noise_m_s**2
             self.last_fix_ns = t_m
@@ -91,7 +92,7 @@ class GnssControl:
                     self.counters.resets += 1
                 self.started = True
                 self.first_reject_ns = None
-                self._fused(t_m, alt)
+                self._fused(t_m, alt, epv)
                 continue
             lag = (t_ns - t_m) * 1e-9
             pn = ekf.p[0] - ekf.v[0] * lag
@@ -111,7 +112,7 @@ class GnssControl:
             self.counters.test_ratio = pos.test_ratio
             if pos.fused or vel.fused:
                 self.first_reject_ns = None
-                self._fused(t_m, alt)
+                self._fused(t_m, alt, epv)
             else:
                 self.counters.reject("gate")
                 if self.first_reject_ns is None:
@@ -121,7 +122,8 @@ class GnssControl:
         first = self.first_reject_ns
         return first is not None and t_m - first >= self.params.gnss_reset_timeout_ns
 
-    def _fused(self, t_m: int, alt: float) -> None:
+    def _fused(self, t_m: int, alt: float, epv: float) -> None:
         self.counters.fused += 1
         self.last_fused_ns = t_m
         self.last_alt_amsl_m = alt
+        self.last_epv_m = epv

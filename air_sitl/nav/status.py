@@ -7,7 +7,7 @@ ESTIMATOR_STATUS reports (flags, test ratios, accuracies).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 from air_sitl.nav.types import NavFlags
@@ -100,5 +100,5 @@ class NavStatus:
             "gnss_denied_s": round(self.gnss_denied_s, 3),
             "gnss": self.gnss.to_json(),
             "aid": [a.to_json() for a in self.aids],
-            "flags": {k: getattr(self.flags, k) for k in self.flags.__slots__},
+            "flags": {f.name: getattr(self.flags, f.name) for f in fields(self.flags)},
         }

@@ -249,3 +249,11 @@ def test_aid_alone_from_the_start(circle: Recording) -> None:
     status = nav.status()
     assert status.gnss_denied_s == 0.0 and status.gnss.received == 0
     assert status.aids[0].resets == 0 and status.aids[0].rejected == 0
+
+
+def test_height_from_baro_holds_with_and_without_gnss(gnss_run, denied_run) -> None:
+    """The barometer is the height reference (offset calibrated on GNSS, then frozen); the
+    tangent plane's curvature (2.7 m at 6 km on the line) is accounted for."""
+    for _, trace in (gnss_run, denied_run):
+        dz = [abs(p.est_ned_m[2] - p.truth_ned_m[2]) for p in between(trace, 20.0, 1e9)]
+        assert percentile(dz, 95) < 1.0
