@@ -1,0 +1,271 @@
+"""``air-sitl sweep report DIR``: each metric against each axis, as a table and as plots.
+
+An axis is an option whose value differs between the runs of ``results.jsonl`` (the SPEC's
+axes first, as ``sweep.json`` lists them). ``seed`` is the spread, not an axis, when there is
+another one. For each axis value and method: the median over every run with that value (its
+seeds and the other axes' values) and the spread as the 25-75 % range. Writes
+``DIR/report.md`` and ``DIR/report.png`` (matplotlib, imported only here).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from air_sitl.files import write_bytes_atomic
+from air_sitl.sweep.errors import SweepError
+from air_sitl.sweep.results import RESULTS, latest_rows
+
+REPORT_MD = "report.md"
+REPORT_PNG = "report.png"
+SPREAD_KEY = "seed"
+FLIGHT = "flight"  # the pseudo-method of a sweep without methods: the flight's own figures
+
+Getter = Callable[[dict[str, Any]], Any]
+
+
+@dataclass(frozen=True, slots=True)
+class Metric:
+    label: str
+    path: tuple[str, ...]
+    fmt: str = "{:.2f}"
+
+
+EVAL_METRICS = (
+    Metric("median horizontal error m", ("horizontal_error_m", "median")),
+    Metric("p95 horizontal error m", ("horizontal_error_m", "p95")),
+    Metric("recall at 25 m", ("recall", "25m"), "{:.2f}"),
+    Metric("availability", ("availability",), "{:.2f}"),
+    Metric("final drift % of distance", ("drift_pct",), "{:.1f}"),
+)
+FLIGHT_METRICS = (
+    Metric("max cross-track m", ("max_cross_track_m",)),
+    Metric("max altitude error m", ("max_alt_error_m",)),
+    Metric("capture frames", ("capture_frames",), "{:.0f}"),
+)
+
+
+@dataclass(frozen=True, slots=True)
+class Cell:
+    """One (axis value, method, metric): the runs' values summarised."""
+
+    n: int
+    median: float | None
+    p25: float | None
+    p75: float | None
+
+
+def _dig(obj: Any, path: Sequence[str]) -> float | None:
+    for key in path:
+        if not isinstance(obj, dict):
+            return None
+        obj = obj.get(key)
+    if isinstance(obj, bool) or not isinstance(obj, int | float) or not math.isfinite(obj):
+        return None
+    return float(obj)
+
+
+def _key(value: Any) -> str:
+    return json.dumps(value, sort_keys=True)
+
+
+def _text(value: Any) -> str:
+    return value if isinstance(value, str) else json.dumps(value)
+
+
+def find_axes(rows: Sequence[dict[str, Any]], listed: Sequence[str] = ()) -> list[str]:
+    """Options whose value differs between rows (``listed`` first), seed last or out."""
+    varying = []
+    keys = {k for row in rows for k in (row.get("options") or {})}
+    for key in [*listed, *sorted(keys - set(listed))]:
+        values = {_key((row.get("options") or {}).get(key)) for row in rows}
+        if len(values) > 1 and key not in varying:
+            varying.append(key)
+    if len(varying) > 1 and SPREAD_KEY in varying:
+        varying.remove(SPREAD_KEY)
+    return varying
+
+
+def axis_values(rows: Sequence[dict[str, Any]], axis: str) -> list[Any]:
+    """The values an axis takes, numbers in order, anything else in order of appearance."""
+    seen: dict[str, Any] = {}
+    for row in rows:
+        value = (row.get("options") or {}).get(axis)
+        seen.setdefault(_key(value), value)
+    values = list(seen.values())
+    if all(isinstance(v, int | float) and not isinstance(v, bool) for v in values):
+        values.sort()
+    return values
+
+
+def summarise(values: Sequence[float]) -> Cell:
+    if not values:
+        return Cell(0, None, None, None)
+    arr = np.asarray(values, dtype=np.float64)
+    p25, med, p75 = np.percentile(arr, [25, 50, 75])
+    return Cell(len(values), float(med), float(p25), float(p75))
+
+
+def _entries(rows: Sequence[dict[str, Any]]) -> list[str]:
+    names: dict[str, None] = {}
+    for row in rows:
+        for name in row.get("eval") or {}:
+            names.setdefault(name, None)
+    return list(names) or [FLIGHT]
+
+
+def _value_of(row: dict[str, Any], entry: str, metric: Metric) -> float | None:
+    if row.get("error"):
+        return None
+    if entry == FLIGHT:
+        return _dig(row.get("summary"), metric.path)
+    return _dig((row.get("eval") or {}).get(entry), metric.path)
+
+
+def table(
+    rows: Sequence[dict[str, Any]], axis: str, entries: Sequence[str], metrics: Sequence[Metric]
+) -> list[tuple[Any, str, int, int, list[Cell]]]:
+    """(axis value, method, runs, failed runs, a Cell per metric) for every value x method."""
+    out = []
+    for value in axis_values(rows, axis):
+        here = [r for r in rows if _key((r.get("options") or {}).get(axis)) == _key(value)]
+        failed = sum(1 for r in here if r.get("error"))
+        for entry in entries:
+            cells = []
+            for metric in metrics:
+                vals = [v for r in here if (v := _value_of(r, entry, metric)) is not None]
+                cells.append(summarise(vals))
+            out.append((value, entry, len(here), failed, cells))
+    return out
+
+
+def _fmt(metric: Metric, cell: Cell, spread: bool) -> str:
+    if cell.median is None:
+        return "-"
+    text = metric.fmt.format(cell.median)
+    if spread and cell.n > 1 and cell.p25 is not None and cell.p75 is not None:
+        text += f" ({metric.fmt.format(cell.p25)}-{metric.fmt.format(cell.p75)})"
+    return text
+
+
+def markdown(
+    rows: Sequence[dict[str, Any]],
+    axes: Sequence[str],
+    entries: Sequence[str],
+    metrics: Sequence[Metric],
+    title: str,
+) -> str:
+    """The report as markdown: counts, one table per axis, the failed runs."""
+    failed = [r for r in rows if r.get("error")]
+    hosts = sorted({str(r.get("host")) for r in rows if r.get("host")})
+    lines = [
+        f"# Sweep report: {title}",
+        "",
+        f"{len(rows)} runs, {len(failed)} failed, on {', '.join(hosts) or '-'}; "
+        f"methods: {', '.join(entries)}. Each cell: the median over the runs with that value "
+        "(seeds and the other axes), and in brackets the 25-75 % range.",
+        "",
+        f"![each metric against each axis]({REPORT_PNG})",
+        "",
+    ]
+    for axis in axes:
+        lines += [f"## {axis}", ""]
+        header = [axis, "method", "runs", "failed", *(m.label for m in metrics)]
+        lines += ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        for value, entry, n, nfail, cells in table(rows, axis, entries, metrics):
+            shown = [
+                _fmt(m, c, i == 0) for i, (m, c) in enumerate(zip(metrics, cells, strict=True))
+            ]
+            lines.append(
+                f"| {_text(value)} | {entry} | {n} | {nfail} | " + " | ".join(shown) + " |"
+            )
+        lines.append("")
+    if failed:
+        lines += ["## Failed runs", ""]
+        for row in failed:
+            opts = " ".join(f"{k}={_text(v)}" for k, v in (row.get("options") or {}).items())
+            lines.append(f"- `{row['id']}` {opts}: {row['error']}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def plot(
+    rows: Sequence[dict[str, Any]],
+    axes: Sequence[str],
+    entries: Sequence[str],
+    metrics: Sequence[Metric],
+    path: Path,
+    title: str,
+) -> None:
+    """One panel per (metric, axis): the median per value and method, bars over 25-75 %."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ncols = max(1, len(axes))
+    fig, grid = plt.subplots(
+        len(metrics), ncols, figsize=(3.6 * ncols + 0.6, 2.4 * len(metrics) + 0.8), squeeze=False
+    )
+    colours = plt.get_cmap("tab10")
+    for col, axis in enumerate(axes):
+        values = axis_values(rows, axis)
+        rows_of = table(rows, axis, entries, metrics)
+        for r, metric in enumerate(metrics):
+            ax = grid[r][col]
+            for k, entry in enumerate(entries):
+                cells = [c[4][r] for c in rows_of if c[1] == entry]
+                x = np.arange(len(values)) + (k - (len(entries) - 1) / 2) * 0.08
+                med = np.array([np.nan if c.median is None else c.median for c in cells])
+                lo = np.array([np.nan if c.p25 is None else c.p25 for c in cells])
+                hi = np.array([np.nan if c.p75 is None else c.p75 for c in cells])
+                ax.errorbar(
+                    x, med, yerr=[med - lo, hi - med], marker="o", ms=4, capsize=3,
+                    color=colours(k % 10), label=entry,
+                )  # fmt: skip
+            ax.set_xticks(np.arange(len(values)), [_text(v) for v in values], fontsize=8)
+            ax.set_xlim(-0.5, len(values) - 0.5)
+            ax.tick_params(axis="y", labelsize=8)
+            ax.grid(alpha=0.3)
+            if r == len(metrics) - 1:
+                ax.set_xlabel(axis)
+            if col == 0:
+                ax.set_ylabel(metric.label, fontsize=8)
+    grid[0][0].legend(fontsize=7, loc="best")
+    fig.suptitle(f"{title}: median and 25-75 % range over seeds and other axes", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def write_report(folder: Path) -> list[Path]:
+    """Write ``report.md`` and ``report.png`` for the sweep in ``folder``; their paths."""
+    rows = list(latest_rows(folder / RESULTS).values())
+    if not rows:
+        msg = f"{folder / RESULTS}: no runs to report on (run the sweep first)"
+        raise SweepError(msg)
+    listed: list[str] = []
+    info_path = folder / "sweep.json"
+    title = folder.name
+    if info_path.is_file():
+        info = json.loads(info_path.read_text(encoding="utf-8"))
+        listed = [str(a) for a in info.get("axes") or []]
+        title = Path(str(info.get("spec") or folder.name)).name
+    axes = find_axes(rows, listed)
+    if not axes:
+        axes = ["id"] if len(rows) > 1 else []
+        for row in rows:
+            row.setdefault("options", {})["id"] = row["id"]
+    entries = _entries(rows)
+    metrics = FLIGHT_METRICS if entries == [FLIGHT] else EVAL_METRICS
+    md = folder / REPORT_MD
+    png = folder / REPORT_PNG
+    write_bytes_atomic(md, markdown(rows, axes, entries, metrics, title).encode("utf-8"))
+    plot(rows, axes or ["id"], entries, metrics, png, title)
+    return [md, png]
