@@ -37,7 +37,7 @@ class NavParams:
 
     # GNSS (EKF2_GPS_*): noise floors; the receiver's eph/epv are used when larger.
     gnss_pos_noise_m: float = 0.5
-    gnss_vel_noise_m_s: float = 0.15  # EKF2_GPS_V_NOISE (our receiver: 0.1)
+    gnss_vel_noise_m_s: float = 0.1  # EKF2_GPS_V_NOISE; our receiver: 0.1 (GpsFix has no sacc)
     gnss_pos_gate: float = 5.0
     gnss_vel_gate: float = 5.0
     gnss_timeout_ns: int = 1_000_000_000  # no fix for this long: GNSS lost, dead-reckoning
