@@ -20,7 +20,9 @@ output predictor, ``status`` the counters, ``filter`` the public :class:`NavFilt
     nav.fuse_aid(AidMeasurement(name="map", sim_time_ns=t, position=(east, north, up)), now_ns)
     nav.status().to_json()                       # counters for summary.json's "nav" block
 
-Barometer, airspeed sensor and magnetometer models live in ``sensors_extra`` for now.
+``vehicle.estimated_state`` presents the estimate as the VehicleState the autopilot and the
+telemetry read. Barometer, airspeed sensor and magnetometer models live in ``sensors_extra``
+for now.
 """
 
 from air_sitl.nav.filter import NavFilter
@@ -36,6 +38,7 @@ from air_sitl.nav.types import (
     NavEstimate,
     NavFlags,
 )
+from air_sitl.nav.vehicle import estimated_state
 
 __all__ = [
     "AidFrame",
@@ -50,4 +53,5 @@ __all__ = [
     "NavFlags",
     "NavParams",
     "NavStatus",
+    "estimated_state",
 ]

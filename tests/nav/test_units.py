@@ -14,7 +14,7 @@ from air_sitl.nav.ekf import ErrorStateEkf, integrate
 from air_sitl.nav.fusion import _inverse, fuse_direct, fuse_scalar
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.sensors_extra import AirspeedSensor, Barometer, Magnetometer
-from air_sitl.state import VehicleState
+from air_sitl.state import ImuSample, VehicleState
 from tests.nav.synthetic import Straight
 
 
@@ -190,3 +190,25 @@ def test_sideslip_and_yaw_jacobians_match_finite_differences(seed: int) -> None:
             down = model(*_perturbed(q, v, wind, k, -eps))[0]
             numeric = (up - down) / (2 * eps)
             assert h[k] == pytest.approx(numeric, abs=1e-6), (name, k)
+
+
+def test_estimated_state_for_the_autopilot() -> None:
+    from air_sitl.nav import estimated_state
+    from tests.nav.synthetic import HEIGHT_M, HOME
+
+    run = Straight()
+    run.run(5.0)
+    nav = run.nav
+    est = nav.estimate()
+    imu = ImuSample(
+        sim_time_ns=est.sim_time_ns,
+        gyro_frd_rad_s=(0.01, 0.0, 0.0),
+        accel_frd_m_s2=(0.0, 0.0, -9.8),
+        q_ahrs_body_to_ned_wxyz=(1.0, 0.0, 0.0, 0.0),
+    )
+    s = estimated_state(est, imu, airspeed_m_s=15.0, on_ground=False,
+                        home_alt_amsl_m=HOME.alt_amsl_m)  # fmt: skip
+    assert s.pos_ned_m == est.pos_ned_m and s.vel_ned_m_s == est.vel_ned_m_s
+    assert s.alt_agl_m == pytest.approx(HEIGHT_M, abs=0.5)
+    assert s.yaw_rad == pytest.approx(0.0, abs=0.02)
+    assert s.rate_frd_rad_s[0] == pytest.approx(0.01 - est.gyro_bias_rad_s[0])
