@@ -56,7 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Sweep (exit 0: every run succeeded, 1: some failed, 130: interrupted) or report."""
+    """Sweep (exit 0: every run of the SPEC succeeded, 1: some failed, 130: interrupted)."""
     if args.spec == "report" and not Path("report").is_file():
         return _report(args)
     if args.dir is not None:
@@ -88,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
         print_outcome(outcome, out, sys.stderr)
     if outcome.interrupted:
         return 130
-    return 1 if outcome.failed else 0
+    return 1 if outcome.failed_total else 0
 
 
 def _report(args: argparse.Namespace) -> int:

@@ -55,6 +55,7 @@ class SweepOutcome:
     ran: int
     failed: int
     interrupted: bool = False
+    failed_total: int = 0  # runs of the SPEC whose latest row is a failure (earlier ones too)
     hosts: dict[str, int] | None = None  # host -> runs it ran now
 
 
@@ -192,7 +193,10 @@ def run_sweep(
                 executor.run(todo, on_row)
         except KeyboardInterrupt:
             interrupted = True
+    rows = latest_rows(results_path)
+    failed_total = sum(1 for t in tasks if (rows.get(t.id) or {}).get("error"))
     return SweepOutcome(
+        failed_total=failed_total,
         total=len(tasks),
         skipped=len(tasks) - len(todo),
         ran=sum(hosts.values()),
@@ -209,7 +213,8 @@ def print_outcome(outcome: SweepOutcome, out: Path, stream: IO[str]) -> None:
     state = "interrupted" if outcome.interrupted else "done"
     print(
         f"sweep {state}: {outcome.ran} run now ({outcome.failed} failed), {outcome.skipped} "
-        f"already done, {outcome.total} in the SPEC -> {out / RESULTS}",
+        f"already done, {outcome.total} in the SPEC ({outcome.failed_total} failed) -> "
+        f"{out / RESULTS}",
         file=stream,
     )
     here = socket.gethostname()

@@ -1,0 +1,165 @@
+"""Sweeps of short flights end to end: a 2x2x2 SPEC on the pool (-j 1, -j 2) and on a local Ray
+give the same rows; a failing run is recorded and the others go on; a killed sweep resumes
+without redoing its finished runs; the report."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+import short_plans
+import yaml
+
+from air_sitl.cli import main
+from air_sitl.state import GeoPoint
+from air_sitl.sweep.results import RESULTS, comparable, latest_rows, read_rows
+
+pytestmark = pytest.mark.integration
+
+HOME = GeoPoint(lat_deg=38.54, lon_deg=-121.49, alt_amsl_m=10.0)
+RUNS = 9  # the 2x2x2 product and one run over a map that does not exist
+
+
+@pytest.fixture(scope="module")
+def spec(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("sweep-spec")
+    (root / "plans").mkdir()
+    short_plans.write_short_plan(root / "plans" / "UT-200.plan", HOME, leg_m=30.0)  # 100 frames
+    content = {
+        "base": {"plan": "plans/UT-200.plan", "air-start": True, "max-sim-time": 60},
+        "axes": {"map-date": [0, 1], "wind": ["0@0", "5@270"], "seed": [1, 2]},
+        "runs": [{"map": "nowhere/urban.tif", "seed": 3}],
+        "methods": ["deadreckon"],
+    }
+    path = root / "sweep.yaml"
+    path.write_text(yaml.safe_dump(content, sort_keys=False), encoding="utf-8")
+    return path
+
+
+def sweep(spec: Path, out: Path, *where: str) -> int:
+    return main(["sweep", str(spec), "--out", str(out), "--quiet", *where])
+
+
+@pytest.fixture(scope="module")
+def small(spec: Path) -> Path:
+    """Three runs without methods: what the kill and Ctrl-C tests interrupt."""
+    path = spec.with_name("small.yaml")
+    content = {
+        "base": {"plan": "plans/UT-200.plan", "air-start": True, "max-sim-time": 60},
+        "axes": {"seed": [1, 2, 3]},
+    }
+    path.write_text(yaml.safe_dump(content, sort_keys=False), encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def pool2(spec: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("pool2") / "s"
+    assert sweep(spec, out, "-j", "2") == 1  # 1: a run failed
+    return out
+
+
+@pytest.fixture(scope="module")
+def pool1(spec: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("pool1") / "s"
+    assert sweep(spec, out, "-j", "1") == 1
+    return out
+
+
+def rows_of(out: Path) -> dict[str, dict[str, Any]]:
+    return {k: comparable(v) for k, v in latest_rows(out / RESULTS).items()}
+
+
+def test_every_run_has_a_row_and_the_failing_one_its_reason(pool2: Path) -> None:
+    rows = list(latest_rows(pool2 / RESULTS).values())
+    assert len(rows) == RUNS == len(read_rows(pool2 / RESULTS))
+    failed = [r for r in rows if r["error"]]
+    assert len(failed) == 1 and "nowhere/urban.tif" in failed[0]["error"], failed
+    assert "\n" not in failed[0]["error"] and failed[0]["options"]["seed"] == 3
+    for row in rows:
+        if row["error"]:
+            continue
+        assert row["summary"]["mission_completed"] is True
+        assert row["summary"]["capture_frames"] >= 50 and "wall_time_s" not in row["summary"]
+        report = row["eval"]["deadreckon"]
+        assert report["frames"] == row["summary"]["capture_frames"]
+        assert report["archive"] == f"runs/{row['id']}" == row["archive"]
+        assert (pool2 / "runs" / row["id"] / "estimates" / "deadreckon.csv").is_file()
+        assert row["wall_s"] > 0 and row["host"]
+
+
+def test_the_same_rows_on_one_worker_and_two(pool1: Path, pool2: Path) -> None:
+    assert rows_of(pool1) == rows_of(pool2)
+
+
+@pytest.fixture(scope="module")
+def on_ray(spec: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    pytest.importorskip("ray", reason="ray is not installed (pip install 'air-sitl[ray]')")
+    out = tmp_path_factory.mktemp("ray") / "s"
+    assert sweep(spec, out, "--ray") == 1
+    return out
+
+
+def test_the_same_rows_on_a_local_ray(on_ray: Path, pool2: Path) -> None:
+    assert rows_of(on_ray) == rows_of(pool2)
+
+
+def test_a_second_run_skips_every_done_run(spec: Path, pool2: Path) -> None:
+    before = (pool2 / RESULTS).read_bytes()
+    assert sweep(spec, pool2, "-j", "2") == 1  # nothing run; the failed run stays failed
+    assert (pool2 / RESULTS).read_bytes() == before
+
+
+def test_a_killed_sweep_resumes_without_redoing_finished_runs(small: Path, tmp_path: Path) -> None:
+    out = tmp_path / "s"
+    cmd = [sys.executable, "-m", "air_sitl", "sweep", str(small), "--out", str(out), "-j", "1"]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    assert proc.stderr is not None
+    for line in proc.stderr:  # a progress line comes after its row is on disk
+        if line.startswith("sweep ["):
+            break
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    proc.stderr.close()
+    first = (out / RESULTS).read_bytes()
+    done = [r["id"] for r in read_rows(out / RESULTS)]
+    assert 1 <= len(done) < 3
+    assert sweep(small, out, "-j", "2") == 0
+    after = (out / RESULTS).read_bytes()
+    assert after.startswith(first)  # the finished rows kept as they were
+    ids = [r["id"] for r in read_rows(out / RESULTS)]
+    assert len(ids) == len(set(ids)) == 3  # and none of them run again
+
+
+def test_ctrl_c_stops_cleanly_with_whole_rows(small: Path, tmp_path: Path) -> None:
+    out = tmp_path / "s"
+    cmd = [sys.executable, "-m", "air_sitl", "sweep", str(small), "--out", str(out), "-j", "1"]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    assert proc.stderr is not None
+    for line in proc.stderr:
+        if line.startswith("sweep ["):
+            break
+    proc.send_signal(signal.SIGINT)
+    rest = proc.stderr.read()
+    assert proc.wait() == 130, rest
+    assert "sweep interrupted" in rest and "Traceback" not in rest
+    assert (out / RESULTS).read_bytes().endswith(b"\n")
+    assert 1 <= len(read_rows(out / RESULTS)) < 3
+
+
+def test_report_has_a_table_per_axis_and_a_png(pool2: Path) -> None:
+    assert main(["sweep", "report", str(pool2), "--quiet"]) == 0
+    md = (pool2 / "report.md").read_text()
+    for axis in ("## map-date", "## wind"):
+        assert axis in md
+    assert "| 5@270 | deadreckon | 5 | 1 |" not in md  # the failed run has map-date 0 / 0@0
+    assert "## Failed runs" in md and "nowhere/urban.tif" in md
+    png = (pool2 / "report.png").read_bytes()
+    assert png.startswith(b"\x89PNG") and len(png) > 10_000
+    info = json.loads((pool2 / "sweep.json").read_text())
+    assert info["axes"] == ["map-date", "wind", "seed"] and len(info["runs"]) == RUNS
