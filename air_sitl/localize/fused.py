@@ -51,9 +51,11 @@ class FusedLocalizer(MapMatchBase):
         """
         if self.filter.update(east_m, north_m, sigma_m, gate_d2=self.gate_d2):
             self.fixes_fused += 1
+            self.refusals = 0
             self._rejected.clear()
             return True
         self.fixes_gated += 1
+        self.refusals += 1  # the search widens, so that a lost filter finds the fixes again
         pe, pn = self.filter.position
         self._rejected.append((east_m - pe, north_m - pn, east_m, north_m))
         if len(self._rejected) >= REACQUIRE_FIXES:
@@ -63,6 +65,7 @@ class FusedLocalizer(MapMatchBase):
             if all(math.hypot(r[0] - me, r[1] - mn) <= REACQUIRE_SPREAD_M for r in recent):
                 self.filter.start(east_m, north_m, sigma_m)
                 self.restarts += 1
+                self.refusals = 0
                 self._rejected.clear()
         return False
 

@@ -37,6 +37,7 @@ FIRST_FIX_SIGMA_M = 3.0  # the GNSS fix at the first frame (1.5 m noise, moved o
 MIN_RADIUS_M = 15.0  # search radius around the prior, at least
 MAX_RADIUS_M = 150.0  # and at most (beyond: the prior is lost; keep trying at this radius)
 RADIUS_SIGMAS = 3.0
+RADIUS_GROWTH_M = 1.0  # per consecutive refused match: 50 m per second of refusals at 50 Hz
 VAR_UP_BARO_M2 = 1.0
 VAR_UP_GNSS_M2 = 9.0
 
@@ -94,6 +95,7 @@ class MapMatchBase:
         self.last_match: MatchResult | None = None
         self.matches_tried = 0
         self.matches_accepted = 0
+        self.refusals = 0  # consecutive matches refused (or, in ``fused``, gated out)
 
     def reset(self, context: LocalizerContext) -> None:
         """Open the reference map (once per flight) and forget the previous flight."""
@@ -135,7 +137,10 @@ class MapMatchBase:
         if image is None:
             return None
         east, north = self.filter.position
-        radius = min(MAX_RADIUS_M, max(MIN_RADIUS_M, RADIUS_SIGMAS * self.filter.sigma_m + 5.0))
+        # The radius follows the prior's uncertainty and widens while matches are refused:
+        # the filter cannot know how wrong an unaided prior is (unknown wind, a bad start).
+        radius = RADIUS_SIGMAS * self.filter.sigma_m + 5.0 + RADIUS_GROWTH_M * self.refusals
+        radius = min(MAX_RADIUS_M, max(MIN_RADIUS_M, radius))
         try:
             result = self.matcher.match(
                 image, obs.q_ahrs_body_to_ned_wxyz, self.height_m, east, north, radius
@@ -144,7 +149,9 @@ class MapMatchBase:
             return None
         self.matches_tried += 1
         if result is not None and result.accepted:
-            self.matches_accepted += 1
+            self.matches_accepted += 1  # the subclass resets ``refusals`` when it uses it
+        else:
+            self.refusals += 1
         self.last_match = result
         return result
 
@@ -180,6 +187,7 @@ class MapMatchLocalizer(MapMatchBase):
             return self._propagated(obs, quality=0.3 if result is None else 0.0)
         # The fix also corrects the prior for the next frame (no gate: the quality gate is
         # this method's; ``fused`` adds an innovation gate).
+        self.refusals = 0
         self.filter.update(result.east_m, result.north_m, result.sigma_m, gate_d2=None)
         var = result.sigma_m**2
         return Estimate(

@@ -14,9 +14,9 @@ from air_sitl.localize.fused import REACQUIRE_FIXES, FusedLocalizer
 from air_sitl.localize.mapmatch import MapMatchLocalizer
 
 try:  # the shared flight and scoring (module name depends on tests/localize/__init__.py)
-    from test_mapmatch import fly_uc200, horizontal_errors, truth_rows
+    from test_mapmatch import fly_uc200, horizontal_errors, shifted_start, truth_rows
 except ImportError:  # pragma: no cover
-    from localize.test_mapmatch import fly_uc200, horizontal_errors, truth_rows
+    from localize.test_mapmatch import fly_uc200, horizontal_errors, shifted_start, truth_rows
 
 pytestmark = pytest.mark.integration
 
@@ -77,3 +77,17 @@ def test_fused_gates_out_an_injected_outlier_fix(flight: Path) -> None:
     assert (
         math.hypot(fused.filter.position[0] - east - 40.0, fused.filter.position[1] - north) < 1e-6
     )
+
+
+def test_fused_restarts_after_a_bad_start(flight: Path) -> None:
+    """Started 60 m off with a confident filter: the gate refuses the right fixes at first,
+    the search widens, and agreeing refused fixes restart the filter on them."""
+    fused = FusedLocalizer()
+    with open_archive(flight) as arch:
+        source = shifted_start(observations(arch, needs_image=False), 60.0)
+        estimates = run_method(fused, context_of(arch), source, total=len(arch))
+    errors = horizontal_errors(estimates, truth_rows(flight))
+    found = int(np.argmax(errors < 5.0))
+    assert 0 < found < 200
+    assert fused.restarts == 1
+    assert float(errors[found:].max()) <= 15.0

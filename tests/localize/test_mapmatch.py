@@ -7,8 +7,10 @@ through the offline driver as ``air-sitl localize`` runs it; no mocks.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -18,8 +20,9 @@ from short_plans import write_short_plan
 from air_sitl.camera.model import CameraModel
 from air_sitl.cli import main
 from air_sitl.dataset.reader import open_archive
+from air_sitl.frames import ned2geodetic
 from air_sitl.localize.archive import context_of, observations, run_archive, run_method
-from air_sitl.localize.base import Estimate
+from air_sitl.localize.base import Estimate, Observation
 from air_sitl.localize.mapmatch import MapMatchLocalizer, open_reference
 from air_sitl.localize.mapmatch_core import MapMatcher
 from air_sitl.maps import open_map
@@ -85,6 +88,30 @@ def test_mapmatch_meets_the_urban_200_m_figures(flight: Path) -> None:
     fixes = [e for e in estimates if e.quality is not None and e.quality >= 0.5]
     assert len(fixes) == method.matches_accepted
     assert all(e.cov_enu_m2 is not None and 0.5 < e.cov_enu_m2[0] < 50.0 for e in fixes)
+
+
+def shifted_start(source: Iterator[Observation], east_m: float) -> Iterator[Observation]:
+    """The archive's observations with the GNSS fix moved ``east_m`` east (a bad start)."""
+    for obs in source:
+        g = obs.gnss
+        if g is None:
+            yield obs
+            continue
+        lat, lon, _ = ned2geodetic(0.0, east_m, 0.0, g.lat_deg, g.lon_deg, 0.0)
+        yield dataclasses.replace(obs, gnss=dataclasses.replace(g, lat_deg=lat, lon_deg=lon))
+
+
+def test_mapmatch_finds_the_map_again_after_a_bad_start(flight: Path) -> None:
+    """Started 60 m off: refused matches widen the search until the frame is found."""
+    method = MapMatchLocalizer()
+    with open_archive(flight) as arch:
+        source = shifted_start(observations(arch, needs_image=False), 60.0)
+        estimates = run_method(method, context_of(arch), source, total=len(arch))
+    errors = horizontal_errors(estimates, truth_rows(flight))
+    assert errors[0] > 50.0
+    found = int(np.argmax(errors < 5.0))
+    assert 0 < found < 150  # 3 s
+    assert float(np.median(errors[found:])) <= 3.0
 
 
 def test_the_driver_writes_mapmatch_estimates(flight: Path) -> None:
