@@ -1,0 +1,128 @@
+"""``air-sitl sweep``: pool speed-up and Ray overhead on 16 short runs.
+
+Run: ``python benchmarks/bench_sweep.py [--runs 16] [--leg-m 100] [--methods deadreckon]
+[--no-ray]``.
+
+Sixteen short runs (an air-started capture leg of 100 m, about 330 frames, then deadreckon
+localized and scored: the whole work of a sweep run) are swept three times into fresh
+folders, each timed from the call to the last row on disk, spawn start-up of the workers
+included:
+
+- ``-j 1`` and ``-j 2`` on the process pool: the ratio is the speed-up of a second worker
+  (2.0 at best on two cores);
+- ``--ray`` (a local Ray of 2 CPUs): Ray's start (``ray.init``) is printed apart; the overhead
+  per run is (Ray's wall without its start - the pool's ``-j 2`` wall) / runs. A floor is
+  measured in the same run: the round trip of an empty Ray task.
+
+The machine's load average is printed before and after: other processes on the same cores
+take their share of every figure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+import short_plans  # noqa: E402  (the tests' short capture plan)
+
+from air_sitl.state import GeoPoint  # noqa: E402
+from air_sitl.sweep import PoolExecutor, RayExecutor, load_spec, run_sweep  # noqa: E402
+from air_sitl.sweep.results import RESULTS, comparable, latest_rows  # noqa: E402
+
+HOME = GeoPoint(lat_deg=38.54, lon_deg=-121.49, alt_amsl_m=10.0)
+
+
+def write_spec(folder: Path, runs: int, methods: list[str], leg_m: float) -> Path:
+    short_plans.write_short_plan(folder / "UT-200.plan", HOME, leg_m=leg_m)
+    content = {
+        "base": {"plan": "UT-200.plan", "air-start": True, "max-sim-time": 60},
+        "axes": {"map-date": [0, 1], "seed": list(range(1, runs // 2 + 1))},
+        "methods": methods,
+    }
+    path = folder / "bench.yaml"
+    path.write_text(yaml.safe_dump(content, sort_keys=False), encoding="utf-8")
+    return path
+
+
+def timed(spec_path: Path, out: Path, executor: object) -> float:
+    spec = load_spec(spec_path)
+    if out.exists():
+        shutil.rmtree(out)
+    start = time.perf_counter()
+    outcome = run_sweep(spec, out, executor)  # type: ignore[arg-type]
+    wall = time.perf_counter() - start
+    if outcome.failed or outcome.ran != len(spec.runs):
+        sys.exit(f"bench_sweep: {outcome.failed} failed, {outcome.ran}/{len(spec.runs)} ran")
+    return wall
+
+
+def ray_task_floor(n: int = 50) -> float:
+    """Seconds per empty Ray task, submitted and fetched one by one (Ray running)."""
+    import ray
+
+    @ray.remote(num_cpus=1)
+    def nothing() -> int:
+        return 0
+
+    ray.get(nothing.remote())
+    start = time.perf_counter()
+    for _ in range(n):
+        ray.get(nothing.remote())
+    return (time.perf_counter() - start) / n
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=16)
+    parser.add_argument("--leg-m", type=float, default=100.0, help="capture leg (m)")
+    parser.add_argument("--methods", default="deadreckon")
+    parser.add_argument("--no-ray", action="store_true")
+    args = parser.parse_args()
+    methods = [m for m in args.methods.split(",") if m]
+    print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+    with tempfile.TemporaryDirectory(prefix="bench-sweep-") as tmp:
+        root = Path(tmp)
+        spec = write_spec(root, args.runs, methods, args.leg_m)
+        n = args.runs
+        j1 = timed(spec, root / "j1", PoolExecutor(1))
+        print(f"-j 1: {j1:6.1f} s wall for {n} runs ({j1 / n:.2f} s per run)")
+        j2 = timed(spec, root / "j2", PoolExecutor(2))
+        print(f"-j 2: {j2:6.1f} s wall for {n} runs ({j2 / n:.2f} s per run)")
+        print(f"speed-up of -j 2 over -j 1: {j1 / j2:.2f}x (2.00x at best on two cores)")
+        same = [comparable(r) for r in latest_rows(root / "j1" / RESULTS).values()]
+        other = latest_rows(root / "j2" / RESULTS)
+        assert all(comparable(other[r["id"]]) == r for r in same), "-j 1 and -j 2 rows differ"
+        if not args.no_ray:
+            import ray
+
+            ray_exec = RayExecutor(None, num_cpus=2)
+            start = time.perf_counter()
+            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+            init_s = time.perf_counter() - start
+            floor = ray_task_floor()
+            wall = timed(spec, root / "ray", ray_exec)  # joins the running Ray
+            ray.shutdown()
+            per_run = (wall - j2) / n
+            print(f"--ray: {wall:6.1f} s wall for {n} runs, plus ray.init {init_s:.1f} s")
+            print(
+                f"Ray overhead per run over the -j 2 pool: {per_run:+.3f} s "
+                f"(floor: an empty Ray task round trip {floor * 1000:.1f} ms)"
+            )
+            ray_rows = latest_rows(root / "ray" / RESULTS)
+            assert all(comparable(ray_rows[r["id"]]) == r for r in same), "Ray rows differ"
+            print("rows identical (minus wall_s and host) on -j 1, -j 2 and --ray")
+    print(f"load average after: {os.getloadavg()[0]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
