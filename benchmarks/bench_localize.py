@@ -12,7 +12,7 @@ it prints:
   resolution in grey, which the vo method does for every frame. Real time is 50 frames/s.
 
 Measured (2 shared cores, load average 8-11; the AIR scenarios of ``air-sitl dataset``, map
-date 0, calm air, seed 0): deadreckon 0.01-0.02 ms per frame; vo 3.4-10 ms (100-300 frames/s,
+date 1, calm air, seed 0): deadreckon 0.01-0.02 ms per frame; vo 3.4-10 ms (100-300 frames/s,
 1.3-4.7x the decode floor), every frame localized. Horizontal error median / max, drift:
 
     scenario  deadreckon              vo                      vo turn/straight RPE100
