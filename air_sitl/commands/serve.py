@@ -55,6 +55,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--quiet", action="store_true", help="print only errors")
     add_vehicle_arguments(parser, default_speed=1.0)
+    # A vehicle serves until stopped: no time limit unless one is given.
+    for action in parser._actions:
+        if action.dest == "max_sim_time":
+            action.default = None
+            action.help = "stop after this many simulated seconds (default: run until stopped)"
 
 
 def parse_home(text: str) -> GeoPoint:
@@ -73,6 +78,11 @@ def parse_home(text: str) -> GeoPoint:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until interrupted; exit 0 on SIGINT/SIGTERM."""
+    limited = args.max_sim_time is not None
+    if not limited:
+        # The options keep their default; the served flight gets no limit (OPEN_END_NS).
+        default = FlightOptions().max_sim_time_s
+        args = argparse.Namespace(**{**vars(args), "max_sim_time": str(default)})
     options = flight_options_from_args(args)
     if options.air_start:
         msg = "--air-start: serve starts on the ground; upload, arm and start from a client"
@@ -98,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
                 setup,
                 specs,
                 stop=stop,
-                max_sim_time_ns=_max_sim_ns(args, options.max_sim_time_s),
+                max_sim_time_ns=_max_sim_ns(options.max_sim_time_s) if limited else OPEN_END_NS,
                 bus=hookup,
                 out=Path(args.out) if args.out else None,
                 signing_key=key,
@@ -117,10 +127,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _max_sim_ns(args: argparse.Namespace, max_sim_time_s: float) -> int:
-    """Serve runs forever unless --max-sim-time was given explicitly."""
-    if str(args.max_sim_time) == "14400":
-        return OPEN_END_NS
+def _max_sim_ns(max_sim_time_s: float) -> int:
+    """The simulation time limit given with --max-sim-time, in nanoseconds."""
     return int(max_sim_time_s * 1e9)
 
 
