@@ -47,13 +47,22 @@ from air_sitl.mission.wpl import wpl_from_text
 def load_mission(path: PathLike) -> Mission:
     """Read a ``.plan`` or ``QGC WPL 110`` file (chosen by content) and validate it."""
     text = read_text(path)
-    if text.lstrip().startswith("QGC WPL"):
+    if _is_wpl(text):
         mission, labels = wpl_from_text(text, path)
     else:
         mission = plan_from_text(text, path)
         labels = None
     validate_mission(mission, item_labels=labels)
     return mission
+
+
+def _is_wpl(text: str) -> bool:
+    """QGC WPL text: its first line that is neither blank nor a ``#`` comment is the header."""
+    for line in text.splitlines():
+        stripped = line.strip()
+        if stripped and not stripped.startswith("#"):
+            return stripped.startswith("QGC WPL")
+    return False
 
 
 def read_plan(path: PathLike) -> Mission:

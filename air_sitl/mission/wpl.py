@@ -36,14 +36,17 @@ _T = TypeVar("_T", int, float)
 
 def wpl_from_text(text: str, path: PathLike) -> tuple[Mission, list[str]]:
     """Parse WPL text; also return ``"item i (line n)"`` labels for messages."""
-    lines = text.splitlines()
-    header = lines[0].strip() if lines else ""
-    if header != WPL_HEADER:
-        msg = f'{path}: line 1: expected the header "{WPL_HEADER}" ({header!r})'
-        raise PlanError(msg)
-    rows: list[tuple[int, list[str]]] = [
-        (number, line.split()) for number, line in enumerate(lines[1:], start=2) if line.strip()
+    # Blank lines and "#" comment lines are skipped, as QGroundControl and MAVProxy do.
+    content = [
+        (number, line.strip())
+        for number, line in enumerate(text.splitlines(), start=1)
+        if line.strip() and not line.lstrip().startswith("#")
     ]
+    first, header = content[0] if content else (1, "")
+    if header != WPL_HEADER:
+        msg = f'{path}: line {first}: expected the header "{WPL_HEADER}" ({header!r})'
+        raise PlanError(msg)
+    rows: list[tuple[int, list[str]]] = [(number, line.split()) for number, line in content[1:]]
     if not rows:
         msg = f"{path}: no home line after the header, expected seq 0 = home position"
         raise PlanError(msg)
