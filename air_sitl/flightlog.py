@@ -81,6 +81,10 @@ class TrajectoryWriter(NullSink):
         self._file.close()
 
 
+def _rounded(value: float | None) -> float | None:
+    return None if value is None else round(value, 3)
+
+
 class FlightStats:
     """Summary metrics: capture frames and distance, tracking errors, waypoints reached."""
 
@@ -89,8 +93,9 @@ class FlightStats:
         self.reached: set[int] = set()
         self.capture_frames = 0
         self.capture_distance_m = 0.0
-        self.max_cross_track_m = 0.0
-        self.max_alt_error_m = 0.0
+        # None until a settled segment has been measured (summary: null, not a false 0.0).
+        self.max_cross_track_m: float | None = None
+        self.max_alt_error_m: float | None = None
         self.capture_start_ns: int | None = None
         self.capture_end_ns: int | None = None
         self._last_capture_ne: tuple[float, float] | None = None
@@ -108,9 +113,9 @@ class FlightStats:
             self.mission_completed = True
         if a.tracking_settled:
             if not math.isnan(a.cross_track_m):
-                self.max_cross_track_m = max(self.max_cross_track_m, abs(a.cross_track_m))
+                self.max_cross_track_m = max(self.max_cross_track_m or 0.0, abs(a.cross_track_m))
             if not math.isnan(a.alt_error_m):
-                self.max_alt_error_m = max(self.max_alt_error_m, abs(a.alt_error_m))
+                self.max_alt_error_m = max(self.max_alt_error_m or 0.0, abs(a.alt_error_m))
         if s.sim_time_ns % CAMERA_PERIOD_NS:
             return
         if a.capturing:
@@ -138,8 +143,8 @@ class FlightStats:
             "capture_end_s": None
             if self.capture_end_ns is None
             else self.capture_end_ns / NS_PER_S,
-            "max_cross_track_m": round(self.max_cross_track_m, 3),
-            "max_alt_error_m": round(self.max_alt_error_m, 3),
+            "max_cross_track_m": _rounded(self.max_cross_track_m),
+            "max_alt_error_m": _rounded(self.max_alt_error_m),
             "sim_time_s": sim_s,
             "wall_time_s": round(wall_time_s, 3),
             "realtime_factor": round(sim_s / wall_time_s, 1) if wall_time_s > 0 else None,

@@ -41,6 +41,11 @@ class ProgressBar:
         self.stream.flush()
 
 
+def _metres(value: object) -> str:
+    """``12.3 m``, or ``n/a`` when nothing was measured (null in summary.json)."""
+    return f"{value:.1f} m" if isinstance(value, int | float) else "n/a"
+
+
 def print_summary(summary: dict[str, Any], out: Path, stream: IO[str]) -> None:
     """The one-screen summary after a flight."""
     done = "completed" if summary["mission_completed"] else "NOT completed"
@@ -49,8 +54,8 @@ def print_summary(summary: dict[str, Any], out: Path, stream: IO[str]) -> None:
         f"  waypoints        {summary['waypoints_reached']}/{summary['waypoints_total']}",
         f"  capture          {summary['capture_frames']} frames, "
         f"{summary['capture_distance_m']:.0f} m",
-        f"  max cross-track  {summary['max_cross_track_m']:.1f} m",
-        f"  max alt error    {summary['max_alt_error_m']:.1f} m",
+        f"  max cross-track  {_metres(summary.get('max_cross_track_m'))}",
+        f"  max alt error    {_metres(summary.get('max_alt_error_m'))}",
         f"  time             {summary['sim_time_s']:.0f} s simulated in "
         f"{summary['wall_time_s']:.1f} s wall ({summary['realtime_factor']}x)",
         f"  output           {out}",

@@ -72,8 +72,12 @@ class Autopilot:
         status = self._status
         queue = self._exec.reached_queue
         if queue:
-            # Each reached item shows in exactly one status, even when several came at once.
-            status = dataclasses.replace(status, reached_seq=queue.popleft())
+            # Each reached item shows in exactly one status, even when several came at once;
+            # the mission shows completed only once all of them have (a runner stops there).
+            seq = queue.popleft()
+            status = dataclasses.replace(
+                status, reached_seq=seq, mission_completed=status.mission_completed and not queue
+            )
         return self._controller.update(state, self._target), status
 
     def _guidance(self, state: VehicleState) -> None:
