@@ -1,0 +1,45 @@
+"""Frames without relief or camera effects stay byte-identical to those of the renderer
+before issue 15 (hashes recorded from commit 789f854 with this same code)."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import pytest
+
+from air_sitl.camera.model import CameraModel
+from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.maps.open import open_map
+from air_sitl.state import GeoPoint
+
+HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
+
+# (map, altitude m, roll deg) -> SHA-256 prefix of the noised pixels, frame index 3.
+RECORDED = {
+    ("urban", 200.0, 0.0): "15cc161b14532eae",
+    ("urban", 300.0, 20.0): "3c960943d818bff0",
+    ("urban", 3000.0, 5.0): "87d6c3ee82d6bedd",
+    ("forest", 200.0, 0.0): "632cff0f68ea94f3",
+    ("forest", 300.0, 20.0): "5c593ef0a98d1a95",
+    ("forest", 3000.0, 5.0): "0a5495725990a3c5",
+}
+
+
+@pytest.mark.parametrize("kind", ["urban", "forest"])
+def test_flat_frames_keep_their_bytes(kind: str) -> None:
+    renderer = Renderer(open_map(kind, HOME, seed=0), CameraModel(), seed=0)
+    for (k, alt, roll), digest in RECORDED.items():
+        if k != kind:
+            continue
+        state = pose_state(
+            HOME.lat_deg,
+            HOME.lon_deg,
+            HOME.alt_amsl_m + alt,
+            alt_agl_m=alt,
+            roll_rad=math.radians(roll),
+            pitch_rad=0.03,
+            yaw_rad=0.4,
+        )
+        got = hashlib.sha256(renderer.render(state, noise_index=3).tobytes()).hexdigest()
+        assert got[:16] == digest, (kind, alt, roll)
