@@ -54,6 +54,11 @@ def write_spec(folder: Path, runs: int, methods: list[str], leg_m: float) -> Pat
     return path
 
 
+def run_seconds(out: Path) -> float:
+    """The runs' own wall time, summed (what the workers spent inside runs)."""
+    return sum(float(r["wall_s"]) for r in latest_rows(out / RESULTS).values())
+
+
 def timed(spec_path: Path, out: Path, executor: object) -> float:
     spec = load_spec(spec_path)
     if out.exists():
@@ -95,10 +100,19 @@ def main() -> None:
         spec = write_spec(root, args.runs, methods, args.leg_m)
         n = args.runs
         j1 = timed(spec, root / "j1", PoolExecutor(1))
-        print(f"-j 1: {j1:6.1f} s wall for {n} runs ({j1 / n:.2f} s per run)")
         j2 = timed(spec, root / "j2", PoolExecutor(2))
-        print(f"-j 2: {j2:6.1f} s wall for {n} runs ({j2 / n:.2f} s per run)")
+        for jobs, wall in ((1, j1), (2, j2)):
+            inside = run_seconds(root / f"j{jobs}")
+            print(
+                f"-j {jobs}: {wall:6.1f} s wall for {n} runs; runs took {inside:.1f} s in all, "
+                f"so the pool's own cost (start, spawn, rows) is {wall - inside / jobs:.2f} s"
+            )
         print(f"speed-up of -j 2 over -j 1: {j1 / j2:.2f}x (2.00x at best on two cores)")
+        print(
+            "  the same runs took "
+            f"{run_seconds(root / 'j2') / run_seconds(root / 'j1'):.2f}x as long inside -j 2 "
+            "(the two workers and every other process share the two cores)"
+        )
         same = [comparable(r) for r in latest_rows(root / "j1" / RESULTS).values()]
         other = latest_rows(root / "j2" / RESULTS)
         assert all(comparable(other[r["id"]]) == r for r in same), "-j 1 and -j 2 rows differ"
