@@ -18,7 +18,14 @@ from air_sitl.camera.options import open_chosen_map
 from air_sitl.camera.render import Renderer
 from air_sitl.errors import OptionError
 from air_sitl.maps.base import MapSource
-from air_sitl.mission.items import LOITER_COMMANDS, MavCmd, MavFrame, Mission, MissionItem
+from air_sitl.mission.items import (
+    LOITER_COMMANDS,
+    WAYPOINT_COMMANDS,
+    MavCmd,
+    MavFrame,
+    Mission,
+    MissionItem,
+)
 from air_sitl.mission.plan_file import load_mission
 from air_sitl.options import FlightOptions, MapChoice
 from air_sitl.runner import Flight, assemble_flight, home_of
@@ -48,7 +55,7 @@ class FlightSetup:
 
 
 # Items whose altitude is a height to fly at; RTL and landing keep theirs.
-_SHIFTED_COMMANDS = frozenset({MavCmd.NAV_TAKEOFF, MavCmd.NAV_WAYPOINT, *LOITER_COMMANDS})
+_SHIFTED_COMMANDS = frozenset({MavCmd.NAV_TAKEOFF, *WAYPOINT_COMMANDS, *LOITER_COMMANDS})
 _RELATIVE_FRAMES = frozenset({MavFrame.GLOBAL_RELATIVE_ALT, MavFrame.GLOBAL_RELATIVE_ALT_INT})
 
 

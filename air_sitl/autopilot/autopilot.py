@@ -17,7 +17,7 @@ from air_sitl.autopilot.target import ControlPhase, ControlTarget
 from air_sitl.errors import PlanError
 from air_sitl.frames import ned2geodetic
 from air_sitl.mission.geometry import first_flown_item, item_point, loiter_geometry, next_nav_index
-from air_sitl.mission.items import LOITER_COMMANDS, MavCmd, Mission
+from air_sitl.mission.items import LOITER_COMMANDS, WAYPOINT_COMMANDS, MavCmd, Mission
 from air_sitl.mission.validate import require_flyable
 from air_sitl.state import ActuatorCommand, AutopilotStatus, FlightMode, GeoPoint, VehicleState
 
@@ -273,7 +273,7 @@ def air_start_pose(
     if math.isnan(n):
         n, e = 0.0, 0.0
     default_radius = params.get("NAV_LOITER_RAD")
-    if items[first].command != MavCmd.NAV_WAYPOINT:
+    if items[first].command not in WAYPOINT_COMMANDS:
         # Start on the loiter circle, on the side facing home, flying along it.
         radius, direction = loiter_geometry(items[first], default_radius)
         bearing = math.atan2(-e, -n) if math.hypot(n, e) > 1.0 else 0.0

@@ -13,7 +13,7 @@ from air_sitl.autopilot.sequencer import MissionSequencer
 from air_sitl.autopilot.tasks import IdleTask, TakeoffTask
 from air_sitl.errors import PlanError
 from air_sitl.frames import geodetic2ned
-from air_sitl.mission.items import MavCmd
+from air_sitl.mission.items import WAYPOINT_COMMANDS, MavCmd
 from air_sitl.state import FlightMode, VehicleState
 
 # Mission start refused when its first positioned item is farther than this from home.
@@ -216,7 +216,7 @@ class MissionExecutor(MissionSequencer):
             elif item.command != MavCmd.DO_JUMP:
                 self._run_do_item(seq)
         self._emit("Air start")
-        if self._items[first].command == MavCmd.NAV_WAYPOINT:
+        if self._items[first].command in WAYPOINT_COMMANDS:
             self.current_seq = first
             self._complete_item(first)
         else:

@@ -34,6 +34,7 @@ from air_sitl.autopilot.tasks import (
     TakeoffTask,
     Task,
     Tick,
+    WaitTask,
 )
 from air_sitl.mission.geometry import (
     MAX_DO_STEPS,
@@ -43,8 +44,14 @@ from air_sitl.mission.geometry import (
     loiter_geometry,
     next_nav_index,
 )
-from air_sitl.mission.items import LOITER_COMMANDS, MavCmd, Mission
-from air_sitl.mission.validate import require_flyable
+from air_sitl.mission.items import (
+    CAPTURE_COMMANDS,
+    LOITER_COMMANDS,
+    WAYPOINT_COMMANDS,
+    MavCmd,
+    Mission,
+)
+from air_sitl.mission.validate import item_warnings, require_flyable
 from air_sitl.state import FlightMode, GeoPoint, VehicleState
 
 WIND_FILTER_GAIN = 0.02  # per 50 Hz guidance update: about a 1 s time constant
@@ -91,10 +98,13 @@ class MissionSequencer:
         self._points = [item_point(item, self.home) for item in mission.items]
         self._jump_counts: dict[int, int] = {}
         self._prev_point: Point | None = None
-        self._has_capture_items = any(
-            item.command in (MavCmd.IMAGE_START_CAPTURE, MavCmd.IMAGE_STOP_CAPTURE)
-            for item in mission.items
+        self._has_capture_items = any(item.command in CAPTURE_COMMANDS for item in mission.items)
+        # PX4's mission landing: RTL flies the landing sequence from its DO_LAND_START.
+        self._land_start = next(
+            (i for i, item in enumerate(mission.items) if item.command == MavCmd.DO_LAND_START),
+            -1,
         )
+        self._single_frame = False  # DO_DIGICAM_CONTROL shot: the window closes after a frame
         self._first_flown = first_flown_item(mission)
         self._default_capture_pending = False
         self._default_capture_done = False
@@ -103,6 +113,8 @@ class MissionSequencer:
         )
         self.current_seq = 0 if mission.items else -1
         self.mission_completed = False
+        for warning in item_warnings(mission.items):
+            self._emit(f"Mission: {warning}")
 
     def set_mission(self, mission: Mission) -> None:
         """Replace the mission (PX4-like: allowed on the ground and in flight).
@@ -187,6 +199,9 @@ class MissionSequencer:
             deferred()
         if self._ground_speed_mode:
             self._estimate_wind(state)
+        if self._single_frame:
+            self._single_frame = False
+            self._set_capture(False)
         tick = self._tick = self._tick_now()
         out = self._task.update(tick)
         # Tasks may finish several in a row (a waypoint, then DO items): bounded by the items.
@@ -257,6 +272,14 @@ class MissionSequencer:
             self._set_capture(True)
         elif cmd == MavCmd.IMAGE_STOP_CAPTURE:
             self._set_capture(False)
+        elif cmd == MavCmd.DO_SET_CAM_TRIGG_DIST:
+            # Frames come at the camera rate: a distance opens the window, 0 closes it.
+            self._single_frame = False
+            self._set_capture(item.param1 > 0.0)
+        elif cmd == MavCmd.DO_DIGICAM_CONTROL and item.lat_deg == 1.0 and not self.capturing:
+            # param5 = 1: one shot; the window stays open for one camera frame.
+            self._single_frame = True
+            self._set_capture(True)
         return seq + 1
 
     def _start_nav_item(self, seq: int) -> None:
@@ -274,7 +297,7 @@ class MissionSequencer:
         if cmd == MavCmd.NAV_TAKEOFF:
             self._task = TakeoffTask(t, alt, self._runway_course(seq, t))
             self._emit(f"Takeoff to {alt - self.home.alt_amsl_m:.0f} m")
-        elif cmd == MavCmd.NAV_WAYPOINT:
+        elif cmd in WAYPOINT_COMMANDS:
             if t.state.on_ground:
                 self._implicit_takeoff(seq)
                 return
@@ -299,10 +322,20 @@ class MissionSequencer:
             }[MavCmd(cmd)]
             amount = item.param1 if kind in (LoiterKind.TURNS, LoiterKind.TIME) else 0.0
             self._task = LoiterTask(t, point, radius, direction, kind, amount)
+        elif cmd == MavCmd.NAV_DELAY:
+            if t.state.on_ground:
+                self._task = WaitTask(t, item.param1)
+            else:
+                self._task = LoiterTask(
+                    t, here, p.loiter_radius_m, 1, LoiterKind.DELAY, item.param1
+                )
+            self._emit(f"Delay {item.param1:g} s")
         elif cmd == MavCmd.NAV_RETURN_TO_LAUNCH:
             if t.state.on_ground:
                 self._complete_item(seq)
                 return
+            if self._landing_sequence_for(seq):
+                self._mark_reached(seq)
             self._start_rtl(t)
         elif cmd == MavCmd.NAV_LAND:
             if t.state.on_ground:
@@ -336,7 +369,7 @@ class MissionSequencer:
     def _course_out(self, seq: int, point: Point) -> float | None:
         """Course of the leg after waypoint ``seq`` (for turn anticipation), if a leg follows."""
         nxt = next_nav_index(self._items, seq + 1, dict(self._jump_counts))
-        if nxt < 0 or self._items[nxt].command not in (MavCmd.NAV_WAYPOINT, MavCmd.NAV_LAND):
+        if nxt < 0 or self._items[nxt].command not in (*WAYPOINT_COMMANDS, MavCmd.NAV_LAND):
             return None
         n, e, _ = self._points[nxt]
         if math.isnan(n) or math.hypot(n - point[0], e - point[1]) < 1.0:
@@ -358,7 +391,7 @@ class MissionSequencer:
                 return
         elif isinstance(task, LandTask):
             self._emit("Landed")
-            if self._in_mission and self.mode is FlightMode.MISSION:
+            if self._in_mission and self.mode in (FlightMode.MISSION, FlightMode.RTL):
                 self._complete_item(self.current_seq)
             if self.armed:
                 self.armed = False
@@ -376,7 +409,7 @@ class MissionSequencer:
         """Navigation item ``seq`` is done: record it, then move on."""
         item = self._items[seq]
         self._mark_reached(seq)
-        if item.command == MavCmd.NAV_WAYPOINT:
+        if item.command in WAYPOINT_COMMANDS:
             n, e, alt = self._points[seq]
             if not math.isnan(n):
                 self._prev_point = (n, e, alt)
@@ -459,7 +492,20 @@ class MissionSequencer:
         t = self._tick_now()
         self._hold_at((t.pn, t.pe, t.alt), text)
 
+    def _landing_sequence_for(self, seq: int) -> bool:
+        """RTL from mission item ``seq`` (-1: a command) flies the mission landing."""
+        return self._land_start >= 0 and not (self._in_mission and seq > self._land_start)
+
     def _start_rtl(self, t: Tick) -> None:
+        seq = self.current_seq if self._in_mission else -1
+        if self._landing_sequence_for(seq):
+            # PX4 (fixed wing): return along the mission landing pattern, from DO_LAND_START.
+            self._set_mode(FlightMode.RTL)
+            self._emit(f"Returning: mission landing from item {self._land_start}")
+            self._in_mission = True
+            self._prev_point = None
+            self._enter_item(self._land_start)
+            return
         alt = max(self.home.alt_amsl_m + t.p.rtl_alt_m, t.alt)
         self._task = LoiterTask(t, (0.0, 0.0, alt), t.p.loiter_radius_m, 1)
         self._set_mode(FlightMode.RTL)

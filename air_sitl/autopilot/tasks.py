@@ -110,6 +110,17 @@ class IdleTask(Task):
         )
 
 
+class WaitTask(IdleTask):
+    """On the ground, motor off, for ``seconds`` (NAV_DELAY before take-off)."""
+
+    def __init__(self, t: Tick, seconds: float) -> None:
+        self.end_ns = t.now_ns + round(seconds * NS_PER_S)
+
+    def update(self, t: Tick) -> NavOutput:
+        self.done = t.now_ns >= self.end_ns
+        return super().update(t)
+
+
 class TakeoffTask(Task):
     """Runway take-off: ground roll and climb-out on ``course``, then climb to ``alt``."""
 
@@ -250,6 +261,7 @@ class LoiterKind:
     TURNS = "turns"
     TIME = "time"
     TO_ALT = "to_alt"
+    DELAY = "delay"  # NAV_DELAY: hold for ``amount`` seconds from the start of the task
 
 
 class LoiterTask(Task):
@@ -279,9 +291,12 @@ class LoiterTask(Task):
         self._last_angle = 0.0
         self.track = _Tracking()
         self._approach = LegTask(t, (t.pn, t.pe, t.alt), center, 0.0, None, from_here=True)
+        self.start_ns = t.now_ns
 
     def update(self, t: Tick) -> NavOutput:
         p = t.p
+        if self.kind == LoiterKind.DELAY and t.now_ns - self.start_ns >= self.amount * NS_PER_S:
+            self.done = True
         dist = math.hypot(t.pn - self.center[0], t.pe - self.center[1])
         l1 = guidance.l1_ratio(p.l1_period_s, p.l1_damping) * max(
             t.gs, guidance.MIN_GUIDANCE_SPEED_M_S
@@ -318,7 +333,9 @@ class LoiterTask(Task):
         target = _cruise(t, c.bank_rad, self.alt, c.course_rad)
         if not self.established:
             return NavOutput(target, _NAN, t.alt - self.alt, False)
-        return self.track.output(target, t, c.radial_error_m, self.alt)
+        # Cross-track positive right of the direction of travel, as on a leg (clockwise: the
+        # centre is on the right, so outside the circle is negative).
+        return self.track.output(target, t, -self.direction * c.radial_error_m, self.alt)
 
 
 class LandTask(Task):

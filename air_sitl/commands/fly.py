@@ -18,6 +18,7 @@ from air_sitl.bus.hookup import bus_sinks_from_args
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.mission.items import Mission
+from air_sitl.mission.validate import mission_warnings
 from air_sitl.options import flight_options_from_args, int_in_range
 from air_sitl.progress import ProgressBar, print_summary
 from air_sitl.recording import RecordingRequest, record_flight
@@ -73,6 +74,9 @@ def run(args: argparse.Namespace) -> int:
     bars: list[ProgressBar] = []
 
     def on_start(mission: Mission, first_frame: int) -> None:
+        if not args.quiet:
+            for warning in mission_warnings(mission):
+                print(f"{mission.source}: warning: {warning}", file=sys.stderr)
         if show:
             bars.append(ProgressBar(mission, sys.stderr))
         if first_frame and not args.quiet:

@@ -10,6 +10,7 @@ from air_sitl.frames import geodetic2ned
 from air_sitl.mission.items import (
     LOITER_COMMANDS,
     RELATIVE_FRAMES,
+    WAYPOINT_COMMANDS,
     MavCmd,
     Mission,
     MissionItem,
@@ -18,7 +19,7 @@ from air_sitl.state import GeoPoint
 
 # DO_JUMP chains with no navigation item in between end the mission after this many steps.
 MAX_DO_STEPS = 10_000
-POSITIONED_COMMANDS = LOITER_COMMANDS | {MavCmd.NAV_WAYPOINT}
+POSITIONED_COMMANDS = LOITER_COMMANDS | WAYPOINT_COMMANDS
 
 Point = tuple[float, float, float]  # north m, east m, altitude AMSL m
 

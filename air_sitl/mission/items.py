@@ -26,16 +26,27 @@ class MavCmd(enum.IntEnum):
     NAV_LAND = 21
     NAV_TAKEOFF = 22
     NAV_LOITER_TO_ALT = 31
+    NAV_SPLINE_WAYPOINT = 82
+    NAV_VTOL_TAKEOFF = 84
+    NAV_VTOL_LAND = 85
+    NAV_DELAY = 93
     DO_SET_MODE = 176
     DO_JUMP = 177
     DO_CHANGE_SPEED = 178
     DO_SET_HOME = 179
+    DO_LAND_START = 189
     DO_REPOSITION = 192
+    DO_DIGICAM_CONTROL = 203
+    DO_MOUNT_CONTROL = 205
+    DO_SET_CAM_TRIGG_DIST = 206
+    DO_PARACHUTE = 208
+    DO_GRIPPER = 211
     DO_SET_MISSION_CURRENT = 224
     COMPONENT_ARM_DISARM = 400
     MISSION_START = 300
     SET_MESSAGE_INTERVAL = 511
     REQUEST_MESSAGE = 512
+    SET_CAMERA_MODE = 530
     IMAGE_START_CAPTURE = 2000
     IMAGE_STOP_CAPTURE = 2001
     NAV_FENCE_RETURN_POINT = 5000
@@ -46,10 +57,13 @@ class MavCmd(enum.IntEnum):
     NAV_RALLY_POINT = 5100
 
 
-# Commands the mission executor flies; anything else in a mission is refused at load time.
+# Commands the mission executor flies; anything else in a mission is refused at load time,
+# except SKIPPED_COMMANDS (accepted, not executed, one warning per item).
 NAV_COMMANDS = frozenset(
     {
         MavCmd.NAV_WAYPOINT,
+        MavCmd.NAV_SPLINE_WAYPOINT,
+        MavCmd.NAV_DELAY,
         MavCmd.NAV_LOITER_UNLIM,
         MavCmd.NAV_LOITER_TURNS,
         MavCmd.NAV_LOITER_TIME,
@@ -65,9 +79,30 @@ DO_COMMANDS = frozenset(
         MavCmd.DO_JUMP,
         MavCmd.IMAGE_START_CAPTURE,
         MavCmd.IMAGE_STOP_CAPTURE,
+        MavCmd.DO_LAND_START,
+        MavCmd.DO_SET_CAM_TRIGG_DIST,
+        MavCmd.DO_DIGICAM_CONTROL,
     }
 )
-MISSION_COMMANDS = NAV_COMMANDS | DO_COMMANDS
+# Payload and camera-setup items with no flight meaning here: skipped, and why.
+SKIPPED_COMMANDS: dict[MavCmd, str] = {
+    MavCmd.DO_MOUNT_CONTROL: "the camera is fixed, pointing down (no gimbal)",
+    MavCmd.DO_GRIPPER: "the aircraft has no gripper",
+    MavCmd.DO_PARACHUTE: "the aircraft has no parachute",
+    MavCmd.SET_CAMERA_MODE: "the camera has one mode (still frames)",
+}
+MISSION_COMMANDS = NAV_COMMANDS | DO_COMMANDS | frozenset(SKIPPED_COMMANDS)
+# Flown as a waypoint: a spline waypoint is flown on straight legs (see README).
+WAYPOINT_COMMANDS = frozenset({MavCmd.NAV_WAYPOINT, MavCmd.NAV_SPLINE_WAYPOINT})
+# Capture control items (camera section of a plan, survey trigger items).
+CAPTURE_COMMANDS = frozenset(
+    {
+        MavCmd.IMAGE_START_CAPTURE,
+        MavCmd.IMAGE_STOP_CAPTURE,
+        MavCmd.DO_SET_CAM_TRIGG_DIST,
+        MavCmd.DO_DIGICAM_CONTROL,
+    }
+)
 LOITER_COMMANDS = frozenset(
     {
         MavCmd.NAV_LOITER_UNLIM,
@@ -225,3 +260,4 @@ class Mission:
     rally: tuple[MissionItem, ...] = ()
     source: str = "<memory>"  # file path or "mavlink upload": used in error messages
     name: str = field(default="")  # scenario name, e.g. "FL-200" (file stem)
+    notes: tuple[str, ...] = ()  # warnings found when reading the file (vehicleType, ...)

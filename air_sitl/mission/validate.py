@@ -27,6 +27,7 @@ from air_sitl.mission.items import (
     NAV_COMMANDS,
     RALLY_COMMANDS,
     RELATIVE_FRAMES,
+    SKIPPED_COMMANDS,
     TERRAIN_FRAMES,
     MavCmd,
     MavFrame,
@@ -40,7 +41,17 @@ from air_sitl.mission.items import (
 DO_FRAMES = GLOBAL_FRAMES | {MavFrame.MISSION}
 
 # Commands whose params 5..7 are a position the vehicle flies to, around, or keeps inside.
-POSITION_COMMANDS = (NAV_COMMANDS - {MavCmd.NAV_RETURN_TO_LAUNCH}) | FENCE_COMMANDS | RALLY_COMMANDS
+POSITION_COMMANDS = (
+    (NAV_COMMANDS - {MavCmd.NAV_RETURN_TO_LAUNCH, MavCmd.NAV_DELAY})
+    | FENCE_COMMANDS
+    | RALLY_COMMANDS
+)
+
+# Known commands a fixed wing cannot fly safely, and why (refused, never skipped).
+REFUSED_COMMANDS: dict[MavCmd, str] = {
+    MavCmd.NAV_VTOL_TAKEOFF: "a fixed wing cannot take off vertically, expected NAV_TAKEOFF",
+    MavCmd.NAV_VTOL_LAND: "a fixed wing cannot land vertically, expected NAV_LAND",
+}
 
 # Fence polygons and circles are 2-D: clients send any altitude (QGC 0, others NaN).
 _ALTITUDE_UNUSED = frozenset(FENCE_POLYGON_COMMANDS + FENCE_CIRCLE_COMMANDS)
@@ -107,12 +118,12 @@ def check_item(item: MissionItem, index: int, mission_type: MissionType) -> Item
     allowed = ALLOWED_COMMANDS[mission_type]
     kind = mission_type.name.lower()
     if item.command not in allowed:
+        name = command_name(item.command)
+        if mission_type is MissionType.MISSION and item.command in REFUSED_COMMANDS:
+            why = REFUSED_COMMANDS[MavCmd(item.command)]
+            return problem("UNSUPPORTED", f"{name} cannot be flown: {why} ({item.command})")
         known = item.command in MavCmd._value2member_map_
-        what = (
-            f"command {command_name(item.command)} is not supported in a {kind} list"
-            if known
-            else "unknown command"
-        )
+        what = f"command {name} is not supported in a {kind} list" if known else "unknown command"
         return problem("UNSUPPORTED", f"{what}, expected one of {_names(allowed)} ({item.command})")
     cmd = MavCmd(item.command)
 
@@ -178,6 +189,19 @@ def _check_params(cmd: MavCmd, item: MissionItem, index: int) -> ItemProblem | N
     if cmd is MavCmd.NAV_LOITER_TIME and not (math.isfinite(item.param1) and item.param1 >= 0):
         return problem(
             "INVALID_PARAM1", f"loiter time must be a number of seconds >= 0 ({item.param1})"
+        )
+    if cmd is MavCmd.NAV_DELAY and not (math.isfinite(item.param1) and item.param1 >= 0):
+        return problem(
+            "INVALID_PARAM1",
+            "delay must be a number of seconds >= 0 (a delay until a time of day, -1, is not "
+            f"supported: the simulation has no clock of day) ({item.param1})",
+        )
+    if cmd is MavCmd.DO_SET_CAM_TRIGG_DIST and not (
+        math.isfinite(item.param1) and item.param1 >= 0
+    ):
+        return problem(
+            "INVALID_PARAM1",
+            f"trigger distance must be a number of metres >= 0, 0 = stop ({item.param1})",
         )
     if cmd is MavCmd.DO_CHANGE_SPEED:
         if item.param1 not in SPEED_TYPES:
@@ -306,6 +330,25 @@ def _check_fence_list(items: Sequence[MissionItem]) -> ItemProblem | None:
                 )
         index += count
     return None
+
+
+def item_warnings(items: Sequence[MissionItem]) -> list[str]:
+    """One line per item flown differently from its definition, or skipped, and why."""
+    out: list[str] = []
+    for index, item in enumerate(items):
+        if item.command in SKIPPED_COMMANDS:
+            why = SKIPPED_COMMANDS[MavCmd(item.command)]
+            out.append(f"item {index}: {command_name(item.command)} skipped: {why}")
+        elif item.command == MavCmd.NAV_SPLINE_WAYPOINT:
+            out.append(
+                f"item {index}: NAV_SPLINE_WAYPOINT flown as a waypoint (straight legs, no spline)"
+            )
+    return out
+
+
+def mission_warnings(mission: Mission) -> list[str]:
+    """What reading the plan found (mission notes), then the per-item warnings."""
+    return [*mission.notes, *item_warnings(mission.items)]
 
 
 def require_flyable(mission: Mission) -> None:
