@@ -18,6 +18,7 @@ DEFAULT_AIRCRAFT = "airsitl_uav"
 OPEN_END_NS = 2**62  # the end of a GNSS denial window that lasts to the end of the flight
 
 DenialWindows = tuple[tuple[int, int], ...]
+NAV_SOURCES = ("ekf", "truth")
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -34,6 +35,13 @@ class FlightOptions:
     altitude_offset_m: float = 0.0  # added to every flown altitude of the plan (builder.py)
     # GNSS denial windows [start, end) in simulation ns, sorted (OPEN_END_NS: to the end).
     gps_denied_ns: DenialWindows = ()
+    # What the autopilot steers on: "ekf" (the onboard filter, air_sitl.nav.onboard; the
+    # commands' default) or "truth" (the ideal: the flight model's state, byte-identical to
+    # the flights before the filter was in the loop; the library's default).
+    nav: str = "truth"
+    # External position aid fused by the filter: an estimator name on the bus, "mavlink", or None.
+    nav_aid: str | None = None
+    nav_aid_sigma_m: float = 5.0  # aid 1-sigma when a measurement carries no covariance
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -154,6 +162,13 @@ def add_flight_arguments(parser: argparse.ArgumentParser, *, default_speed: floa
         help="shift every altitude the plan flies (take-off, waypoints, loiters, rally points) "
         "by M metres; the capture window is unchanged (default 0)",
     )
+    g.add_argument(
+        "--nav",
+        choices=NAV_SOURCES,
+        default="ekf",
+        help="what the autopilot steers on: the onboard EKF fed by the simulated sensors "
+        "(ekf, default, like a real aircraft) or the true state (truth, the ideal)",
+    )
 
 
 def flight_options_from_args(args: argparse.Namespace) -> FlightOptions:
@@ -188,6 +203,11 @@ def flight_options_from_args(args: argparse.Namespace) -> FlightOptions:
         sensor_noise=nonneg_number("--sensor-noise", args.sensor_noise),
         altitude_offset_m=altitude_offset,
         gps_denied_ns=gps_denied_from_args(args),
+        nav=str(getattr(args, "nav", "ekf")),
+        nav_aid=nav_aid_from_args(args),
+        nav_aid_sigma_m=positive_number(
+            "--nav-aid-sigma", str(getattr(args, "nav_aid_sigma", "5"))
+        ),
     )
 
 
@@ -206,6 +226,20 @@ def add_gps_denial_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="A:B",
         help="no GNSS fix from simulated second A to B; repeatable",
     )
+    d.add_argument(
+        "--nav-aid",
+        default=None,
+        metavar="NAME",
+        help="fuse the positions of the estimator NAME (estimate/NAME on zenoh; implies "
+        "--zenoh) in the onboard filter, or 'mavlink' (serve: VISION_POSITION_ESTIMATE, "
+        "ODOMETRY, GLOBAL_POSITION_SENSOR, GPS_INPUT from any link)",
+    )
+    d.add_argument(
+        "--nav-aid-sigma",
+        default="5",
+        metavar="M",
+        help="1-sigma of an aid position that carries no covariance (default 5 m)",
+    )
 
 
 def gps_denied_from_args(args: argparse.Namespace) -> DenialWindows:
@@ -222,3 +256,17 @@ def gps_denied_from_args(args: argparse.Namespace) -> DenialWindows:
         a, b = seconds_window("--gps-denied-window", text)
         windows.append((round(a * NS_PER_S), round(b * NS_PER_S)))
     return tuple(sorted(windows))
+
+
+def nav_aid_from_args(args: argparse.Namespace) -> str | None:
+    """``--nav-aid NAME`` checked: needs ``--nav ekf`` (there is no filter to aid otherwise)."""
+    name = getattr(args, "nav_aid", None)
+    if name is None:
+        return None
+    if not re.fullmatch(r"[A-Za-z0-9_.-]+", name):
+        msg = f"--nav-aid {name!r}: expected an estimator name (letters, digits, _ . -)"
+        raise OptionError(msg)
+    if getattr(args, "nav", "ekf") != "ekf":
+        msg = f"--nav-aid {name}: the aid is fused by the onboard filter: use it with --nav ekf"
+        raise OptionError(msg)
+    return str(name)

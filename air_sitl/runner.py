@@ -23,6 +23,8 @@ from air_sitl.fdm.jsbsim_model import JSBSimModel
 from air_sitl.flightlog import FlightStats
 from air_sitl.frames import geodetic2ned
 from air_sitl.mission.items import MavCmd, Mission
+from air_sitl.nav.onboard import OnboardNav, truth_nav_summary
+from air_sitl.nav.params import NavParams
 from air_sitl.options import DEFAULT_AIRCRAFT, FlightOptions
 from air_sitl.sensors import SensorNoise, SensorSuite
 from air_sitl.sinks import FlightResult, FrameSource, Sink
@@ -59,14 +61,22 @@ class Flight:
     clock: SimClock = field(default_factory=lambda: SimClock(PHYSICS_STEP_NS))
     state: VehicleState | None = None
     last_sample: SimSample | None = None
+    # The onboard filter the autopilot steers on (--nav ekf); None: it steers on the truth.
+    nav: OnboardNav | None = None
 
     def step(self) -> SimSample:
-        """Run one physics step: autopilot, sensors, sinks, camera, then the flight model."""
+        """Run one physics step: sensors, navigation, autopilot, sinks, camera, flight model."""
         state = self.state
         assert state is not None, "a Flight needs its initial state (see assemble_flight)"
-        command, status = self.autopilot.update(state)
         imu, gps = self.sensors.sample(state)
-        sample = SimSample(state=state, autopilot=status, imu=imu, gps=gps)
+        nav = self.nav
+        if nav is None:
+            command, status = self.autopilot.update(state)
+            sample = SimSample(state=state, autopilot=status, imu=imu, gps=gps)
+        else:
+            command, status = self.autopilot.update(nav.update(state, imu, gps))
+            nav.observe(state, status)
+            sample = SimSample(state=state, autopilot=status, imu=imu, gps=gps, nav=nav.estimate)
         self.stats.add(sample)
         for sink in self.sinks:
             sink.on_sample(sample)
@@ -76,6 +86,8 @@ class Flight:
             if self.camera is not None and index >= self.first_frame_to_render:
                 self.camera.submit(sample, index)
                 self.counters.frames_submitted += 1
+            if nav is not None:
+                nav.frames_submitted = self.counters.capture_ticks
         if self.camera is not None:
             self._deliver(self.camera.ready())
         self.last_sample = sample
@@ -127,6 +139,10 @@ class Flight:
         finally:
             wall = time.monotonic() - wall_start
             summary = self.stats.summary(wall)
+            if self.nav is not None:
+                summary.update(self.nav.summary())
+            else:
+                summary.update(truth_nav_summary(summary, self.sensors, self.stats.sim_time_ns))
             result = FlightResult(
                 mission_completed=self.stats.mission_completed,
                 sim_time_ns=self.stats.sim_time_ns,
@@ -229,7 +245,19 @@ def assemble_flight(
         noise=noise,
         gps_denied_ns=options.gps_denied_ns,
     )
+    nav = None
+    if options.nav == "ekf":
+        nav = OnboardNav(
+            home,
+            seed=options.seed,
+            noise_scale=options.sensor_noise,
+            params=NavParams(aid_sigma_m=options.nav_aid_sigma_m),
+            gps_denied=sensors.gps_denied,
+            aid_name=options.nav_aid,
+        )
+        nav.autopilot = autopilot
     flight = Flight(
+        nav=nav,
         fdm=fdm,
         autopilot=autopilot,
         sensors=sensors,

@@ -9,6 +9,10 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from air_sitl.nav.types import NavEstimate
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -120,6 +124,8 @@ class SimSample:
     autopilot: AutopilotStatus
     imu: ImuSample
     gps: GpsFix | None  # None between GPS updates or while GPS is denied
+    # The onboard estimate the autopilot flew on (``--nav ekf``); None with ``--nav truth``.
+    nav: NavEstimate | None = None
 
 
 def mission_sample(

@@ -175,6 +175,24 @@ PARAMS: tuple[ParamSpec, ...] = (
         unit="m",
         description="return altitude above home (RTL climbs to it, never descends to it)",
     ),
+    ParamSpec(
+        name="COM_POS_FS_EPH",
+        default=5.0,  # PX4's default
+        min_value=1.0,
+        max_value=10000.0,
+        unit="m",
+        description="position failsafe: horizontal position uncertainty (1-sigma) above which "
+        "the onboard estimate is no longer trusted (COM_POS_FS_ACT acts)",
+    ),
+    ParamSpec(
+        name="COM_POS_FS_ACT",
+        default=0.0,
+        min_value=0.0,
+        max_value=2.0,
+        is_int=True,
+        description="position failsafe action: 0 continue the mission and warn, 1 loiter "
+        "(hold), 2 return to launch (numbered as PX4's NAV_DLL_ACT)",
+    ),
 )
 
 _SPECS: dict[str, ParamSpec] = {spec.name: spec for spec in PARAMS}

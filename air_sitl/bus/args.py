@@ -169,7 +169,9 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
     svo = check_chunk("--svo-columns", args.svo_columns) if args.svo_columns else None
     remote = args.camera == "remote"
     explicit = bool(args.zenoh_listen or args.zenoh_connect or args.zenoh_config)
-    publish = bool(args.zenoh or args.publish_truth or wait or svo)
+    aid = getattr(args, "nav_aid", None)
+    zenoh_aid = aid is not None and aid != "mavlink"  # --nav-aid NAME implies --zenoh
+    publish = bool(args.zenoh or args.publish_truth or wait or svo or zenoh_aid)
     return BusOptions(
         enabled=publish or remote or explicit,
         publish=publish or explicit,

@@ -212,8 +212,10 @@ class Archive(Closeable):
             extra, self.extra_torn_tail = _split_lines(
                 self._store.read(FRAMES_CSV), f"{path}/{FRAMES_CSV}"
             )
-            if extra and tuple(extra[0]) == FRAMES_COLUMNS:
-                self.extra_rows = [dict(zip(FRAMES_COLUMNS, r, strict=False)) for r in extra[1:]]
+            # --nav ekf archives add the onboard estimate's columns after FRAMES_COLUMNS.
+            if extra and tuple(extra[0][: len(FRAMES_COLUMNS)]) == FRAMES_COLUMNS:
+                header = tuple(extra[0])
+                self.extra_rows = [dict(zip(header, r, strict=False)) for r in extra[1:]]
         self.kind = "air-sitl" if self.extra_rows is not None else "air"
 
     def _json(self, name: str) -> dict[str, Any] | None:

@@ -33,6 +33,7 @@ from air_sitl.dataset.air_schema import (
     CAMERA_YAML,
     FRAMES_CSV,
     FRAMES_HEADER,
+    FRAMES_NAV_HEADER,
     IMU_CSV,
     IMU_HEADER,
     METADATA_CSV,
@@ -70,6 +71,7 @@ class ArchiveInfo:
     plan_text: str
     manifest: Mapping[str, Any] = field(default_factory=dict)
     run_key: Mapping[str, Any] = field(default_factory=dict)
+    nav_columns: bool = False  # frames.csv carries the onboard estimate (--nav ekf)
 
 
 class DatasetWriter(NullSink):
@@ -159,7 +161,7 @@ class DatasetWriter(NullSink):
         self.last_time_ns = frame.sim_time_ns
         name = frame_filename(frame.index)
         meta = metadata_row(name, frame.sample, frame.map_xy_px)
-        extra = frames_row(frame, name, self._gps_at(frame.sim_time_ns))
+        extra = frames_row(frame, name, self._gps_at(frame.sim_time_ns), nav=self.info.nav_columns)
         self._post(("frame", name, frame.jpeg, meta, extra))
 
     def close(self, result: FlightResult) -> None:
@@ -231,7 +233,7 @@ class DatasetWriter(NullSink):
         append = self.first_frame > 0
         specs = (
             (METADATA_CSV, AIR_HEADER, append),
-            (FRAMES_CSV, FRAMES_HEADER, append),
+            (FRAMES_CSV, FRAMES_NAV_HEADER if self.info.nav_columns else FRAMES_HEADER, append),
             (IMU_CSV, IMU_HEADER, False),
         )
         for name, header, keep in specs:
@@ -347,7 +349,11 @@ def recover_partial(folder: Path) -> PartialArchive:
     """
     run_key = read_run_key(folder)
     meta = _complete_lines(folder / METADATA_CSV, AIR_HEADER)
-    extra = _complete_lines(folder / FRAMES_CSV, FRAMES_HEADER)
+    frames_header = FRAMES_HEADER
+    extra = _complete_lines(folder / FRAMES_CSV, frames_header)
+    if extra is None:  # an archive of a --nav ekf flight: the nav columns follow
+        frames_header = FRAMES_NAV_HEADER
+        extra = _complete_lines(folder / FRAMES_CSV, frames_header)
     kept = 0
     if meta is not None and extra is not None:
         for i, (m, f) in enumerate(zip(meta[0], extra[0], strict=False)):
@@ -363,7 +369,7 @@ def recover_partial(folder: Path) -> PartialArchive:
     try:
         for path, lines, header in (
             (folder / METADATA_CSV, meta, AIR_HEADER),
-            (folder / FRAMES_CSV, extra, FRAMES_HEADER),
+            (folder / FRAMES_CSV, extra, frames_header),
         ):
             if lines is None:
                 if path.exists():

@@ -36,6 +36,7 @@ from air_sitl.errors import DatasetError
 from air_sitl.files import write_json_atomic
 from air_sitl.flightlog import TrajectoryWriter
 from air_sitl.mission.items import Mission
+from air_sitl.nav.log import NavTrajectoryWriter
 from air_sitl.recording.inputs import GPS_DENIAL_JSON, archive_info_for, gps_denial_record
 from air_sitl.runner import Flight
 from air_sitl.sinks import FrameSource, Sink
@@ -191,7 +192,8 @@ def record_flight(
                 frame_source=camera_source,
             )
             sinks.extend(bus_sinks)
-        sinks.append(TrajectoryWriter(out / TRAJECTORY_CSV))
+        trajectory = NavTrajectoryWriter if options.nav == "ekf" else TrajectoryWriter
+        sinks.append(trajectory(out / TRAJECTORY_CSV))
         if writer is not None:
             sinks.append(writer)
         flight = build_flight(setup, sinks=sinks, camera=camera_source)

@@ -85,6 +85,7 @@ class CaptureRecorder:
             plan_name=f"{name}.plan",
             plan_text=text,
             manifest=self.manifest,
+            nav_columns=sample.nav is not None,
         )
         writer = DatasetWriter(folder, info)
         self._window = _Window(folder, writer, self._ticks, start_ns=sample.state.sim_time_ns)

@@ -46,6 +46,13 @@ def options_fields(options: FlightOptions) -> dict[str, Any]:
         "sensor_noise_scale": options.sensor_noise,
         # only when set, so that archives flown without it keep their manifests and run keys
         **({"altitude_offset_m": options.altitude_offset_m} if options.altitude_offset_m else {}),
+        # likewise: --nav truth archives keep theirs; the onboard filter and its aid are inputs
+        **({"nav": options.nav} if options.nav != "truth" else {}),
+        **(
+            {"nav_aid": options.nav_aid, "nav_aid_sigma_m": options.nav_aid_sigma_m}
+            if options.nav_aid is not None
+            else {}
+        ),
     }
 
 
@@ -127,4 +134,5 @@ def archive_info_for(setup: FlightSetup, map_source: MapSource, *, plan_sha256: 
         plan_text=plan_text(setup.mission),
         manifest={**jsonable(manifest), **denial},
         run_key={**run_key, **denial},
+        nav_columns=options.nav == "ekf",
     )

@@ -1,0 +1,334 @@
+"""The onboard navigation in the loop (``--nav ekf``): simulated sensors in, estimate out.
+
+:class:`OnboardNav` lives on the simulation thread. At every physics step the runner hands it
+the truth (only to sample the extra sensors and to score the estimate), the IMU sample and the
+GNSS fix (None between fixes and while denied); it feeds barometer, airspeed, magnetic heading,
+GNSS and external aids to :class:`~air_sitl.nav.filter.NavFilter`, predicts with the IMU and
+returns the estimate as the VehicleState the autopilot and the telemetry read.
+
+Until the filter has its first position (the GNSS fix of t=0 reaches the fusion horizon about
+0.6 s later), the autopilot reads the initial truth: a real aircraft waits on the ground for
+its EKF; here an air start begins at once. Afterwards only the estimate is read.
+
+It also keeps what summary.json's ``nav`` block reports (horizontal error against truth, with
+and without GNSS, the aid's counters), the truth cross-track (guidance's cross-track on the
+estimate corrected by the estimate's error across the track), STATUSTEXT-style events (GNSS
+lost/regained, aid started/lost/rejected, position failsafe) and the position failsafe:
+COM_POS_FS_EPH / COM_POS_FS_ACT (0 continue and warn, 1 loiter, 2 RTL), as PX4's position-loss
+actions.
+"""
+
+from __future__ import annotations
+
+import math
+from array import array
+from collections.abc import Callable
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any, Protocol
+
+from air_sitl.nav.filter import NavFilter
+from air_sitl.nav.params import NavParams
+from air_sitl.nav.sensors_extra import (
+    AirspeedNoise,
+    AirspeedSensor,
+    Barometer,
+    BaroNoise,
+    Magnetometer,
+    MagNoise,
+)
+from air_sitl.nav.types import AidMeasurement, AidResult, NavEstimate
+from air_sitl.nav.vehicle import estimated_state
+from air_sitl.state import (
+    AutopilotStatus,
+    FlightMode,
+    GeoPoint,
+    GpsFix,
+    ImuSample,
+    VehicleState,
+)
+
+if TYPE_CHECKING:
+    from air_sitl.autopilot.autopilot import Autopilot
+    from air_sitl.sensors import SensorSuite
+
+NS_PER_S = 1_000_000_000
+SCORE_PERIOD_NS = 20_000_000  # errors against truth at 50 Hz (the trajectory's rate)
+REJECT_TEXT_PERIOD_NS = 5 * NS_PER_S  # STATUSTEXT on aid rejections at most this often
+FAILSAFE_CLEAR_RATIO = 0.8  # the failsafe clears below 80 % of COM_POS_FS_EPH
+
+
+class AidFeed(Protocol):
+    """External positions arriving from another thread (the bus)."""
+
+    def take(self, frames_submitted: int) -> list[AidMeasurement]:
+        """Measurements to fuse now (``frames_submitted``: camera frames handed out so far)."""
+        ...
+
+
+Event = tuple[int, str]  # (MAV_SEVERITY, text)
+SEVERITY_CRITICAL = 2
+SEVERITY_WARNING = 4
+SEVERITY_NOTICE = 5
+SEVERITY_INFO = 6
+
+
+def _stats(values: array[float]) -> dict[str, float] | None:
+    if not values:
+        return None
+    xs = sorted(values)
+    n = len(xs)
+
+    def q(p: float) -> float:
+        return round(xs[min(n - 1, max(0, math.ceil(p * n) - 1))], 3)
+
+    return {"p50": q(0.5), "p95": q(0.95), "max": round(xs[-1], 3)}
+
+
+class OnboardNav:
+    """The filter, its extra sensors, scoring and failsafe for one flight."""
+
+    def __init__(
+        self,
+        home: GeoPoint,
+        *,
+        seed: int,
+        noise_scale: float = 1.0,
+        params: NavParams | None = None,
+        gps_denied: Callable[[int], bool] = lambda _t: False,
+        aid_name: str | None = None,
+    ) -> None:
+        self.home = home
+        self.filter = NavFilter(home, params)
+        f = noise_scale
+        b, a, m = BaroNoise(), AirspeedNoise(), MagNoise()
+        self.baro = Barometer(
+            seed=seed,
+            noise=replace(b, noise_m=b.noise_m * f, offset_m=b.offset_m * f,
+                          drift_m_sqrt_s=b.drift_m_sqrt_s * f),
+        )  # fmt: skip
+        self.airspeed = AirspeedSensor(
+            seed=seed, noise=replace(a, noise_m_s=a.noise_m_s * f, scale_error=a.scale_error * f)
+        )
+        self.mag = Magnetometer(
+            seed=seed,
+            noise=replace(m, noise_rad=m.noise_rad * f, offset_rad=m.offset_rad * f,
+                          drift_rad_sqrt_s=m.drift_rad_sqrt_s * f),
+        )  # fmt: skip
+        self.gps_denied = gps_denied
+        self.aid_name = aid_name
+        self.aid_feed: AidFeed | None = None
+        self.autopilot: Autopilot | None = None
+        self.frames_submitted = 0
+        self.estimate: NavEstimate | None = None
+        self.valid = False
+        self._airspeed_m_s = 0.0
+        self.errors = array("d")
+        self.errors_denied = array("d")
+        self.final_error_m: float | None = None
+        self.truth_max_cross_track_m: float | None = None
+        self.truth_max_cross_track_denied_m: float | None = None
+        self.events: list[Event] = []
+        self.event_log: list[str] = []
+        self._gnss_fusing = False
+        self._aid_alive: dict[str, bool] = {}
+        self._aid_rejected: dict[str, int] = {}
+        self._last_reject_text_ns = -REJECT_TEXT_PERIOD_NS
+        self.failsafe_active = False
+        self.failsafe_count = 0
+
+    # ------------------------------------------------------------------ the loop
+
+    def update(self, truth: VehicleState, imu: ImuSample, gps: GpsFix | None) -> VehicleState:
+        """Feed one physics step; the state the autopilot flies on at this instant."""
+        nav = self.filter
+        t = imu.sim_time_ns
+        heading = self.mag.sample(truth)
+        if heading is not None:
+            nav.fuse_heading(heading, t)
+        baro = self.baro.sample(truth)
+        if baro is not None:
+            nav.fuse_baro(baro, t)
+        airspeed = self.airspeed.sample(truth)
+        if airspeed is not None:
+            nav.fuse_airspeed(airspeed, t)
+            self._airspeed_m_s = airspeed.airspeed_m_s
+        if gps is not None:
+            nav.fuse_gnss(gps, t)
+        tick = t % SCORE_PERIOD_NS == 0
+        if tick and self.aid_feed is not None:
+            for m in self.aid_feed.take(self.frames_submitted):
+                self.fuse_aid(m, t)
+        nav.predict(imu)
+        if not self.valid:
+            self.valid = nav.aligned and nav.pos_valid and nav.vel_valid
+            if not self.valid:
+                return truth
+        est = self.estimate = nav.estimate()
+        if tick:
+            self._score(truth, est)
+            self._watch(t, est)
+        return estimated_state(
+            est,
+            imu,
+            airspeed_m_s=self._airspeed_m_s if self._airspeed_m_s > 0.0 else truth.airspeed_m_s,
+            on_ground=truth.on_ground,  # weight on wheels: a switch, not an estimate
+            home_alt_amsl_m=self.home.alt_amsl_m,
+        )
+
+    def fuse_aid(self, m: AidMeasurement, now_ns: int) -> AidResult:
+        """One external position (simulation thread: the bus feed or the MAVLink inbox)."""
+        return self.filter.fuse_aid(m, now_ns)
+
+    def observe(self, truth: VehicleState, status: AutopilotStatus) -> None:
+        """After the autopilot's update: the truth cross-track of the tracked segment."""
+        est = self.estimate
+        if est is None or not status.tracking_settled or math.isnan(status.cross_track_m):
+            return
+        vn, ve = est.vel_ned_m_s[0], est.vel_ned_m_s[1]
+        gs = math.hypot(vn, ve)
+        if gs < 1.0:
+            return
+        # Guidance's cross-track is positive right of the direction of travel; the estimate's
+        # error across the track moves the true aircraft by that much.
+        dn = truth.pos_ned_m[0] - est.pos_ned_m[0]
+        de = truth.pos_ned_m[1] - est.pos_ned_m[1]
+        xt = abs(status.cross_track_m + (-dn * ve + de * vn) / gs)
+        self.truth_max_cross_track_m = max(self.truth_max_cross_track_m or 0.0, xt)
+        if self.gps_denied(truth.sim_time_ns):
+            self.truth_max_cross_track_denied_m = max(
+                self.truth_max_cross_track_denied_m or 0.0, xt
+            )
+
+    def _score(self, truth: VehicleState, est: NavEstimate) -> None:
+        err = math.hypot(
+            est.pos_ned_m[0] - truth.pos_ned_m[0], est.pos_ned_m[1] - truth.pos_ned_m[1]
+        )
+        self.errors.append(err)
+        if self.gps_denied(truth.sim_time_ns):
+            self.errors_denied.append(err)
+        self.final_error_m = err
+
+    # ------------------------------------------------------------------ events, failsafe
+
+    def _event(self, t_ns: int, severity: int, text: str) -> None:
+        self.events.append((severity, text))
+        self.event_log.append(f"{t_ns / NS_PER_S:.1f} s: {text}")
+
+    def pop_events(self) -> list[Event]:
+        """STATUSTEXT-style (severity, text) since the last call."""
+        out, self.events = self.events, []
+        return out
+
+    def _watch(self, t: int, est: NavEstimate) -> None:
+        nav = self.filter
+        fusing = est.flags.gnss_fusing
+        if fusing != self._gnss_fusing:
+            self._gnss_fusing = fusing
+            if fusing:
+                self._event(t, SEVERITY_INFO, "GNSS fused: position from GNSS")
+            else:
+                self._event(t, SEVERITY_WARNING, "GNSS lost: navigation without GNSS")
+        for name, aid in nav.aids.items():
+            alive = aid.alive(t)
+            if alive != self._aid_alive.get(name, False):
+                self._aid_alive[name] = alive
+                if alive:
+                    self._event(t, SEVERITY_INFO, f"aid {name} started")
+                else:
+                    self._event(t, SEVERITY_WARNING, f"aid {name} lost (no position for 1 s)")
+            rejected = aid.counters.rejected
+            if rejected > self._aid_rejected.get(name, 0):
+                self._aid_rejected[name] = rejected
+                if t - self._last_reject_text_ns >= REJECT_TEXT_PERIOD_NS:
+                    self._last_reject_text_ns = t
+                    reasons = ", ".join(f"{k} {v}" for k, v in sorted(aid.counters.reasons.items()))
+                    self._event(t, SEVERITY_NOTICE, f"aid {name}: rejected {rejected} ({reasons})")
+        self._failsafe(t, est)
+
+    def _failsafe(self, t: int, est: NavEstimate) -> None:
+        ap = self.autopilot
+        if ap is None:
+            return
+        params = ap.params
+        limit = params.get("COM_POS_FS_EPH")
+        if self.failsafe_active:
+            if est.std_h_m < FAILSAFE_CLEAR_RATIO * limit:
+                self.failsafe_active = False
+                self._event(t, SEVERITY_INFO, f"position regained ({est.std_h_m:.1f} m)")
+            return
+        if est.std_h_m <= limit:
+            return
+        self.failsafe_active = True
+        self.failsafe_count += 1
+        action = int(params.get("COM_POS_FS_ACT"))
+        airborne = ap.armed and ap.mode not in (FlightMode.IDLE, FlightMode.LAND)
+        what = "continuing the mission"
+        if airborne and action == 1 and ap.mode is not FlightMode.LOITER:
+            ap.set_mode(FlightMode.LOITER)
+            what = "loiter"
+        elif airborne and action == 2 and ap.mode is not FlightMode.RTL:
+            ap.return_to_launch()
+            what = "return to launch"
+        self._event(
+            t,
+            SEVERITY_CRITICAL,
+            f"position uncertain: {est.std_h_m:.1f} m > COM_POS_FS_EPH {limit:g} m: {what}",
+        )
+
+    # ------------------------------------------------------------------ summary
+
+    def summary(self) -> dict[str, Any]:
+        """summary.json's ``truth_max_cross_track_m`` and ``nav`` block."""
+        status = self.filter.status()
+        aid: dict[str, Any] | None = None
+        if self.aid_name is not None:
+            found = next((a for a in status.aids if a.name == self.aid_name), None)
+            aid = {"name": self.aid_name, "received": 0, "fused": 0, "rejected": 0, "empty": 0}
+            if found is not None:
+                aid.update(
+                    received=found.received,
+                    fused=found.fused,
+                    rejected=found.rejected,
+                    empty=found.empty,
+                    resets=found.resets,
+                    rejected_by_reason=found.rejected_by_reason,
+                )
+        rounded = self.truth_max_cross_track_m
+        denied_xt = self.truth_max_cross_track_denied_m
+        return {
+            "truth_max_cross_track_m": None if rounded is None else round(rounded, 3),
+            "nav": {
+                "source": "ekf",
+                "horizontal_error_m": _stats(self.errors),
+                "horizontal_error_denied_m": _stats(self.errors_denied),
+                "final_horizontal_error_m": None
+                if self.final_error_m is None
+                else round(self.final_error_m, 3),
+                "gnss_denied_s": round(status.gnss_denied_s, 3),
+                "truth_max_cross_track_denied_m": None
+                if denied_xt is None
+                else round(denied_xt, 3),
+                "aid": aid,
+                "failsafes": self.failsafe_count,
+                "events": self.event_log[:100],
+            },
+        }
+
+
+def truth_nav_summary(
+    summary: dict[str, Any], sensors: SensorSuite, sim_time_ns: int
+) -> dict[str, Any]:
+    """The same keys for ``--nav truth``: the autopilot flew on the truth (no error)."""
+    denied_ns = sum(
+        max(0, min(b, sim_time_ns) - a) for a, b in sensors.gps_denied_ns if a < sim_time_ns
+    )
+    return {
+        "truth_max_cross_track_m": summary.get("max_cross_track_m"),
+        "nav": {
+            "source": "truth",
+            "horizontal_error_m": None,
+            "horizontal_error_denied_m": None,
+            "gnss_denied_s": round(denied_ns / NS_PER_S, 3),
+            "aid": None,
+        },
+    }
