@@ -245,6 +245,7 @@ def _run_external(task: RunTask, out: Path, localizer: ExternalLocalizer) -> str
             return "the lockstep flight differs from the run's (trajectory.csv)"
         relative = f"{ESTIMATES_DIR}/{localizer.name}.csv"
         data = (flight / relative).read_bytes()
+    (out / ESTIMATES_DIR).mkdir(exist_ok=True)
     write_bytes_atomic(out / relative, data)
     refresh_manifest(out, {relative: sha256_bytes(data)})
     return None

@@ -107,3 +107,16 @@ def test_the_command_prints_one_line_and_exits_2(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "axes.seed: the axis is empty" in err[0]
     assert not (folder / "out").exists()
+
+
+def test_archives_go_where_the_spec_says(folder: Path) -> None:
+    from air_sitl.sweep import make_tasks
+
+    path = write(folder, {"base": BASE, "archives": "shared/runs"})
+    spec = load_spec(path)
+    assert spec.archives == (folder / "shared" / "runs").resolve()
+    (task,) = make_tasks(spec, folder / "out", keep="none")
+    assert task.archive == str(folder.resolve() / "shared" / "runs" / task.id)
+    assert task.archive_label == task.archive  # outside the sweep folder: the full path
+    assert task.plan_text == (folder / "plans" / "UT-200.plan").read_bytes()
+    assert task.keep == "none"

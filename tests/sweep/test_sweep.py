@@ -163,3 +163,19 @@ def test_report_has_a_table_per_axis_and_a_png(pool2: Path) -> None:
     assert png.startswith(b"\x89PNG") and len(png) > 10_000
     info = json.loads((pool2 / "sweep.json").read_text())
     assert info["axes"] == ["map-date", "wind", "seed"] and len(info["runs"]) == RUNS
+
+
+def test_an_external_localizer_runs_in_lockstep_on_its_own_port(spec: Path, tmp_path: Path) -> None:
+    program = Path(__file__).resolve().parents[2] / "bridges" / "example_localizer.py"
+    content = {
+        "base": {"plan": str(spec.parent / "plans" / "UT-200.plan"), "air-start": True},
+        "localizers": {"ex": f"{sys.executable} {program} --name ex --quiet"},
+    }
+    path = tmp_path / "ext.yaml"
+    path.write_text(yaml.safe_dump(content), encoding="utf-8")
+    assert sweep(path, tmp_path / "s") == 0
+    (row,) = read_rows(tmp_path / "s" / RESULTS)
+    report = row["eval"]["ex"]
+    assert row["error"] is None and report["estimated_frames"] == report["frames"] >= 50
+    archive = tmp_path / "s" / row["archive"]
+    assert "estimates/ex.csv" in json.loads((archive / "manifest.json").read_text())["files"]
