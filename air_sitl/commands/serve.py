@@ -136,6 +136,8 @@ def _setup(args: argparse.Namespace, options: FlightOptions) -> FlightSetup:
     """The served flight: the preloaded plan (or none) at ``--home``, the plan's, or PX4's."""
     if args.plan:
         mission = load_mission(Path(args.plan))
+        for note in mission.notes:  # item warnings come as STATUSTEXT from the executor
+            print(f"{mission.source}: warning: {note}", file=sys.stderr)
         home = parse_home(args.home) if args.home else home_of(mission)
     else:
         mission = Mission(items=(), source="serve")

@@ -38,7 +38,7 @@ from air_sitl.mission.items import (
     MissionItem,
     MissionType,
 )
-from air_sitl.mission.plan_json import plan_document, plan_from_text
+from air_sitl.mission.plan_json import plan_and_labels, plan_document, plan_from_text
 from air_sitl.mission.reading import PathLike, read_text
 from air_sitl.mission.validate import MISSION_LEVEL, check_mission
 from air_sitl.mission.wpl import wpl_from_text
@@ -50,8 +50,7 @@ def load_mission(path: PathLike) -> Mission:
     if _is_wpl(text):
         mission, labels = wpl_from_text(text, path)
     else:
-        mission = plan_from_text(text, path)
-        labels = None
+        mission, labels = plan_and_labels(text, path)
     validate_mission(mission, item_labels=labels)
     return mission
 

@@ -40,8 +40,30 @@ GROUND_STATION = "air-sitl"
 # Reading
 
 
+# MAV_TYPE names for the vehicleType warning (a plan made for another vehicle).
+_VEHICLE_TYPES = {0: "GENERIC", 2: "QUADROTOR", 3: "COAXIAL", 4: "HELICOPTER", 10: "GROUND_ROVER",
+                  11: "SURFACE_BOAT", 12: "SUBMARINE", 13: "HEXAROTOR", 14: "OCTOROTOR",
+                  15: "TRICOPTER", 19: "VTOL_TAILSITTER_DUOROTOR", 20: "VTOL_TAILSITTER_QUADROTOR",
+                  21: "VTOL_TILTROTOR", 22: "VTOL_FIXEDROTOR", 23: "VTOL_TAILSITTER",
+                  29: "DODECAROTOR"}  # fmt: skip
+# QGC complex items and where their generated mission items are in the file.
+_COMPLEX_NAMES = {
+    "survey": "survey",
+    "CorridorScan": "corridor scan",
+    "StructureScan": "structure scan",
+    "fwLandingPattern": "fixed-wing landing pattern",
+    "vtolLandingPattern": "VTOL landing pattern",
+}
+
+
 def plan_from_text(text: str, path: PathLike) -> Mission:
     """Parse the text of a ``.plan`` file (structure only; DO_JUMP targets become indices)."""
+    return plan_and_labels(text, path)[0]
+
+
+def plan_and_labels(text: str, path: PathLike) -> tuple[Mission, list[str]]:
+    """Parse a ``.plan``; also return a label per mission item for messages (``item 3``, or
+    ``item 2 (survey, generated item 5)`` for the items a QGC complex item generated)."""
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as err:
@@ -72,9 +94,27 @@ def plan_from_text(text: str, path: PathLike) -> Mission:
         cruise = mission_json.number("cruiseSpeed", "a speed in m/s")
         if not (math.isfinite(cruise) and cruise > 0):
             mission_json.fail(f"cruiseSpeed must be > 0 m/s ({cruise})")
-    raw_items = mission_json.array("items", "an array of mission items")
+    plan_items = mission_json.array("items", "an array of mission items")
+    notes: list[str] = []
+    if mission_json.has("vehicleType"):
+        vehicle = mission_json.integer("vehicleType")
+        if vehicle != VEHICLE_FIXED_WING:
+            name = _VEHICLE_TYPES.get(vehicle, str(vehicle))
+            notes.append(
+                f"mission.vehicleType is {name} ({vehicle}), not FIXED_WING (1): the plan was made "
+                "for another vehicle; it is flown by the fixed-wing aircraft"
+            )
 
-    items = [_simple_item(raw, index, path) for index, raw in enumerate(raw_items)]
+    raw_items: list[Any] = []
+    labels: list[str] = []
+    for index, raw in enumerate(plan_items):
+        for where, generated in _expand(raw, index, path):
+            labels.append(where)
+            raw_items.append(generated)
+    items = [
+        _simple_item(raw, seq, path, where)
+        for seq, (raw, where) in enumerate(zip(raw_items, labels, strict=True))
+    ]
     items = _resolve_jumps(items, raw_items, path)
 
     fence: tuple[MissionItem, ...] = ()
@@ -84,7 +124,7 @@ def plan_from_text(text: str, path: PathLike) -> Mission:
     if top.has("rallyPoints"):
         rally = _read_rally(JsonObject(top.obj["rallyPoints"], path, "", "rallyPoints."))
 
-    return Mission(
+    mission = Mission(
         items=tuple(items),
         planned_home=GeoPoint(lat_deg=home[0], lon_deg=home[1], alt_amsl_m=home[2]),
         cruise_speed_m_s=cruise,
@@ -92,18 +132,47 @@ def plan_from_text(text: str, path: PathLike) -> Mission:
         rally=rally,
         source=str(path),
         name=Path(path).stem,
+        notes=tuple(notes),
     )
+    return mission, labels
 
 
-def _simple_item(raw: object, index: int, path: PathLike) -> MissionItem:
+def _expand(raw: object, index: int, path: PathLike) -> list[tuple[str, Any]]:
+    """(label, SimpleItem JSON) of one plan item: itself, or what a complex item generated.
+
+    QGroundControl writes the mission items a survey or corridor scan generated under
+    ``TransectStyleComplexItem.Items`` and a structure scan's under ``Items``; those are flown
+    (their camera trigger items feed the capture window).
+    """
     item = JsonObject(raw, path, f"item {index}")
-    kind = item.get("type", '"SimpleItem"')
-    if kind == "ComplexItem":
-        complex_type = item.obj.get("complexItemType", "unknown")
+    if item.obj.get("type") != "ComplexItem":
+        return [(f"item {index}", raw)]
+    complex_type = item.obj.get("complexItemType", "unknown")
+    name = _COMPLEX_NAMES.get(str(complex_type), str(complex_type))
+    generated: object = None
+    transect = item.obj.get("TransectStyleComplexItem")
+    if isinstance(transect, dict):
+        generated = transect.get("Items")
+    if generated is None:
+        generated = item.obj.get("Items")
+    if not isinstance(generated, list) or not generated:
         item.fail(
-            "complex items (survey, corridor scan, structure scan) are not supported, expected "
-            f"SimpleItems: convert it to waypoints in QGroundControl ({complex_type})"
+            f"QGroundControl {name} without the mission items it generates, expected "
+            "TransectStyleComplexItem.Items or Items: save the plan again with QGroundControl, "
+            f"or convert the item to waypoints ({complex_type})"
         )
+    out: list[tuple[str, Any]] = []
+    for k, sub in enumerate(generated):
+        where = f"item {index} ({name}, generated item {k})"
+        if isinstance(sub, dict) and sub.get("type") == "ComplexItem":
+            JsonObject(sub, path, where).fail("nested complex item, expected SimpleItems")
+        out.append((where, sub))
+    return out
+
+
+def _simple_item(raw: object, index: int, path: PathLike, where: str = "") -> MissionItem:
+    item = JsonObject(raw, path, where or f"item {index}")
+    kind = item.get("type", '"SimpleItem"')
     if kind != "SimpleItem":
         item.fail(f'unknown item type, expected "SimpleItem" ({json.dumps(kind)})')
     command = item.integer("command")

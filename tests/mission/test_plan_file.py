@@ -392,7 +392,7 @@ ERROR_CASES: list[tuple[str, Mutation | str, list[str]]] = [
     (
         "complex-item",
         _set((*ITEMS, 3), {"type": "ComplexItem", "complexItemType": "survey", "version": 5}),
-        ["item 3: ", "complex items", "(survey)"],
+        ["item 3: ", "survey without the mission items it generates", "(survey)"],
     ),
     (
         "corridor-scan",
