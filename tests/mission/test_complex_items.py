@@ -113,7 +113,7 @@ def test_errors_inside_a_survey_name_the_generated_item(tmp_path: Path) -> None:
         load_mission(_write(tmp_path, doc))
 
 
-def test_do_jump_into_a_survey_uses_the_generated_doJumpId(tmp_path: Path) -> None:
+def test_do_jump_into_a_survey_uses_the_generated_jump_id(tmp_path: Path) -> None:
     doc = _doc()
     items = doc["mission"]["items"]
     items.insert(2, {"type": "SimpleItem", "command": 177, "frame": 2, "autoContinue": True,
