@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import sys
 import tempfile
@@ -59,13 +60,23 @@ def run_seconds(out: Path) -> float:
     return sum(float(r["wall_s"]) for r in latest_rows(out / RESULTS).values())
 
 
+CPU_S: dict[str, float] = {}  # sweep folder name -> CPU seconds of its worker processes
+
+
+def children_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def timed(spec_path: Path, out: Path, executor: object) -> float:
     spec = load_spec(spec_path)
     if out.exists():
         shutil.rmtree(out)
+    cpu = children_cpu_s()
     start = time.perf_counter()
     outcome = run_sweep(spec, out, executor)  # type: ignore[arg-type]
     wall = time.perf_counter() - start
+    CPU_S[out.name] = children_cpu_s() - cpu
     if outcome.failed or outcome.ran != len(spec.runs):
         sys.exit(f"bench_sweep: {outcome.failed} failed, {outcome.ran}/{len(spec.runs)} ran")
     return wall
@@ -105,9 +116,15 @@ def main() -> None:
             inside = run_seconds(root / f"j{jobs}")
             print(
                 f"-j {jobs}: {wall:6.1f} s wall for {n} runs; runs took {inside:.1f} s in all, "
-                f"so the pool's own cost (start, spawn, rows) is {wall - inside / jobs:.2f} s"
+                f"so the pool's own cost (start, spawn, rows) is {wall - inside / jobs:.2f} s; "
+                f"workers' CPU {CPU_S[f'j{jobs}']:.1f} s"
             )
         print(f"speed-up of -j 2 over -j 1: {j1 / j2:.2f}x (2.00x at best on two cores)")
+        print(
+            "  from CPU time (what two otherwise idle cores would give): "
+            f"{CPU_S['j1'] / max(CPU_S['j2'] / 2, 1e-9):.2f}x "
+            "(-j 1 workers' CPU s / half of -j 2 workers' CPU s)"
+        )
         print(
             "  the same runs took "
             f"{run_seconds(root / 'j2') / run_seconds(root / 'j1'):.2f}x as long inside -j 2 "
