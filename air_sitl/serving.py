@@ -70,6 +70,8 @@ def serve_vehicle(
         )
         sinks.extend(bus_sinks)
         flight = build_flight(setup, sinks=sinks, camera=camera, auto_start=False)
+        if flight.nav is not None and setup.options.nav_aid not in (None, "mavlink"):
+            flight.nav.aid_feed = bus.nav_aid_feed(str(setup.options.nav_aid))
         endpoint.attach(flight.autopilot, flight.autopilot.params)
         if recorder is not None:
             recorder.autopilot = flight.autopilot

@@ -1,10 +1,13 @@
-"""Speed of the flight core: flight model + autopilot + sensors, against bare JSBSim.
+"""Speed of the flight core: flight model + autopilot + sensors (+ the onboard EKF), against bare
+JSBSim.
 
 Usage: python benchmarks/bench_flight.py [SCENARIO] [--seconds 600]
 
 Flies SCENARIO (default FR-300) with --air-start and no camera for --seconds of simulated time
 and prints simulated seconds per wall second, beside the floor measured in the same run: the
-bare flight model stepping the same number of times with a fixed command.
+bare flight model stepping the same number of times with a fixed command. The flight runs
+twice, on the truth (--nav truth) and on the onboard filter (--nav ekf, the default of the
+commands): the difference per step is what the filter costs.
 """
 
 from __future__ import annotations
@@ -17,6 +20,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def main() -> None:
+    from dataclasses import replace
+
     from air_sitl.builder import build_flight, load_setup
     from air_sitl.clock import NS_PER_S
     from air_sitl.options import FlightOptions
@@ -29,11 +34,14 @@ def main() -> None:
     setup = load_setup(REPO / "missions" / f"{args.scenario}.plan", FlightOptions(air_start=True))
     limit_ns = int(args.seconds * NS_PER_S)
 
-    flight = build_flight(setup)
-    t0 = time.perf_counter()
-    result = flight.run(stop=lambda s: False, max_sim_time_ns=limit_ns)
-    full = time.perf_counter() - t0
-    steps = flight.counters.steps
+    def fly(nav: str) -> tuple[float, int, int]:
+        flight = build_flight(replace(setup, options=replace(setup.options, nav=nav)))
+        t0 = time.perf_counter()
+        result = flight.run(stop=lambda s: False, max_sim_time_ns=limit_ns)
+        return time.perf_counter() - t0, flight.counters.steps, result.sim_time_ns
+
+    full, steps, sim_ns = fly("truth")
+    full_ekf, _, _ = fly("ekf")
 
     bare = build_flight(setup)
     command = ActuatorCommand(throttle=0.5)
@@ -42,11 +50,19 @@ def main() -> None:
         bare.fdm.step(command)
     floor = time.perf_counter() - t0
 
-    sim_s = result.sim_time_ns / NS_PER_S
+    sim_s = sim_ns / NS_PER_S
     print(f"scenario {args.scenario}, {sim_s:.0f} s simulated, {steps} physics steps at 200 Hz")
     print(f"bare flight model step   {floor / steps * 1e6:7.1f} us/step  {sim_s / floor:7.0f} x rt")
     print(f"model+autopilot+sensors  {full / steps * 1e6:7.1f} us/step  {sim_s / full:7.0f} x rt")
+    print(
+        f"same + onboard EKF       {full_ekf / steps * 1e6:7.1f} us/step  "
+        f"{sim_s / full_ekf:7.0f} x rt"
+    )
     print(f"ratio full / bare model  {full / floor:7.2f}")
+    print(
+        f"EKF cost {(full_ekf - full) / steps * 1e6:.1f} us/step (target <= 15); "
+        f"ratio with / without {full_ekf / full:.2f}"
+    )
     print(f"target: >= 100 x real time -> {'met' if sim_s / full >= 100 else 'NOT met'}")
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
@@ -73,6 +74,11 @@ class EstimateLog:
         self.rejected = 0
         self.first_error: str | None = None
         self._prefix = keys.estimate("x")[:-1]
+        # Called with (name, frame, sim_time_ns, estimate or None when refused) on the zenoh
+        # thread, before waiters wake (the onboard filter's aid feed, bus/aid_feed.py).
+        self.listeners: list[
+            Callable[[str, int | None, int | None, codec.Estimate | None], None]
+        ] = []
         bus.subscribe(keys.estimates, self._on_message)
 
     def _on_message(self, message: Message) -> None:
@@ -84,6 +90,8 @@ class EstimateLog:
             with self._cond:
                 self.rejected += 1
                 self.first_error = self.first_error or str(err)
+                for listener in self.listeners:
+                    listener(name, None, None, None)
             return
         frame, t, wall, last = self.ledger.lookup(est.frame, est.sim_time_ns)
         enu, geo = self._positions(est)
@@ -115,6 +123,8 @@ class EstimateLog:
             if track.file is not None:
                 track.file.write(row + "\n")
             track.rows += 1
+            for listener in self.listeners:
+                listener(name, frame, t, est)
             if frame is not None:
                 track.frames.add(frame)
                 if all(math.isfinite(c) for c in enu):

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from air_sitl.bus.aid_feed import BusAidFeed
 from air_sitl.bus.args import BusOptions, bus_options_from_args
 from air_sitl.bus.codec import CameraInfo
 from air_sitl.bus.estimates import EstimateLog
@@ -128,6 +129,17 @@ class BusHookup(Closeable):
         if self._lockstep is not None:
             summary["lockstep_wait_wall_s"] = round(self._lockstep.wait_wall_s, 3)
         return summary
+
+    def nav_aid_feed(self, name: str) -> BusAidFeed | None:
+        """The estimates of ``name`` for the onboard filter (``--nav-aid NAME``); None when
+        the bus collects no estimates. Deterministic in lockstep with the same name."""
+        if self.log is None or self.options is None:
+            return None
+        wait = self.options.wait
+        lag = wait.max_lag if wait is not None and wait.name == name else None
+        feed = BusAidFeed(name, lockstep_lag=lag)
+        self.log.listeners.append(feed.on_estimate)
+        return feed
 
     @property
     def svo_columns(self) -> str | None:

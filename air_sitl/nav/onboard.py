@@ -26,6 +26,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Protocol
 
+from air_sitl.frames import quat2euler
 from air_sitl.nav.filter import NavFilter
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.sensors_extra import (
@@ -37,7 +38,6 @@ from air_sitl.nav.sensors_extra import (
     MagNoise,
 )
 from air_sitl.nav.types import AidMeasurement, AidResult, NavEstimate
-from air_sitl.nav.vehicle import estimated_state
 from air_sitl.state import (
     AutopilotStatus,
     FlightMode,
@@ -121,6 +121,8 @@ class OnboardNav:
         self.frames_submitted = 0
         self.estimate: NavEstimate | None = None
         self.valid = False
+        self._out_t = -1
+        self._euler = (0.0, 0.0, 0.0)
         self._airspeed_m_s = 0.0
         self.errors = array("d")
         self.errors_denied = array("d")
@@ -163,16 +165,41 @@ class OnboardNav:
             self.valid = nav.aligned and nav.pos_valid and nav.vel_valid
             if not self.valid:
                 return truth
-        est = self.estimate = nav.estimate()
-        if tick:
-            self._score(truth, est)
-            self._watch(t, est)
-        return estimated_state(
-            est,
-            imu,
-            airspeed_m_s=self._airspeed_m_s if self._airspeed_m_s > 0.0 else truth.airspeed_m_s,
+        out_t = nav.output.t_ns
+        est = self.estimate
+        if est is None or out_t != self._out_t or tick:
+            # A filter period passed (every 20 ms, with the guidance update): the full estimate.
+            self._out_t = out_t
+            est = self.estimate = nav.estimate()
+            self._euler = quat2euler(est.q_body_to_ned_wxyz)
+            if tick:
+                self._score(truth, est)
+                self._watch(t, est)
+        # Between periods the attitude and velocity of the last period (at most 15 ms old),
+        # the position moved on along the velocity, the rates of this IMU sample.
+        dt = (t - est.sim_time_ns) * 1e-9
+        p, v = est.pos_ned_m, est.vel_ned_m_s
+        g, bg = imu.gyro_frd_rad_s, est.gyro_bias_rad_s
+        f, ba = imu.accel_frd_m_s2, est.accel_bias_m_s2
+        roll, pitch, yaw = self._euler
+        alt = est.alt_amsl_m - v[2] * dt
+        airspeed = self._airspeed_m_s if self._airspeed_m_s > 0.0 else truth.airspeed_m_s
+        return VehicleState(
+            sim_time_ns=t,
+            lat_deg=est.lat_deg,
+            lon_deg=est.lon_deg,
+            alt_amsl_m=alt,
+            alt_agl_m=alt - self.home.alt_amsl_m,
+            pos_ned_m=(p[0] + v[0] * dt, p[1] + v[1] * dt, p[2] + v[2] * dt),
+            q_body_to_ned_wxyz=est.q_body_to_ned_wxyz,
+            roll_rad=roll,
+            pitch_rad=pitch,
+            yaw_rad=yaw,
+            vel_ned_m_s=v,
+            rate_frd_rad_s=(g[0] - bg[0], g[1] - bg[1], g[2] - bg[2]),
+            specific_force_frd_m_s2=(f[0] - ba[0], f[1] - ba[1], f[2] - ba[2]),
+            airspeed_m_s=airspeed,
             on_ground=truth.on_ground,  # weight on wheels: a switch, not an estimate
-            home_alt_amsl_m=self.home.alt_amsl_m,
         )
 
     def fuse_aid(self, m: AidMeasurement, now_ns: int) -> AidResult:

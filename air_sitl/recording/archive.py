@@ -197,6 +197,8 @@ def record_flight(
         if writer is not None:
             sinks.append(writer)
         flight = build_flight(setup, sinks=sinks, camera=camera_source)
+        if request.bus is not None and flight.nav is not None and options.nav_aid is not None:
+            flight.nav.aid_feed = request.bus.nav_aid_feed(options.nav_aid)
     except BaseException:
         if writer is not None:
             writer.close(None)  # type: ignore[arg-type]
