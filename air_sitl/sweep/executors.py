@@ -132,6 +132,25 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
             proc.join(5)
 
 
+def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """Refuse at once a ``HOST:PORT`` (or ``ray://HOST:PORT``) nothing listens on: Ray itself
+    retries for minutes before giving up."""
+    import socket
+
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        return  # "auto" and other forms: Ray's own lookup
+    try:
+        with socket.create_connection((host, int(port)), timeout=timeout_s):
+            pass
+    except OSError as err:
+        msg = (
+            f"--ray {address}: nothing answers there ({err.strerror or err}); start the head "
+            "with `ray start --head` or give its address"
+        )
+        raise SweepError(msg) from None
+
+
 def _ray_execute(task: RunTask) -> dict[str, Any]:
     pin_threads()
     return execute(task)
@@ -160,6 +179,7 @@ class RayExecutor:
         if started_here:
             try:
                 if self.address:
+                    _check_reachable(self.address)
                     ray.init(address=self.address, log_to_driver=False)
                 else:
                     ray.init(
