@@ -155,7 +155,11 @@ def _run_bus(args: argparse.Namespace) -> int:
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         with open_bus(bus_config_from_args(args, serves=False)) as bus:
-            loc = BusLocalizer(bus, keys, method, name, wait_s=args.wait, gnss=args.gnss)
+            loc = BusLocalizer(
+                bus, keys, method, name, wait_s=args.wait, gnss=args.gnss,
+                reference_map=args.reference_map,
+                reference_date=None if args.reference_date is None else int(args.reference_date),
+            )  # fmt: skip
             if not args.quiet:
                 print(f"localize {args.method}: publishing on {loc.key_out}", flush=True)
             loc.run(stop)

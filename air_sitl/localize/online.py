@@ -91,6 +91,8 @@ class BusLocalizer:
         wait_s: float = 30.0,
         gnss: GnssMode = "first",
         seed: int = 0,
+        reference_map: str | None = None,
+        reference_date: int | None = None,
     ) -> None:
         self.bus = bus
         self.keys = keys
@@ -133,6 +135,8 @@ class BusLocalizer:
             camera=camera_from_info(info),
             frame_rate_hz=info.rate_hz,
             seed=seed,
+            reference_map=reference_map,
+            reference_date=reference_date,
             extras={"bus": keys.root},
         )
         method.reset(self.context)
