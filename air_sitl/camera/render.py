@@ -21,10 +21,12 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from air_sitl.camera import relief
 from air_sitl.camera.model import CameraModel
 from air_sitl.frames import euler2quat, ned2geodetic
 from air_sitl.maps.base import FILL_BGRX, TILE_PX, MapSource
 from air_sitl.maps.procedural.noise import key_of
+from air_sitl.maps.surface import SurfaceModel
 from air_sitl.state import CameraFrame, SimSample, VehicleState
 
 Mat3 = npt.NDArray[np.float64]
@@ -53,10 +55,18 @@ class FrameGeometry:
 class Renderer:
     """Renders frames of one map for one camera; thread-safe (shared by the bridge's workers)."""
 
-    def __init__(self, map_source: MapSource, camera: CameraModel, *, seed: int = 0) -> None:
+    def __init__(
+        self,
+        map_source: MapSource,
+        camera: CameraModel,
+        *,
+        seed: int = 0,
+        surface: SurfaceModel | None = None,
+    ) -> None:
         self.map = map_source
         self.camera = camera
         self.seed = seed
+        self.surface = surface  # None: the flat ground plane of the map (frames as before)
         c2b_kinv = camera.r_cam_to_body() @ np.linalg.inv(camera.intrinsics())
         self._c2b_kinv = _tuple9(c2b_kinv)  # image (u, v, 1) -> body-frame ray
         # Noise: a pre-drawn bank split into its positive and negative parts (uint8), so a
@@ -112,7 +122,10 @@ class Renderer:
         simulated second, beside a warp of under a millisecond).
         """
         cam = self.camera
-        height = state.alt_amsl_m - self.map.ground_elevation_m
+        if self.surface is None:
+            height = state.alt_amsl_m - self.map.ground_elevation_m
+        else:  # the plane through the surface under the aircraft (level, footprint, centre)
+            height = state.alt_amsl_m - self.surface.height_at(state.lat_deg, state.lon_deg)
         r = _mul3(_quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)  # (u, v, 1) -> NED ray
         x0, y0 = self.map.latlon_to_map_px(state.lat_deg, state.lon_deg)
         j = self._jacobian(round(state.lat_deg, 3), round(state.lon_deg, 3))
@@ -141,7 +154,10 @@ class Renderer:
             )
             effective = math.sqrt(centre_step * widest)
             level = self.map.level_for_gsd(effective * self.map.georef.gsd_m)
-        return FrameGeometry(_mat(h), level, centre_px, sees_horizon, height)
+        g = FrameGeometry(_mat(h), level, centre_px, sees_horizon, height)
+        if self.surface is not None and centre_px is not None:
+            g = self._relief_centre(state, g)
+        return g
 
     def map_xy_px(self, state: VehicleState) -> tuple[float, float] | None:
         """Continuous level-0 map pixel of the image-centre ground point (None: no ground)."""
@@ -171,6 +187,8 @@ class Renderer:
         if g.height_m <= 0:
             out[:] = FILL_BGR
             return out if noise is None else self._noised(out, noise, 0, cam.height_px)
+        if self.surface is not None:
+            return self._render_relief(state, g, out, noise)
         h_lvl = _to_level(_tuple9(g.h_img_to_map0), g.level)
         x0, y0, x1, y1 = self._footprint(h_lvl, g)
         mosaic, x0, y0 = self._mosaic(g.level, x0, y0, x1, y1)
@@ -207,6 +225,114 @@ class Renderer:
                 part[sky[v0:v1]] = FILL_BGR
             if noise is not None:
                 self._noised(part, noise, v0, v1)
+        return out
+
+    # -- relief ------------------------------------------------------------------------------
+    def _relief_setup(
+        self, state: VehicleState, level: int
+    ) -> tuple[Mat9, tuple[float, float, float, float], float, float]:
+        """(image -> NED ray, d map px / d(north, east), camera level pixel x, y)."""
+        r = _mul3(_quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)
+        jac = self._jacobian(round(state.lat_deg, 3), round(state.lon_deg, 3))
+        x0, y0 = self.map.latlon_to_map_px(state.lat_deg, state.lon_deg)
+        s = 1 << level
+        off = (s - 1) / 2.0
+        return r, jac, (x0 - off) / s, (y0 - off) / s
+
+    def _relief_window(
+        self, state: VehicleState, g: FrameGeometry, r: Mat9, jac: tuple[float, float, float, float],
+        cx: float, cy: float,
+    ) -> relief.HeightWindow:  # fmt: skip
+        """Heights covering every ray's path between the highest and lowest surface seen.
+
+        The footprint is taken at the lowest and the highest height of the window read so
+        far until the window holds both (a ray's path between them is a straight segment,
+        so the corner (or border) rays bound it); at most MAX_MOSAIC_HALF_PX level pixels
+        around the nadir per side.
+        """
+        assert self.surface is not None
+        pts = self._border if g.sees_horizon else np.array([(u, v, 1.0) for u, v in self._corners])
+        rays = relief.ray_slopes(
+            r, jac, g.level, pts[:, 0].astype(np.float32), pts[:, 1].astype(np.float32)
+        )
+        ax, ay = rays.ax[rays.down], rays.ay[rays.down]
+        z_ref = state.alt_amsl_m - g.height_m
+        z_lo = z_hi = z_ref
+        lim = MAX_MOSAIC_HALF_PX
+        window = None
+        for _ in range(4):
+            xs, ys = [cx], [cy]
+            for z in (z_lo, z_hi):
+                d = max(state.alt_amsl_m - z, 0.0)
+                xs.extend((cx + d * ax).tolist())
+                ys.extend((cy + d * ay).tolist())
+            x0 = math.floor(max(min(xs), cx - lim)) - 2
+            x1 = math.ceil(min(max(xs), cx + lim)) + 2
+            y0 = math.floor(max(min(ys), cy - lim)) - 2
+            y1 = math.ceil(min(max(ys), cy + lim)) + 2
+            t = TILE_PX  # snapped to whole tiles: the window depends on this frame alone
+            key = (g.level, (x0 // t) * t, (y0 // t) * t, -(-(x1 + 1) // t) * t,
+                   -(-(y1 + 1) // t) * t)  # fmt: skip
+            last = getattr(self._local, "heights", None)
+            if last is not None and last[0] == key:
+                window = last[1]
+            else:
+                window = relief.read_window(self.surface, g.level, x0, y0, x1, y1)
+                self._local.heights = (key, window)
+            if window.h_min >= z_lo and window.h_max <= z_hi:
+                break
+            z_lo, z_hi = min(z_lo, window.h_min), max(z_hi, window.h_max)
+        assert window is not None
+        return window
+
+    def _relief_centre(self, state: VehicleState, g: FrameGeometry) -> FrameGeometry:
+        """The geometry with the image-centre ray's first surface point as the centre."""
+        r, jac, cx, cy = self._relief_setup(state, g.level)
+        window = self._relief_window(state, g, r, jac, cx, cy)
+        cam = self.camera
+        rays = relief.ray_slopes(
+            r, jac, 0, np.array([cam.cx_px], np.float32), np.array([cam.cy_px], np.float32)
+        )
+        x0, y0 = self.map.latlon_to_map_px(state.lat_deg, state.lon_deg)
+        # Level 0 slopes against a level-L window: the march needs level-L slopes.
+        s = float(1 << g.level)
+        top = np.array([min(window.h_max, state.alt_amsl_m)], np.float32)
+        bot = np.array([window.h_min], np.float32)
+        z_hit, _ok = relief.march(
+            window, cx, cy, state.alt_amsl_m, rays.ax / s, rays.ay / s, top, bot
+        )
+        d = state.alt_amsl_m - float(z_hit[0])
+        centre = (x0 + d * float(rays.ax[0]), y0 + d * float(rays.ay[0]))
+        return FrameGeometry(g.h_img_to_map0, g.level, centre, g.sees_horizon, g.height_m)
+
+    def _render_relief(
+        self,
+        state: VehicleState,
+        g: FrameGeometry,
+        out: Image,
+        noise: tuple[Image, Image] | None,
+    ) -> Image:
+        """Pixels over relief: ray-marched ground points, one remap from the map window."""
+        cam = self.camera
+        r, jac, cx, cy = self._relief_setup(state, g.level)
+        window = self._relief_window(state, g, r, jac, cx, cy)
+        maps, _stats = relief.ground_maps(
+            window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px
+        )
+        wh, ww = window.values.shape
+        mosaic, mx, my = self._mosaic(g.level, window.x0, window.y0, window.x0 + ww - 1,
+                                      window.y0 + wh - 1)  # fmt: skip
+        if (mx, my) != (window.x0, window.y0):
+            maps = maps + np.array([window.x0 - mx, window.y0 - my], dtype=np.float32)
+        warped = cv2.remap(
+            mosaic, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+            borderValue=FILL_BGRX,
+        )  # fmt: skip
+        cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR, dst=out)
+        if g.sees_horizon:
+            out[self._sky(state)] = FILL_BGR
+        if noise is not None:
+            self._noised(out, noise, 0, cam.height_px)
         return out
 
     def _strip_source(

@@ -17,7 +17,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
+import numpy.typing as npt
 
 # Decoded tiles are cached by the map itself (bounded LRU); GDAL's own block cache would
 # otherwise grow to 5% of RAM on big files. Must be set before GDAL's first read.
@@ -37,9 +39,11 @@ from air_sitl.maps.base import (
     TILE_PX,
     Georeference,
     Image,
+    MapSource,
     TiledMap,
     map_error,
 )
+from air_sitl.maps.surface import TiledSurface
 from air_sitl.maps.utm import latlon2utm
 
 _METRES_PER_DEGREE = 111_319.49
@@ -233,3 +237,134 @@ def write_geotiff(
         raise map_error(str(path), f"cannot write the GeoTIFF ({err})") from None
     finally:
         tmp.unlink(missing_ok=True)
+
+
+class GeoTiffDem(TiledSurface):
+    """A GeoTIFF elevation model (heights AMSL, any CRS) sampled on a map's pixel grid.
+
+    Each surface tile reads only the DEM window under it (plus a margin), fills nodata from
+    the neighbours (GDAL's inverse-distance fill, with one warning naming the file) and
+    samples it bilinearly at the map's level pixel centres; another CRS than the map's goes
+    through GDAL's transform on a 17 x 17 lattice per tile, interpolated in between (far
+    below a DEM pixel over a tile).
+    """
+
+    _LATTICE = 17
+    _MARGIN_PX = 24
+
+    def __init__(self, path: Path, map_source: MapSource) -> None:
+        super().__init__(map_source)
+        self.path = path
+        self.name = path.name
+        if not path.is_file():
+            raise map_error(str(path), "--dem: no such GeoTIFF file")
+        try:
+            src = rasterio.open(path)
+        except RasterioError as err:
+            raise map_error(str(path), f"--dem: not a readable GeoTIFF ({err})") from None
+        if src.crs is None or src.transform.is_identity:
+            src.close()
+            raise map_error(str(path), "--dem: not georeferenced (no CRS or no geotransform)")
+        self._src = src
+        self._lock = threading.Lock()
+        self._nodata = src.nodata
+        self._same_crs = src.crs.to_string() == map_source.georef.crs
+        self._dem_crs = src.crs.to_string()
+        inv = ~src.transform
+        self._inv = (inv.a, inv.b, inv.c, inv.d, inv.e, inv.f)
+        self._sha256: str | None = None
+
+    def _dem_px(
+        self, level: int, tx: int, ty: int
+    ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+        """Continuous DEM pixel coordinates (centre-integral) of a tile's pixel centres."""
+        n = TILE_PX if self._same_crs else self._LATTICE
+        xs, ys = self.level_centres_crs(level, tx, ty, n)
+        if not self._same_crs:
+            tx_, ty_ = warp_transform(self.map.georef.crs, self._dem_crs, xs.ravel(), ys.ravel())
+            xs = np.asarray(tx_).reshape(n, n)
+            ys = np.asarray(ty_).reshape(n, n)
+        a, b, c, d, e, f = self._inv
+        col = (a * xs + b * ys + c - 0.5).astype(np.float32)
+        row = (d * xs + e * ys + f - 0.5).astype(np.float32)
+        if n != TILE_PX:
+            col = cv2.resize(col, (TILE_PX, TILE_PX), interpolation=cv2.INTER_LINEAR)
+            row = cv2.resize(row, (TILE_PX, TILE_PX), interpolation=cv2.INTER_LINEAR)
+        return col, row
+
+    def _make_tile(self, level: int, tx: int, ty: int) -> npt.NDArray[np.float32]:
+        col, row = self._dem_px(level, tx, ty)
+        m = self._MARGIN_PX
+        x0 = math.floor(float(col.min())) - m
+        y0 = math.floor(float(row.min())) - m
+        x1 = math.ceil(float(col.max())) + m + 1
+        y1 = math.ceil(float(row.max())) + m + 1
+        src = self._src
+        with self._lock:
+            data = src.read(
+                1, window=Window(x0, y0, x1 - x0, y1 - y0), boundless=True, masked=True
+            ).astype(np.float32)
+        inside = np.zeros(data.shape, dtype=bool)
+        inside[
+            max(0, -y0) : max(0, min(data.shape[0], src.height - y0)),
+            max(0, -x0) : max(0, min(data.shape[1], src.width - x0)),
+        ] = True
+        valid = ~np.ma.getmaskarray(data) & inside & np.isfinite(data.filled(np.nan))
+        values = np.asarray(data.filled(np.nan), dtype=np.float32)
+        missing = ~valid
+        if missing.any():
+            if not inside.all():
+                self.warn(
+                    f"--dem {self.path}: the DEM does not cover the flown area "
+                    "(heights there extended from its edge)"
+                )
+            if (missing & inside).any():
+                self.warn(
+                    f"--dem {self.path}: nodata holes in the DEM, filled from the neighbours"
+                )
+            values = _fill_from_neighbours(values, valid)
+        return cv2.remap(
+            values,
+            col - x0,
+            row - y0,
+            interpolation=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_REPLICATE,
+        )
+
+    def describe(self) -> dict[str, Any]:
+        """Provenance: file name, SHA-256, CRS."""
+        if self._sha256 is None:
+            digest = hashlib.sha256()
+            with self.path.open("rb") as fh:
+                for chunk in iter(lambda: fh.read(1 << 20), b""):
+                    digest.update(chunk)
+            self._sha256 = digest.hexdigest()
+        return {
+            "source": "geotiff-dem",
+            "path": str(self.path),
+            "sha256": self._sha256,
+            "crs": self._dem_crs,
+        }
+
+    def close(self) -> None:
+        """Close the file."""
+        with self._lock:
+            self._src.close()
+
+
+def _fill_from_neighbours(
+    values: npt.NDArray[np.float32], valid: npt.NDArray[np.bool_]
+) -> npt.NDArray[np.float32]:
+    """Missing cells take their nearest valid neighbour's value (none valid: 0 m)."""
+    if not valid.any():
+        return np.zeros_like(values)
+    # Distance transform with labels: index of the nearest valid cell for every cell.
+    _dist, labels = cv2.distanceTransformWithLabels(
+        (~valid).astype(np.uint8), cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL
+    )
+    ys, xs = np.nonzero(valid)
+    lut = np.zeros(labels.max() + 1, dtype=np.float32)
+    lut[labels[ys, xs]] = values[ys, xs]
+    out = lut[labels]
+    out[valid] = values[valid]
+    return out

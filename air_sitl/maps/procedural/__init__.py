@@ -96,6 +96,12 @@ class ProceduralMap(TiledMap):
         self.ground_elevation_m = home.alt_amsl_m
         self.num_levels = NUM_LEVELS
         self._gsd = gsd_m
+        self.home_px = self.latlon_to_map_px(home.lat_deg, home.lon_deg)
+
+    @property
+    def world(self) -> UrbanWorld | ForestWorld:
+        """The generator (its ``objects`` give the built-in surface's roofs and canopy)."""
+        return self._world
 
     def _latlon_to_crs(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
         return latlon2utm(lat_deg, lon_deg, self.zone)

@@ -128,6 +128,58 @@ class ForestWorld:
         out += float(5.0 * min(1.0, 0.6 * pm)) * white_noise(k + 11, x0, y0, size)[:, :, None]
         return np.clip(out, 0, 255).astype(np.uint8)
 
+    def objects(
+        self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook
+    ) -> npt.NDArray[np.float32]:
+        """Canopy heights above the terrain (float32 m) of one tile, as :meth:`draw` shows it.
+
+        The crown height field that shades the texture sets the canopy (bright tops high,
+        dark gaps low, about 12-24 m); clearings, clear-cuts, lakes, tracks, roads and farmyards
+        are open ground (0 m).
+        """
+        k = key_of(self.seed, 41)
+        pm = 1.0 / gsd_m
+        d = date.index
+        crowns = value_noise(k + 1, x0, y0, size, 3.0 * pm)
+        groups = value_noise(k + 2, x0, y0, size, 8.0 * pm)
+        fine = fractal_noise(k + 3, x0, y0, size, 1.2 * pm, 2)
+        w_crown = float(np.clip((3.0 * pm - 1.0) / 2.0, 0.0, 1.0))
+        w_group = float(np.clip((8.0 * pm - 1.0) / 2.0, 0.0, 1.0))
+        height = 0.55 * w_crown * crowns + 0.35 * w_group * groups + 0.18 * fine
+        clear_n = fractal_noise(k + 6, x0, y0, size, 160.0 * pm, 3)
+        thr = 1.45 + 0.12 * d
+        open_a = np.clip((clear_n - thr) * 5.0, 0.0, 1.0)
+        edge_trees = np.clip((height - 0.35) * 3.0, 0.0, 1.0) * np.clip(
+            1.6 - (clear_n - thr) * 4, 0.0, 1.0
+        )
+        open_a = open_a * (1.0 - edge_trees)
+        stand = fractal_noise(k + 4, x0, y0, size, 90.0 * pm, 2)
+        # Tree groups shape the canopy; single crowns (3 m) only by a metre: the texture's
+        # shading carries them, a rougher height field would cost every frame dearly.
+        canopy = (17.0 + 3.0 * stand + 2.5 * w_group * groups + 1.0 * w_crown * crowns).astype(
+            np.float32
+        )
+        cover = 1.0 - open_a
+        cut = self._cuts(x0, y0, size, gsd_m, d)
+        if cut is not None:
+            cover *= 1.0 - cut
+        water_n = value_noise(k + 8, x0, y0, size, 700.0 * pm) + 0.25 * value_noise(
+            k + 9, x0, y0, size, 150.0 * pm
+        )
+        water_a = np.clip((-water_n - 1.7) * 8.0, 0.0, 1.0)
+        if self.home_en_m is not None and float(water_a.max()) > 0.0:
+            water_a *= self._dry_near_home(x0, y0, size, gsd_m)
+        cover *= 1.0 - water_a
+        # Tracks, roads and yards: whatever those drawings touch on a black canvas.
+        cv = Canvas(x0, y0, size, gsd_m, (0, 0, 0))
+        self._tracks(cv, d)
+        self._roads(cv, date)
+        opened = cv.img.max(axis=2) > 0
+        cover[opened] = 0.0
+        # A crown edge is steep: the canopy keeps its height until the cover is mostly gone.
+        cover = np.clip((cover - 0.2) * 2.0, 0.0, 1.0)
+        return (canopy * cover).astype(np.float32)
+
     def _dry_near_home(self, x0: int, y0: int, size: int, gsd_m: float) -> npt.NDArray[np.float32]:
         """0 within DRY_RADIUS_M of home, rising to 1 over the next 500 m."""
         assert self.home_en_m is not None

@@ -268,6 +268,63 @@ class UrbanWorld:
         grain = float(7.0 * min(1.0, 0.6 * px_m)) * white_noise(key + 9, x0, y0, size)
         return finish(cv, texture, grain, 0.5, veg_tex)
 
+    def objects(self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook) -> np.ndarray:
+        """Heights above the terrain (float32 m) of one tile: roofs and tree crowns.
+
+        The same buildings and trees as :meth:`draw` at the same date: a roof where a house
+        is drawn (gabled roofs rise 1.5 m to the ridge), a dome where a crown is drawn.
+        """
+        cv = Canvas(x0, y0, size, gsd_m, (0, 0, 0))
+        out = np.zeros((size, size), dtype=np.float32)
+        corners = [
+            (cv.e_min, cv.n_min),
+            (cv.e_max, cv.n_min),
+            (cv.e_min, cv.n_max),
+            (cv.e_max, cv.n_max),
+        ]
+        us = [self.c * e + self.s * n for e, n in corners]
+        vs = [-self.s * e + self.c * n for e, n in corners]
+        margin = 10.0
+        u_lo, u_hi = min(us) - margin, max(us) + margin
+        v_lo, v_hi = min(vs) - margin, max(vs) + margin
+        d = date.index
+        # Painted from low to high: where objects overlap, the highest shows (a maximum).
+        shapes: list[tuple[float, int, object]] = []
+        for ky in range(math.floor(v_lo / PITCH_M) - 1, math.floor(v_hi / PITCH_M) + 2):
+            for kx in range(math.floor(u_lo / PITCH_M) - 1, math.floor(u_hi / PITCH_M) + 2):
+                blk = self.block(kx, ky)
+                if not _box_overlaps(blk.bounds, u_lo, v_lo, u_hi, v_hi):
+                    continue
+                for c, r, _ci, born in blk.trees:
+                    if born <= d:
+                        rr = r * (1.0 + 0.12 * (d - born))
+                        p = cv.px(self.to_world([c]))[0]
+                        top = rr * 1.6 + 1.5
+                        # A crown: a dome of rings, lower toward the rim.
+                        for frac, hgt in ((1.0, 0.6), (0.75, 0.85), (0.45, 1.0)):
+                            rad = max(1, round(rr * frac / gsd_m * 16))
+                            shapes.append((top * hgt, 0, ((int(p[0]), int(p[1])), rad)))
+                for b in blk.buildings:
+                    if not b.born <= d < b.gone:
+                        continue
+                    shapes.append((b.height_m, 1, cv.px(self.to_world(b.corners))))
+                    if b.gabled:
+                        # The ridge band (the middle half across the ridge), 1.5 m higher.
+                        p = b.corners
+                        if b.ridge_along_x:  # ridge from mid(p0, p3) to mid(p1, p2)
+                            band = _ridge_band(p[0], p[3], p[1], p[2])
+                        else:  # ridge from mid(p0, p1) to mid(p3, p2)
+                            band = _ridge_band(p[0], p[1], p[3], p[2])
+                        shapes.append((b.height_m + 1.5, 1, cv.px(self.to_world(band))))
+        shapes.sort(key=lambda item: (item[0], item[1]))
+        for height, kind, geom in shapes:
+            if kind == 0:
+                centre, rad = geom  # type: ignore[misc]
+                cv2.circle(out, centre, rad, (height,), -1, cv2.LINE_8, 4)
+            else:
+                cv2.fillPoly(out, [geom], (height,), cv2.LINE_8, 4)  # type: ignore[list-item]
+        return out
+
     def _draw_roads(
         self,
         cv: Canvas,
@@ -321,6 +378,15 @@ class UrbanWorld:
                         w = self.to_world(line)
                         segs.append((w[0], w[1]))
                 cv.segments(segs, color, width)
+
+
+def _ridge_band(a0: Point, a1: Point, b0: Point, b1: Point) -> list[Point]:
+    """Quarter to three-quarter band across edges a0-a1 and b0-b1 (the ridge joins their middles)."""
+
+    def at(p: Point, q: Point, t: float) -> Point:
+        return (p[0] + (q[0] - p[0]) * t, p[1] + (q[1] - p[1]) * t)
+
+    return [at(a0, a1, 0.25), at(b0, b1, 0.25), at(b0, b1, 0.75), at(a0, a1, 0.75)]
 
 
 def _box(u0: float, v0: float, u1: float, v1: float) -> list[Point]:
