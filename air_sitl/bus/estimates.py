@@ -21,7 +21,7 @@ from air_sitl.bus.publisher import FrameLedger
 from air_sitl.bus.session import Bus, Message
 from air_sitl.errors import BusError
 from air_sitl.frames import geodetic2ned, ned2geodetic
-from air_sitl.state import GeoPoint, Vec3
+from air_sitl.state import GeoPoint, Quat, Vec3
 
 ESTIMATES_DIR = "estimates"
 ESTIMATE_COLUMNS = (
@@ -40,6 +40,7 @@ ESTIMATE_COLUMNS = (
     "latency_wall_ms",
     "latency_frames",
 )
+ESTIMATE_HEADER = ",".join(ESTIMATE_COLUMNS) + "\n"
 
 
 @dataclass(slots=True)
@@ -98,21 +99,7 @@ class EstimateLog:
         q = est.q_body_to_ned_wxyz
         latency_ms = "" if wall is None else f"{(received - wall) * 1e3:.3f}"
         latency_frames = "" if frame is None or wall is None else str(last - frame)
-        row = ",".join(
-            (
-                "" if t is None else str(t),
-                "" if frame is None else str(frame),
-                *(_num(c, 4) for c in enu),
-                *(
-                    ("", "", "")
-                    if geo is None
-                    else (f"{geo.lat_deg:.9f}", f"{geo.lon_deg:.9f}", f"{geo.alt_amsl_m:.4f}")
-                ),
-                *(("", "", "", "") if q is None else tuple(f"{c:.8f}" for c in q)),
-                latency_ms,
-                latency_frames,
-            )
-        )
+        row = estimate_row(t, frame, enu, geo, q, latency_ms, latency_frames)
         with self._cond:
             if self._closed:
                 return
@@ -121,7 +108,7 @@ class EstimateLog:
                 track = _Track(self._open(name))
                 self._tracks[name] = track
             if track.file is not None:
-                track.file.write(row + "\n")
+                track.file.write(row)
             track.rows += 1
             for listener in self.listeners:
                 listener(name, frame, t, est)
@@ -162,7 +149,7 @@ class EstimateLog:
         except OSError as err:
             self.first_error = self.first_error or f"{path}: cannot write: {err.strerror}"
             return None
-        f.write(",".join(ESTIMATE_COLUMNS) + "\n")
+        f.write(ESTIMATE_HEADER)
         return f
 
     def has(self, name: str, frame: int) -> bool:
@@ -224,5 +211,40 @@ class EstimateLog:
                     track.file = None
 
 
-def _num(value: float, digits: int) -> str:
-    return "nan" if math.isnan(value) else f"{value:.{digits}f}"
+def estimate_row(
+    sim_time_ns: int | None,
+    frame: int | None,
+    enu_m: Vec3,
+    geo: GeoPoint | None,
+    q_body_to_ned_wxyz: Quat | None,
+    latency_wall_ms: str = "",
+    latency_frames: str = "",
+) -> str:
+    """One line of ``estimates/<name>.csv`` (:data:`ESTIMATE_COLUMNS`, newline included).
+
+    The one home of the format: the bus recorder writes it, offline localization too
+    (:mod:`air_sitl.localize.output`); an unknown time, frame, position or attitude is empty
+    (a position NaN).
+    """
+    return (
+        ",".join(
+            (
+                "" if sim_time_ns is None else str(sim_time_ns),
+                "" if frame is None else str(frame),
+                *("nan" if math.isnan(c) else f"{c:.4f}" for c in enu_m),
+                *(
+                    ("", "", "")
+                    if geo is None
+                    else (f"{geo.lat_deg:.9f}", f"{geo.lon_deg:.9f}", f"{geo.alt_amsl_m:.4f}")
+                ),
+                *(
+                    ("", "", "", "")
+                    if q_body_to_ned_wxyz is None
+                    else tuple(f"{c:.8f}" for c in q_body_to_ned_wxyz)
+                ),
+                latency_wall_ms,
+                latency_frames,
+            )
+        )
+        + "\n"
+    )

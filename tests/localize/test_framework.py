@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from air_sitl.bus import codec
+from air_sitl.bus.estimates import ESTIMATE_COLUMNS
 from air_sitl.camera.model import CameraModel
 from air_sitl.dataset.estimates import parse_estimates
 from air_sitl.errors import DatasetError
@@ -19,7 +20,7 @@ from air_sitl.localize.base import GnssFix, ImuReading
 from air_sitl.localize.deadreckon import WIND_MIN_FIXES, DeadReckoning
 from air_sitl.localize.inputs import AirspeedModel, BaroModel, fix_position_ned
 from air_sitl.localize.online import camera_from_info
-from air_sitl.localize.output import ESTIMATE_COLUMNS, estimate_row
+from air_sitl.localize.output import estimate_row
 from air_sitl.state import GeoPoint
 
 HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
@@ -31,12 +32,6 @@ def test_every_registered_method_keeps_the_protocol(method: str) -> None:
     loc = METHODS[method]()
     assert isinstance(loc, Localizer)
     assert isinstance(loc.name, str) and isinstance(loc.needs_image, bool)
-
-
-def test_offline_columns_are_the_bus_recorders() -> None:
-    from air_sitl.bus.estimates import ESTIMATE_COLUMNS as BUS_COLUMNS
-
-    assert ESTIMATE_COLUMNS == BUS_COLUMNS
 
 
 def test_rows_parse_back_and_no_position_is_no_estimate() -> None:
