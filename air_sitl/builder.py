@@ -14,7 +14,7 @@ from pathlib import Path
 
 from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
-from air_sitl.camera.options import open_chosen_map
+from air_sitl.camera.options import open_chosen_map, open_chosen_surface
 from air_sitl.camera.render import Renderer
 from air_sitl.errors import OptionError
 from air_sitl.maps.base import MapSource
@@ -125,7 +125,12 @@ def open_setup_map(setup: FlightSetup) -> MapSource:
 def open_camera(setup: FlightSetup, map_source: MapSource) -> CameraBridge:
     """The camera rendering ``map_source`` for ``setup`` (FrameSource; needs a camera model)."""
     assert setup.camera is not None, "open_camera: the setup flies without a camera"
-    renderer = Renderer(map_source, setup.camera, seed=setup.options.seed)
+    renderer = Renderer(
+        map_source,
+        setup.camera,
+        seed=setup.options.seed,
+        surface=open_chosen_surface(setup.map, map_source),
+    )
     return CameraBridge(renderer, workers=setup.render_workers)
 
 

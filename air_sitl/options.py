@@ -51,6 +51,7 @@ class MapChoice:
     spec: str | None = None
     seed: int = 0
     date: str | None = None
+    dem: str | None = None  # surface model: a GeoTIFF DEM path or "builtin"; None = flat
 
 
 def parse_wind(text: str) -> Wind:

@@ -8,7 +8,8 @@ import argparse
 from air_sitl.camera.model import DEFAULT_JPEG_QUALITY, DEFAULT_NOISE_SIGMA, CameraModel
 from air_sitl.errors import CameraError
 from air_sitl.maps.base import MapSource
-from air_sitl.maps.open import default_map_for_plan, open_map
+from air_sitl.maps.open import default_map_for_plan, open_map, open_surface
+from air_sitl.maps.surface import SurfaceModel
 from air_sitl.options import MapChoice
 from air_sitl.state import GeoPoint
 
@@ -32,6 +33,13 @@ def add_map_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="D",
         help="date of the map: 0, 1, 2 (procedural: 2009-06-20 summer, 2012-10-08 autumn, "
         "2016-04-22 spring) or the index / path of a GeoTIFF date file (default 0)",
+    )
+    group.add_argument(
+        "--dem",
+        default=None,
+        metavar="FILE",
+        help="relief: a GeoTIFF elevation model (heights AMSL, any CRS) or 'builtin' (the "
+        "procedural map's own terrain, roofs and canopy); default: flat ground at home",
     )
 
 
@@ -61,13 +69,20 @@ def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
 
 def map_choice_from_args(args: argparse.Namespace) -> MapChoice:
     """``--map``, ``--map-seed``, ``--map-date`` as a MapChoice."""
-    return MapChoice(spec=args.map, seed=args.map_seed, date=args.map_date)
+    return MapChoice(
+        spec=args.map, seed=args.map_seed, date=args.map_date, dem=getattr(args, "dem", None)
+    )
 
 
 def open_chosen_map(choice: MapChoice, home: GeoPoint, plan_name: str = "") -> MapSource:
     """The MapSource ``choice`` names (default from the plan name: U* urban, F* forest)."""
     spec = choice.spec or default_map_for_plan(plan_name)
     return open_map(spec, home, seed=choice.seed, date=choice.date)
+
+
+def open_chosen_surface(choice: MapChoice, map_source: MapSource) -> SurfaceModel | None:
+    """The surface ``choice.dem`` names over ``map_source`` (None: the flat ground)."""
+    return open_surface(choice.dem, map_source)
 
 
 def close_map(source: object) -> None:

@@ -23,6 +23,7 @@ from air_sitl.camera.options import (
     camera_from_args,
     close_map,
     open_chosen_map,
+    open_chosen_surface,
 )
 from air_sitl.camera.render import Renderer
 from air_sitl.errors import BusError
@@ -52,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     keys = KeySpace(args.vehicle)
     camera = camera_from_args(args)  # validates the options before joining the bus
     spec = args.map or "urban"
-    choice = MapChoice(spec=spec, seed=args.map_seed, date=args.map_date)
+    choice = MapChoice(spec=spec, seed=args.map_seed, date=args.map_date, dem=args.dem)
     maps: list[MapSource] = []
 
     def factory(settings: RenderSettings) -> RenderFn:
@@ -90,7 +91,9 @@ def _renderer(choice: MapChoice, settings: RenderSettings, maps: list[MapSource]
         raise BusError(msg) from None
     map_source = open_chosen_map(choice, settings.home)
     maps.append(map_source)
-    renderer = Renderer(map_source, camera, seed=settings.seed)
+    renderer = Renderer(
+        map_source, camera, seed=settings.seed, surface=open_chosen_surface(choice, map_source)
+    )
 
     def render(state: VehicleState, index: int) -> RenderedFrame:
         jpeg, xy = renderer.frame_jpeg(state, index)

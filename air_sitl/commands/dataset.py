@@ -49,6 +49,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--map-forest", default=None, metavar="PATH", help="GeoTIFF for F*")
     parser.add_argument("--map-seed", type=int, default=0, metavar="N")
     parser.add_argument(
+        "--dem",
+        default=None,
+        metavar="FILE",
+        help="relief: a GeoTIFF elevation model (AMSL) or builtin (the procedural maps' own)",
+    )
+    parser.add_argument(
         "--dates",
         default=None,
         metavar="D1,D2,...",
@@ -102,7 +108,7 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
             if out.exists() and any(out.iterdir()) and not args.resume:
                 msg = f"{out}: folder exists and is not empty (choose another --out, or --resume)"
                 raise DatasetError(msg)
-            choice = MapChoice(spec=spec, seed=args.map_seed, date=date)
+            choice = MapChoice(spec=spec, seed=args.map_seed, date=date, dem=args.dem)
             jobs.append(
                 Job(
                     name=name,

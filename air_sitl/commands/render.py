@@ -15,6 +15,7 @@ from air_sitl.camera.options import (
     camera_from_args,
     map_choice_from_args,
     open_chosen_map,
+    open_chosen_surface,
 )
 from air_sitl.camera.render import Renderer, pose_state
 from air_sitl.errors import OptionError
@@ -29,7 +30,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lat", type=float, required=True, help="latitude, degrees")
     parser.add_argument("--lon", type=float, required=True, help="longitude, degrees")
     parser.add_argument(
-        "--alt-agl", type=float, required=True, metavar="H", help="height above ground, m"
+        "--alt-agl",
+        type=float,
+        default=None,
+        metavar="H",
+        help="height above the ground (with --dem: above the surface under the camera), m",
+    )
+    parser.add_argument(
+        "--alt-amsl",
+        type=float,
+        default=None,
+        metavar="H",
+        help="the camera's altitude above mean sea level, m (instead of --alt-agl)",
     )
     parser.add_argument(
         "--ground-alt-m", type=float, default=0.0, help="ground elevation AMSL (default 0)"
@@ -56,17 +68,31 @@ def run(args: argparse.Namespace) -> int:
     if not (-90.0 <= args.lat <= 90.0 and -180.0 <= args.lon <= 180.0):
         msg = f"--lat/--lon {args.lat}, {args.lon}: outside [-90, 90] x [-180, 180]"
         raise OptionError(msg)
-    if not (math.isfinite(args.alt_agl) and args.alt_agl > 0.0):
+    if (args.alt_agl is None) == (args.alt_amsl is None):
+        msg = "--alt-agl / --alt-amsl: give exactly one of the two"
+        raise OptionError(msg)
+    if args.alt_agl is not None and not (math.isfinite(args.alt_agl) and args.alt_agl > 0.0):
         msg = f"--alt-agl {args.alt_agl}: expected a height above ground > 0 m"
+        raise OptionError(msg)
+    if args.alt_amsl is not None and not math.isfinite(args.alt_amsl):
+        msg = f"--alt-amsl {args.alt_amsl}: expected a finite altitude in metres"
         raise OptionError(msg)
     home = GeoPoint(lat_deg=args.lat, lon_deg=args.lon, alt_amsl_m=args.ground_alt_m)
     camera = camera_from_args(args)
-    renderer = Renderer(open_chosen_map(map_choice_from_args(args), home), camera, seed=args.seed)
+    choice = map_choice_from_args(args)
+    map_source = open_chosen_map(choice, home)
+    surface = open_chosen_surface(choice, map_source)
+    renderer = Renderer(map_source, camera, seed=args.seed, surface=surface)
+    ground = args.ground_alt_m if surface is None else surface.height_at(args.lat, args.lon)
+    alt_amsl = args.alt_amsl if args.alt_amsl is not None else ground + args.alt_agl
+    if alt_amsl <= ground:
+        msg = f"--alt-amsl {alt_amsl:.1f}: at or under the ground there ({ground:.1f} m AMSL)"
+        raise OptionError(msg)
     state = pose_state(
         args.lat,
         args.lon,
-        args.ground_alt_m + args.alt_agl,
-        alt_agl_m=args.alt_agl,
+        alt_amsl,
+        alt_agl_m=alt_amsl - ground,
         roll_rad=math.radians(args.roll),
         pitch_rad=math.radians(args.pitch),
         yaw_rad=math.radians(args.yaw),

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from air_sitl.errors import MapError
 from air_sitl.maps.base import MapSource
+from air_sitl.maps.surface import SurfaceModel
 from air_sitl.maps.procedural import KINDS, ProceduralMap
 from air_sitl.state import GeoPoint
 
@@ -86,3 +87,20 @@ def _open_geotiff(path: Path, home: GeoPoint, *, reference: Path) -> MapSource:
         )
         raise MapError(msg)
     return tif
+
+
+def open_surface(dem: str | None, map_source: MapSource) -> SurfaceModel | None:
+    """The surface model of ``--dem`` over a map: a GeoTIFF DEM, ``builtin`` or None (flat)."""
+    if dem is None or not dem.strip():
+        return None
+    text = dem.strip()
+    if text == "builtin":
+        if not isinstance(map_source, ProceduralMap):
+            msg = f"--dem builtin: only the procedural maps ({', '.join(KINDS)}) have one"
+            raise MapError(msg)
+        from air_sitl.maps.procedural.surface import ProceduralSurface
+
+        return ProceduralSurface(map_source)
+    from air_sitl.maps.geotiff import GeoTiffDem
+
+    return GeoTiffDem(Path(text), map_source)
