@@ -91,8 +91,7 @@ class EstimateLog:
             with self._cond:
                 self.rejected += 1
                 self.first_error = self.first_error or str(err)
-                for listener in self.listeners:
-                    listener(name, None, None, None)
+                self._tell(name, None, None, None)
             return
         frame, t, wall, last = self.ledger.lookup(est.frame, est.sim_time_ns)
         enu, geo = self._positions(est)
@@ -110,13 +109,23 @@ class EstimateLog:
             if track.file is not None:
                 track.file.write(row)
             track.rows += 1
-            for listener in self.listeners:
-                listener(name, frame, t, est)
             if frame is not None:
                 track.frames.add(frame)
                 if all(math.isfinite(c) for c in enu):
                     track.enu_by_frame[frame] = enu
+            self._tell(name, frame, t, est)
             self._cond.notify_all()
+
+    def _tell(
+        self, name: str, frame: int | None, t: int | None, est: codec.Estimate | None
+    ) -> None:
+        """Hand the estimate to the listeners (under the lock); a failing one never stops the
+        log (lockstep waits on it)."""
+        for listener in self.listeners:
+            try:
+                listener(name, frame, t, est)
+            except Exception as err:
+                self.first_error = self.first_error or f"estimate listener: {err!r}"
 
     def _positions(self, est: codec.Estimate) -> tuple[Vec3, GeoPoint | None]:
         nan = math.nan
