@@ -14,6 +14,7 @@ from air_sitl.autopilot.tasks import IdleTask, TakeoffTask
 from air_sitl.errors import PlanError
 from air_sitl.frames import geodetic2ned
 from air_sitl.mission.items import WAYPOINT_COMMANDS, MavCmd
+from air_sitl.mission.validate import takeoff_order_problem
 from air_sitl.state import FlightMode, VehicleState
 
 # Mission start refused when its first positioned item is farther than this from home.
@@ -34,6 +35,8 @@ class MissionExecutor(MissionSequencer):
             return False, "not on the ground"
         if self.mode is FlightMode.MISSION and self._last_nav_seq < 0:
             return False, "no mission"
+        if self.mode is FlightMode.MISSION and (order := takeoff_order_problem(self._items)):
+            return False, order
         if self.mode is FlightMode.MISSION and (far := self._too_far_to_fly()):
             return False, far
         self.armed = True
@@ -88,6 +91,8 @@ class MissionExecutor(MissionSequencer):
         """Fly the mission from the current item (from the start when it was completed)."""
         if self._last_nav_seq < 0:
             return False, "no mission"
+        if order := takeoff_order_problem(self._items):
+            return False, order
         if self.on_ground and (far := self._too_far_to_fly()):
             return False, far
         if self.mission_completed or not (0 <= self.current_seq < len(self._items)):

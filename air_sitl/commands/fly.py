@@ -18,7 +18,7 @@ from air_sitl.bus.hookup import bus_sinks_from_args
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.mission.items import Mission
-from air_sitl.mission.validate import mission_warnings
+from air_sitl.mission.validate import mission_warnings, require_startable
 from air_sitl.options import flight_options_from_args, int_in_range
 from air_sitl.progress import ProgressBar, print_summary
 from air_sitl.recording import RecordingRequest, record_flight
@@ -66,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         map=map_choice_from_args(args),
         render_workers=int_in_range("--render-workers", args.render_workers, 0, 64),
     )
+    require_startable(setup.mission)  # PX4 would refuse to start it: so do we
     out = Path(args.out) if args.out else Path("out") / (setup.mission.name or "flight")
     request = RecordingRequest(
         setup=setup, out=out, resume=bool(args.resume), bus=bus_sinks_from_args(args)

@@ -332,6 +332,30 @@ def _check_fence_list(items: Sequence[MissionItem]) -> ItemProblem | None:
     return None
 
 
+# PX4's feasibility check refuses to start such a mission (the upload itself is accepted).
+TAKEOFF_NOT_FIRST = "Mission rejected: takeoff not first waypoint item"
+
+
+def takeoff_order_problem(items: Sequence[MissionItem]) -> str:
+    """PX4's rule: when the mission has a NAV_TAKEOFF, no navigation item comes before it
+    (DO items and NAV_DELAY may). The STATUSTEXT reason, then where; '' when in order."""
+    takeoff = next((i for i, it in enumerate(items) if it.command == MavCmd.NAV_TAKEOFF), -1)
+    for index, item in enumerate(items[: max(0, takeoff)]):
+        if item.is_nav and item.command != MavCmd.NAV_DELAY:
+            return (
+                f"{TAKEOFF_NOT_FIRST} (item {index} {command_name(item.command)} before "
+                f"NAV_TAKEOFF at item {takeoff})"
+            )
+    return ""
+
+
+def require_startable(mission: Mission) -> None:
+    """Raise :class:`PlanError` when PX4 would refuse to start ``mission`` (the fly command)."""
+    problem = takeoff_order_problem(mission.items)
+    if problem:
+        raise PlanError(f"{mission.source}: {problem}")
+
+
 def item_warnings(items: Sequence[MissionItem]) -> list[str]:
     """One line per item flown differently from its definition, or skipped, and why."""
     out: list[str] = []
