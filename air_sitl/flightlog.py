@@ -13,7 +13,7 @@ from typing import IO, Any
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S
 from air_sitl.errors import DatasetError
 from air_sitl.sinks import FlightResult, NullSink
-from air_sitl.state import SimSample
+from air_sitl.state import FlightMode, SimSample
 
 TRAJECTORY_COLUMNS = (
     "sim_time_ns",
@@ -85,11 +85,31 @@ def _rounded(value: float | None) -> float | None:
     return None if value is None else round(value, 3)
 
 
-class FlightStats:
-    """Summary metrics: capture frames and distance, tracking errors, waypoints reached."""
+# Ground contact: what separates a landing from a crash (a fixed wing on its wheels).
+AIRBORNE_AGL_M = 5.0  # contact counts once the aircraft has been this high
+CONTACT_AGL_M = 0.3  # wheels on the ground, or this close to it
+MAX_TOUCHDOWN_SINK_M_S = 3.0  # a harder touchdown breaks the aircraft
+MAX_TOUCHDOWN_ROLL_RAD = math.radians(30.0)  # a wing tip touches beyond this
+MIN_TOUCHDOWN_PITCH_RAD = math.radians(-10.0)  # nose first below this
 
-    def __init__(self, waypoints_total: int) -> None:
+
+class FlightStats:
+    """Summary metrics: capture frames and distance, tracking errors, waypoints reached, and
+    how the flight met the ground (``crashed`` where and why, or ``landed``).
+
+    ``landing_items``: mission indices of NAV_LAND items; ground contact is a landing only
+    while one is current or in LAND mode, within the sink-rate and attitude limits above.
+    """
+
+    def __init__(
+        self, waypoints_total: int, *, landing_items: frozenset[int] = frozenset()
+    ) -> None:
         self.waypoints_total = waypoints_total
+        self.landing_items = landing_items
+        self.crashed: dict[str, Any] | None = None
+        self.touched_down = False  # a proper touchdown in a landing
+        self._airborne = False
+        self._in_contact = False
         self.reached: set[int] = set()
         self.capture_frames = 0
         self.capture_distance_m = 0.0
@@ -109,7 +129,8 @@ class FlightStats:
         self.sim_time_ns = s.sim_time_ns
         if a.reached_seq >= 0:
             self.reached.add(a.reached_seq)
-        if a.mission_completed:
+        self._ground_contact(sample)
+        if a.mission_completed and self.crashed is None:
             self.mission_completed = True
         if a.tracking_settled:
             if not math.isnan(a.cross_track_m):
@@ -129,6 +150,51 @@ class FlightStats:
             self.capture_end_ns = s.sim_time_ns
         else:
             self._last_capture_ne = None
+
+    def _ground_contact(self, sample: SimSample) -> None:
+        """Judge the first ground contact after being airborne: a landing, or a crash."""
+        s = sample.state
+        a = sample.autopilot
+        if self.crashed is not None:
+            return
+        contact = s.on_ground or s.alt_agl_m < CONTACT_AGL_M
+        if not contact:
+            if s.alt_agl_m > AIRBORNE_AGL_M:
+                self._airborne = True
+                self.touched_down = False
+            self._in_contact = False
+            return
+        if self._in_contact or not self._airborne:
+            self._in_contact = True
+            return
+        self._in_contact = True
+        landing = a.mode is FlightMode.LAND or a.current_seq in self.landing_items
+        sink = s.vel_ned_m_s[2]
+        if not landing:
+            where = f"mode {a.mode.value}, mission item {a.current_seq}"
+            reason = f"ground contact outside a landing ({where}), sink {sink:.1f} m/s"
+        elif sink > MAX_TOUCHDOWN_SINK_M_S:
+            reason = f"hard landing: sink {sink:.1f} m/s (limit {MAX_TOUCHDOWN_SINK_M_S:g} m/s)"
+        elif abs(s.roll_rad) > MAX_TOUCHDOWN_ROLL_RAD or s.pitch_rad < MIN_TOUCHDOWN_PITCH_RAD:
+            reason = (
+                f"touchdown attitude: roll {math.degrees(s.roll_rad):.0f} deg, pitch "
+                f"{math.degrees(s.pitch_rad):.0f} deg"
+            )
+        else:
+            self.touched_down = True
+            return
+        self.crashed = {
+            "sim_time_s": s.sim_time_ns / NS_PER_S,
+            "lat_deg": round(s.lat_deg, 7),
+            "lon_deg": round(s.lon_deg, 7),
+            "reason": reason,
+        }
+        self.mission_completed = False
+
+    @property
+    def landed(self) -> bool:
+        """A proper touchdown, and on the ground since."""
+        return self.crashed is None and self.touched_down and self._in_contact
 
     def summary(self, wall_time_s: float) -> dict[str, Any]:
         """The content of ``summary.json``."""
@@ -150,4 +216,6 @@ class FlightStats:
             "realtime_factor": round(sim_s / wall_time_s, 1) if wall_time_s > 0 else None,
             "waypoints_reached": len(self.reached),
             "waypoints_total": self.waypoints_total,
+            "crashed": self.crashed,
+            "landed": self.landed,
         }

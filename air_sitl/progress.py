@@ -49,6 +49,16 @@ def _metres(value: object) -> str:
 def print_summary(summary: dict[str, Any], out: Path, stream: IO[str]) -> None:
     """The one-screen summary after a flight."""
     done = "completed" if summary["mission_completed"] else "NOT completed"
+    crashed = summary.get("crashed")
+    if crashed:
+        done = (
+            f"NOT completed: CRASHED at {crashed['sim_time_s']:.1f} s, "
+            f"{crashed['lat_deg']:.6f}, {crashed['lon_deg']:.6f}: {crashed['reason']}"
+        )
+    elif not summary["mission_completed"]:
+        done = "NOT completed: the time limit (--max-sim-time) ended the flight"
+    elif summary.get("landed"):
+        done = "completed, landed"
     lines = [
         f"mission {summary.get('plan', '')}: {done}",
         f"  waypoints        {summary['waypoints_reached']}/{summary['waypoints_total']}",

@@ -264,7 +264,12 @@ def assemble_flight(
         sinks=sinks,
         camera=camera,
         pacer=Pacer(options.speed),
-        stats=FlightStats(sum(1 for item in mission.items if item.is_nav)),
+        stats=FlightStats(
+            sum(1 for item in mission.items if item.is_nav),
+            landing_items=frozenset(
+                i for i, item in enumerate(mission.items) if item.command == MavCmd.NAV_LAND
+            ),
+        ),
         clock=SimClock(fdm.step_ns),
         state=state0,
     )

@@ -209,7 +209,7 @@ def record_flight(
     if on_start is not None:
         on_start(setup.mission, first_frame)
     result = flight.run(
-        stop=lambda sample: sample.autopilot.mission_completed,
+        stop=lambda sample: sample.autopilot.mission_completed or flight.stats.crashed is not None,
         max_sim_time_ns=int(options.max_sim_time_s * NS_PER_S),
         progress=progress,
     )
