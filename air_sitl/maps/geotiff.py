@@ -276,7 +276,7 @@ class GeoTiffDem(TiledSurface):
 
     def _dem_px(
         self, level: int, tx: int, ty: int
-    ) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Continuous DEM pixel coordinates (centre-integral) of a tile's pixel centres."""
         n = TILE_PX if self._same_crs else self._LATTICE
         xs, ys = self.level_centres_crs(level, tx, ty, n)
@@ -285,11 +285,19 @@ class GeoTiffDem(TiledSurface):
             xs = np.asarray(tx_).reshape(n, n)
             ys = np.asarray(ty_).reshape(n, n)
         a, b, c, d, e, f = self._inv
-        col = (a * xs + b * ys + c - 0.5).astype(np.float32)
-        row = (d * xs + e * ys + f - 0.5).astype(np.float32)
+        col = a * xs + b * ys + c - 0.5
+        row = d * xs + e * ys + f - 0.5
         if n != TILE_PX:
-            col = cv2.resize(col, (TILE_PX, TILE_PX), interpolation=cv2.INTER_LINEAR)
-            row = cv2.resize(row, (TILE_PX, TILE_PX), interpolation=cv2.INTER_LINEAR)
+            # Lattice node k sits at tile pixel k * (TILE_PX - 1) / (n - 1): bilinear in
+            # float64 as two matrix products (remap's weights are quantised to 1/32).
+            q = np.arange(TILE_PX) * ((n - 1) / (TILE_PX - 1))
+            k = np.minimum(np.floor(q).astype(np.int64), n - 2)
+            f = q - k
+            w = np.zeros((TILE_PX, n))
+            w[np.arange(TILE_PX), k] = 1.0 - f
+            w[np.arange(TILE_PX), k + 1] = f
+            col = w @ col @ w.T
+            row = w @ row @ w.T
         return col, row
 
     def _make_tile(self, level: int, tx: int, ty: int) -> npt.NDArray[np.float32]:
@@ -325,8 +333,8 @@ class GeoTiffDem(TiledSurface):
             values = _fill_from_neighbours(values, valid)
         return cv2.remap(
             values,
-            col - x0,
-            row - y0,
+            (col - x0).astype(np.float32),
+            (row - y0).astype(np.float32),
             interpolation=cv2.INTER_LINEAR,
             borderMode=cv2.BORDER_REPLICATE,
         )

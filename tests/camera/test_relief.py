@@ -1,0 +1,219 @@
+"""Relief: points on a plateau image where the pinhole at the reduced height says, a tall
+block hides what is behind it, DEM files of any CRS with nodata holes, the built-in surface."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+import pytest
+import rasterio
+from georef_helpers import HOME, marks_image, utm_grid
+from rasterio.transform import Affine
+from rasterio.warp import Resampling, calculate_default_transform, reproject
+
+from air_sitl.camera.model import CameraModel
+from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.maps.array import ArrayMap
+from air_sitl.maps.geotiff import GeoTiffDem
+from air_sitl.maps.open import open_map, open_surface
+from air_sitl.maps.procedural.surface import ProceduralSurface
+from air_sitl.state import VehicleState
+
+GSD = 1.0
+HALF = 1000.0
+PLATEAU_M = 60.0  # above home's ground, 200 m square around home
+
+
+def write_dem(
+    path: Path,
+    heights: npt.NDArray[np.float32],
+    crs: str,
+    transform: tuple[float, float, float, float, float, float],
+    nodata: float | None = None,
+) -> Path:
+    t0, t1, t2, t3, t4, t5 = transform
+    with rasterio.open(
+        path, "w", driver="GTiff", width=heights.shape[1], height=heights.shape[0], count=1,
+        dtype="float32", crs=crs, transform=Affine(t1, t2, t0, t4, t5, t3), nodata=nodata,
+        tiled=True, blockxsize=256, blockysize=256,
+    ) as dst:  # fmt: skip
+        dst.write(heights, 1)
+    return path
+
+
+def plateau_heights(size: int, top_m: float, half_px: int) -> npt.NDArray[np.float32]:
+    h = np.full((size, size), HOME.alt_amsl_m, dtype=np.float32)
+    c = size // 2
+    h[c - half_px : c + half_px, c - half_px : c + half_px] = HOME.alt_amsl_m + top_m
+    return h
+
+
+@pytest.fixture(scope="module")
+def marks_map() -> tuple[ArrayMap, str, tuple[float, float, float, float, float, float]]:
+    crs, transform, size = utm_grid(HOME, GSD, HALF)
+    image, _ = marks_image(size, GSD, 12.0, 1.2)
+    m = ArrayMap(image, crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m)
+    return m, crs, transform
+
+
+def _pose(alt_amsl_m: float, roll_deg: float = 0.0) -> VehicleState:
+    return pose_state(
+        HOME.lat_deg, HOME.lon_deg, alt_amsl_m, alt_agl_m=alt_amsl_m - HOME.alt_amsl_m,
+        roll_rad=math.radians(roll_deg), pitch_rad=0.02, yaw_rad=0.3,
+    )  # fmt: skip
+
+
+def _dots(img: npt.NDArray[np.uint8]) -> npt.NDArray[np.float64]:
+    """Sub-pixel centroids of the dark dots of a frame."""
+    gray = 255.0 - cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float64)
+    mask = (gray > 110).astype(np.uint8)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask)
+    out = []
+    for k in range(1, n):
+        x, y, w, h, area = stats[k]
+        if area < 6 or x == 0 or y == 0 or x + w >= img.shape[1] or y + h >= img.shape[0]:
+            continue
+        ys, xs = np.nonzero(labels == k)
+        wgt = gray[ys, xs] - 110
+        out.append((float((xs * wgt).sum() / wgt.sum()), float((ys * wgt).sum() / wgt.sum())))
+    return np.array(out)
+
+
+def test_points_on_a_plateau_image_as_the_pinhole_at_the_reduced_height(
+    marks_map: tuple[ArrayMap, str, tuple[float, float, float, float, float, float]],
+    tmp_path: Path,
+) -> None:
+    m, crs, transform = marks_map
+    size = round(2 * HALF / GSD)
+    dem = write_dem(tmp_path / "plateau.tif", plateau_heights(size, PLATEAU_M, 200), crs, transform)
+    camera = CameraModel(noise_sigma=0.0)
+    relief = Renderer(m, camera, surface=GeoTiffDem(dem, m))
+    state = _pose(HOME.alt_amsl_m + 250.0, roll_deg=4.0)
+    # The pinhole model at the reduced height: the same map as a plane at the plateau's top.
+    top = ArrayMap(
+        m._image[:, :, :3].copy(), crs=crs, transform=transform,
+        ground_elevation_m=HOME.alt_amsl_m + PLATEAU_M,
+    )  # fmt: skip
+    flat = Renderer(top, camera)
+    got, want = _dots(relief.render(state)), _dots(flat.render(state))
+    assert len(want) > 100
+    dist = np.hypot(got[:, None, 0] - want[None, :, 0], got[:, None, 1] - want[None, :, 1])
+    nearest = dist.min(axis=0)
+    assert float(np.max(nearest)) < 0.5, float(np.max(nearest))
+    # The centre point (MapX/MapY) is where the centre ray meets the plateau.
+    a, b = relief.map_xy_px(state), flat.map_xy_px(state)
+    assert a is not None and b is not None
+    assert math.hypot(a[0] - b[0], a[1] - b[1]) < 0.05
+
+
+def test_a_tall_block_leans_outward_and_hides_the_ground_behind_it(tmp_path: Path) -> None:
+    crs, transform, size = utm_grid(HOME, GSD, 500.0)
+    image = np.full((size, size, 3), 128, dtype=np.uint8)
+    heights = np.full((size, size), HOME.alt_amsl_m, dtype=np.float32)
+    c = size // 2
+    # A 100 m tower 40-60 m east of home (blue roof); red ground 5-25 m east behind it.
+    image[c - 10 : c + 10, c + 40 : c + 60] = (255, 0, 0)
+    heights[c - 10 : c + 10, c + 40 : c + 60] += 100.0
+    image[c - 10 : c + 10, c + 65 : c + 85] = (0, 0, 255)
+    m = ArrayMap(image, crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m)
+    dem = write_dem(tmp_path / "tower.tif", heights, crs, transform)
+    camera = CameraModel(noise_sigma=0.0)
+    state = pose_state(
+        HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m + 300.0, alt_agl_m=300.0, yaw_rad=0.0
+    )
+    flat = Renderer(m, camera).render(state)
+    relief = Renderer(m, camera, surface=GeoTiffDem(dem, m)).render(state)
+
+    def count(img: npt.NDArray[np.uint8], bgr: tuple[int, int, int]) -> int:
+        return int((np.abs(img.astype(int) - bgr).sum(axis=2) < 60).sum())
+
+    red_flat, red_relief = count(flat, (0, 0, 255)), count(relief, (0, 0, 255))
+    assert red_flat > 1000
+    # Hidden length behind the far wall: 100 m * 60 m / (300 m - 100 m) = 30 m > 25 m.
+    assert red_relief < 0.02 * red_flat, (red_flat, red_relief)
+
+    # The roof's far edge (blue) images 300 / 200 = 1.5 times as far from the nadir as the
+    # ground's; the walls between show the colour at the tower's foot (blue too).
+    def far_x(img: npt.NDArray[np.uint8]) -> float:
+        ys, xs = np.nonzero(np.abs(img.astype(int) - (255, 0, 0)).sum(axis=2) < 200)
+        return float(xs.max())
+
+    cx = camera.cx_px
+    ratio = (far_x(relief) - cx) / (far_x(flat) - cx)
+    assert ratio == pytest.approx(1.5, rel=0.01)
+
+
+def test_a_dem_in_another_crs_with_nodata_holes_is_filled_with_a_warning(
+    marks_map: tuple[ArrayMap, str, tuple[float, float, float, float, float, float]],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    m, crs, transform = marks_map
+    size = round(2 * HALF / GSD)
+    yy, xx = np.mgrid[0:size, 0:size].astype(np.float32)
+    smooth = (HOME.alt_amsl_m + 30.0 * np.sin(xx / 300.0) * np.cos(yy / 250.0)).astype(np.float32)
+    utm = write_dem(tmp_path / "utm.tif", smooth, crs, transform)
+    # The same relief in geographic coordinates, with a nodata hole.
+    src_affine = Affine(transform[1], 0.0, transform[0], 0.0, transform[5], transform[3])
+    bounds = rasterio.transform.array_bounds(size, size, src_affine)
+    dst_t, w, h = calculate_default_transform(crs, "EPSG:4326", size, size, *bounds)
+    geo = np.full((h, w), -9999.0, dtype=np.float32)
+    reproject(
+        smooth, geo, src_transform=src_affine, src_crs=crs, dst_transform=dst_t,
+        dst_crs="EPSG:4326",
+        resampling=Resampling.bilinear, dst_nodata=-9999.0,
+    )  # fmt: skip
+    geo[h // 2 - 3 : h // 2 + 3, w // 2 - 3 : w // 2 + 3] = -9999.0
+    with rasterio.open(
+        tmp_path / "geo.tif", "w", driver="GTiff", width=w, height=h, count=1, dtype="float32",
+        crs="EPSG:4326", transform=dst_t, nodata=-9999.0,
+    ) as dst:  # fmt: skip
+        dst.write(geo, 1)
+    a = GeoTiffDem(utm, m)
+    b = GeoTiffDem(tmp_path / "geo.tif", m)
+    hx, hy = m.latlon_to_map_px(HOME.lat_deg, HOME.lon_deg)
+    x0, y0 = round(hx) - 300, round(hy) - 300
+    ha, hb = a.heights(0, x0, y0, 600, 600), b.heights(0, x0, y0, 600, 600)
+    assert float(np.abs(ha - hb).max()) < 1.0  # the hole, filled from its rim
+    assert float(np.median(np.abs(ha - hb))) < 0.05
+    assert "nodata" in capsys.readouterr().err
+
+
+def test_builtin_surfaces_have_roofs_crowns_and_terrain_through_home() -> None:
+    for kind in ("urban", "forest"):
+        m = open_map(kind, HOME)
+        s = open_surface("builtin", m)
+        assert isinstance(s, ProceduralSurface)
+        assert s.terrain_at(HOME.lat_deg, HOME.lon_deg) == pytest.approx(HOME.alt_amsl_m, abs=1e-3)
+        hx, hy = m.latlon_to_map_px(HOME.lat_deg, HOME.lon_deg)
+        h = s.heights(0, round(hx) - 256, round(hy) - 256, 512, 512)
+        assert float(h.max() - h.min()) > 8.0  # roofs / canopy over the terrain
+    # Roofs where houses are drawn: roof pixels differ in colour from the lawn around them.
+    m = open_map("urban", HOME)
+    s = ProceduralSurface(m)
+    hx, hy = m.latlon_to_map_px(HOME.lat_deg, HOME.lon_deg)
+    x0, y0 = round(hx) - 256, round(hy) - 256
+    tall = s.heights(0, x0, y0, 512, 512) > s.terrain_at(HOME.lat_deg, HOME.lon_deg) + 4.0
+    img = m.read_level(0, x0, y0, 512, 512)[:, :, :3].astype(int)
+    green = (img[:, :, 1] > img[:, :, 2] + 15) & (img[:, :, 1] > img[:, :, 0] + 15)
+    # Lawns are green; trees too, so among tall pixels green means crowns, the rest roofs.
+    assert tall.mean() > 0.03
+    assert (~green[tall]).mean() > 0.3
+
+
+def test_render_command_with_builtin_relief_and_an_absolute_altitude(tmp_path: Path) -> None:
+    from air_sitl.cli import main
+
+    out = tmp_path / "relief.png"
+    base = ["render", "--map", "urban", "--lat", str(HOME.lat_deg), "--lon", str(HOME.lon_deg)]
+    base += ["--ground-alt-m", str(HOME.alt_amsl_m), "--dem", "builtin", "--out", str(out)]
+    assert main([*base, "--alt-amsl", str(HOME.alt_amsl_m + 200.0)]) == 0
+    img = cv2.imread(str(out))
+    assert img.shape == (480, 640, 3) and img.std() > 10
+    # One of --alt-agl / --alt-amsl, not both; not under the surface.
+    assert main([*base, "--alt-amsl", "400", "--alt-agl", "200"]) == 2  # usage error
+    assert main([*base, "--alt-amsl", str(HOME.alt_amsl_m - 50.0)]) == 1
