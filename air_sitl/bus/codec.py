@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -34,6 +36,22 @@ def loads(payload: bytes, what: str) -> dict[str, Any]:
     return parse_json_object(payload, what, BusError)
 
 
+@contextmanager
+def fields_of(what: str, noun: str = "message") -> Iterator[None]:
+    """Turn a missing or malformed field read inside into one BusError line naming ``what``."""
+    try:
+        yield
+    except (KeyError, TypeError, ValueError, IndexError) as err:
+        msg = f"{what}: bad {noun} ({err!r})"
+        raise BusError(msg) from None
+
+
+def decode_geo(value: Any) -> GeoPoint:
+    """A WGS84 point ``{lat_deg, lon_deg, alt_amsl_m}`` (a home, an estimate); KeyError,
+    TypeError or ValueError when it is not one (read it inside :func:`fields_of`)."""
+    return GeoPoint(**{k: float(value[k]) for k in ("lat_deg", "lon_deg", "alt_amsl_m")})
+
+
 def encode_imu(imu: ImuSample) -> bytes:
     """``imu``: gyro (rad/s), specific force (m/s^2), both FRD; AHRS quaternion body->NED."""
     return dumps(
@@ -49,16 +67,13 @@ def encode_imu(imu: ImuSample) -> bytes:
 def decode_imu(payload: bytes) -> ImuSample:
     """Inverse of :func:`encode_imu`."""
     m = loads(payload, "imu")
-    try:
+    with fields_of("imu"):
         return ImuSample(
             sim_time_ns=int(m["sim_time_ns"]),
             gyro_frd_rad_s=_vec3(m["gyro_frd_rad_s"]),
             accel_frd_m_s2=_vec3(m["accel_frd_m_s2"]),
             q_ahrs_body_to_ned_wxyz=_quat(m["q_ahrs_body_to_ned_wxyz"]),
         )
-    except (KeyError, TypeError, ValueError) as err:
-        msg = f"imu: bad message ({err!r})"
-        raise BusError(msg) from None
 
 
 def encode_gps(fix: GpsFix) -> bytes:
@@ -163,7 +178,7 @@ def encode_camera_info(info: CameraInfo) -> bytes:
 def decode_camera_info(payload: bytes) -> CameraInfo:
     """Inverse of :func:`encode_camera_info`."""
     m = loads(payload, "camera/info")
-    try:
+    with fields_of("camera/info"):
         return CameraInfo(
             width_px=int(m["width_px"]),
             height_px=int(m["height_px"]),
@@ -171,9 +186,6 @@ def decode_camera_info(payload: bytes) -> CameraInfo:
             rate_hz=float(m["rate_hz"]),
             q_cam_to_body_wxyz=_quat(m["q_cam_to_body_wxyz"]),
         )
-    except (KeyError, TypeError, ValueError) as err:
-        msg = f"camera/info: bad message ({err!r})"
-        raise BusError(msg) from None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -206,7 +218,7 @@ def decode_frame_meta(attachment: bytes | None) -> FrameMeta:
         msg = "camera/image: sample has no attachment (frame index and time)"
         raise BusError(msg)
     m = loads(attachment, "camera/image attachment")
-    try:
+    with fields_of("camera/image attachment", "value"):
         xy = m.get("map_xy_px")
         return FrameMeta(
             frame=int(m["frame"]),
@@ -215,9 +227,6 @@ def decode_frame_meta(attachment: bytes | None) -> FrameMeta:
             height_px=int(m["height_px"]),
             map_xy_px=None if xy is None else (int(xy[0]), int(xy[1])),
         )
-    except (KeyError, TypeError, ValueError, IndexError) as err:
-        msg = f"camera/image attachment: bad value ({err!r})"
-        raise BusError(msg) from None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -265,7 +274,7 @@ def encode_estimate(
 def decode_estimate(payload: bytes, what: str) -> Estimate:
     """Parse and validate an estimate; BusError with a one-line reason when it is unusable."""
     m = loads(payload, what)
-    try:
+    with fields_of(what, "estimate"):
         frame = None if m.get("frame") is None else int(m["frame"])
         t = None if m.get("sim_time_ns") is None else int(m["sim_time_ns"])
         if frame is None and t is None:
@@ -274,11 +283,7 @@ def decode_estimate(payload: bytes, what: str) -> Estimate:
         enu = None if m.get("enu_m") is None else _vec3_or_nan(m["enu_m"])
         geo = None
         if m.get("lat_deg") is not None:
-            geo = GeoPoint(
-                lat_deg=float(m["lat_deg"]),
-                lon_deg=float(m["lon_deg"]),
-                alt_amsl_m=float(m["alt_amsl_m"]),
-            )
+            geo = decode_geo(m)
             if not (-90.0 <= geo.lat_deg <= 90.0 and -180.0 <= geo.lon_deg <= 180.0):
                 msg = f"{what}: lat/lon {geo.lat_deg}, {geo.lon_deg} out of range"
                 raise BusError(msg)
@@ -289,9 +294,6 @@ def decode_estimate(payload: bytes, what: str) -> Estimate:
             if len(cov) != 9:
                 msg = f"{what}: 'cov_enu_m2' needs 9 numbers (3x3 row-major), got {len(cov)}"
                 raise BusError(msg)
-    except (KeyError, TypeError, ValueError) as err:
-        msg = f"{what}: bad estimate ({err!r})"
-        raise BusError(msg) from None
     for x in (*(enu or ()), *(q or ())):
         if math.isinf(x):
             msg = f"{what}: non-finite number in the estimate"

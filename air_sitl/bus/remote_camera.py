@@ -67,17 +67,9 @@ class RenderSettings:
             msg = "camera/render: query without settings attachment"
             raise BusError(msg)
         m = codec.loads(attachment, "camera/render settings")
-        try:
-            h = m["home"]
-            home = GeoPoint(
-                lat_deg=float(h["lat_deg"]),
-                lon_deg=float(h["lon_deg"]),
-                alt_amsl_m=float(h["alt_amsl_m"]),
-            )
+        with codec.fields_of("camera/render settings", "value"):
+            home = codec.decode_geo(m["home"])
             return RenderSettings(home=home, camera=dict(m["camera"]), seed=int(m["seed"]))
-        except (KeyError, TypeError, ValueError) as err:
-            msg = f"camera/render settings: bad value ({err!r})"
-            raise BusError(msg) from None
 
 
 RendererFactory = Callable[[RenderSettings], RenderFn]
@@ -284,24 +276,32 @@ class CameraBridgeServer:
             msg = f"camera/render frame {frame}: {type(err).__name__}: {err}"
             self.errors.append(msg)
             raise BusError(msg) from None
+        meta = self._rendered(frame, state, out, map_xy_px=out.map_xy_px)
+        return QueryAnswer(out.jpeg, meta, codec.JPEG_ENCODING)
+
+    def _rendered(
+        self,
+        frame: int,
+        state: VehicleState,
+        out: RenderedFrame,
+        *,
+        map_xy_px: tuple[int, int] | None = None,
+    ) -> bytes:
+        """Count a rendered frame and return its attachment (:class:`codec.FrameMeta`)."""
         self.rendered += 1
         meta = codec.FrameMeta(
             frame=frame,
             sim_time_ns=state.sim_time_ns,
             width_px=out.width_px,
             height_px=out.height_px,
-            map_xy_px=out.map_xy_px,
+            map_xy_px=map_xy_px,
         )
-        return QueryAnswer(out.jpeg, codec.encode_frame_meta(meta), codec.JPEG_ENCODING)
+        return codec.encode_frame_meta(meta)
 
     def _on_status(self, message: Message) -> None:
         home = codec.loads(message.payload, message.key).get("home")
         if isinstance(home, dict) and self._home is None:
-            self._home = GeoPoint(
-                lat_deg=float(home["lat_deg"]),
-                lon_deg=float(home["lon_deg"]),
-                alt_amsl_m=float(home["alt_amsl_m"]),
-            )
+            self._home = codec.decode_geo(home)
 
     def _home_now(self) -> GeoPoint | None:
         """Home from the status seen so far, else asked for (callbacks race each other)."""
@@ -322,12 +322,5 @@ class CameraBridgeServer:
             return
         state = codec.decode_state(m)
         out = self._renderer(self._free_settings(home))(state, frame)
-        self.rendered += 1
-        meta = codec.FrameMeta(
-            frame=frame,
-            sim_time_ns=state.sim_time_ns,
-            width_px=out.width_px,
-            height_px=out.height_px,
-        )
-        self._image.put(out.jpeg, codec.encode_frame_meta(meta))
+        self._image.put(out.jpeg, self._rendered(frame, state, out))
         self.published += 1

@@ -12,7 +12,6 @@ import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import PurePosixPath
-from typing import Any
 
 import cv2
 import numpy as np
@@ -25,7 +24,7 @@ from air_sitl.dataset.air_schema import (
     MANIFEST_JSON,
     frame_index_of,
 )
-from air_sitl.dataset.manifest import sha256_bytes
+from air_sitl.dataset.manifest import manifest_home, sha256_bytes
 from air_sitl.dataset.reader import AirRow, Archive
 from air_sitl.files import TMP_SUFFIX
 from air_sitl.frames import geodetic2ned, ned2geodetic
@@ -105,22 +104,8 @@ def _home_from_rows(rows: list[AirRow]) -> GeoPoint:
     return GeoPoint(lat_deg=lat0, lon_deg=lon0, alt_amsl_m=0.0)
 
 
-def _manifest_home(manifest: dict[str, Any] | None) -> GeoPoint | None:
-    home = (manifest or {}).get("home")
-    if not isinstance(home, dict):
-        return None
-    try:
-        return GeoPoint(
-            lat_deg=float(home["lat_deg"]),
-            lon_deg=float(home["lon_deg"]),
-            alt_amsl_m=float(home["alt_amsl_m"]),
-        )
-    except (KeyError, TypeError, ValueError):
-        return None
-
-
 def _check_rows(archive: Archive, report: CheckReport, problems: _Problems) -> None:
-    home = _manifest_home(archive.manifest) or _home_from_rows(archive.rows)
+    home = manifest_home(archive.manifest) or _home_from_rows(archive.rows)
     worst = 0.0
     for k, r in enumerate(archive.rows):
         where = f"metadata.csv line {k + 2}"

@@ -31,9 +31,10 @@ from air_sitl.dataset.air_schema import (
     wxyz2xyzw,
 )
 from air_sitl.dataset.estimates import parse_estimates
+from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive
 from air_sitl.errors import DatasetError
-from air_sitl.state import GeoPoint, Quat
+from air_sitl.state import Quat
 
 TOPIC_IMAGE = "/camera/image/compressed"
 TOPIC_CAMERA_INFO = "/camera/camera_info"
@@ -296,17 +297,6 @@ def export_rosbag(archive: Archive, out: Path, *, ros1: bool) -> dict[str, int]:
     return counts
 
 
-def _home(archive: Archive) -> GeoPoint | None:
-    home = (archive.manifest or {}).get("home")
-    if not isinstance(home, dict):
-        return None
-    return GeoPoint(
-        lat_deg=float(home["lat_deg"]),
-        lon_deg=float(home["lon_deg"]),
-        alt_amsl_m=float(home["alt_amsl_m"]),
-    )
-
-
 def tum_lines(archive: Archive, estimate: str | None = None) -> list[str]:
     """TUM lines ``t x y z qx qy qz qw`` (s, ENU m): ground truth, or the estimator's positions.
 
@@ -338,7 +328,7 @@ def tum_lines(archive: Archive, estimate: str | None = None) -> list[str]:
     except UnicodeDecodeError as err:
         msg = f"{archive.path}/{name}: not UTF-8 text ({err})"
         raise DatasetError(msg) from None
-    for p in parse_estimates(text, f"{archive.path}/{name}", _home(archive)):
+    for p in parse_estimates(text, f"{archive.path}/{name}", manifest_home(archive.manifest)):
         if p.sim_time_ns is not None:
             t_ns = p.sim_time_ns
         elif p.frame is not None and 0 <= p.frame < len(archive.rows):

@@ -21,6 +21,7 @@ from air_sitl.dataset.air_schema import (
 )
 from air_sitl.errors import DatasetError
 from air_sitl.files import TMP_SUFFIX, parse_json_object, write_json_atomic
+from air_sitl.state import GeoPoint
 
 MANIFEST_FORMAT = "air-sitl-archive"
 MANIFEST_VERSION = 1
@@ -96,6 +97,15 @@ def read_manifest(folder: Path) -> dict[str, Any] | None:
         msg = f"{path}: cannot read the manifest: {err.strerror}"
         raise DatasetError(msg) from None
     return parse_json_object(data, str(path), DatasetError)
+
+
+def manifest_home(manifest: Mapping[str, Any] | None) -> GeoPoint | None:
+    """The archive's home (``"home"``), None when there is none or it is not three numbers."""
+    home: Any = (manifest or {}).get("home")
+    try:
+        return GeoPoint(**{k: float(home[k]) for k in ("lat_deg", "lon_deg", "alt_amsl_m")})
+    except (KeyError, TypeError, ValueError):
+        return None
 
 
 def refresh_manifest(folder: Path, changed: Mapping[str, str] | None = None) -> None:

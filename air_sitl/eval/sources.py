@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from air_sitl.dataset.air_schema import ESTIMATES_DIR, METADATA_CSV
+from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive
 from air_sitl.eval.errors import EvalError
 from air_sitl.eval.trajectory import F64, I64, NO_FRAME, NO_TIME, Bools, Estimate, Truth
@@ -66,20 +67,6 @@ def load_truth(archive: Archive) -> Truth:
     else:
         t_ns = np.arange(len(rows), dtype=np.int64) * 20_000_000  # AIR: row k at k/50 s
     return Truth(where=str(archive.path), t_ns=t_ns, pos_enu_m=pos, yaw_enu_rad=yaw)
-
-
-def _home(archive: Archive) -> GeoPoint | None:
-    home = (archive.manifest or {}).get("home")
-    if not isinstance(home, dict):
-        return None
-    try:
-        return GeoPoint(
-            lat_deg=float(home["lat_deg"]),
-            lon_deg=float(home["lon_deg"]),
-            alt_amsl_m=float(home["alt_amsl_m"]),
-        )
-    except (KeyError, TypeError, ValueError):
-        return None
 
 
 def _number(text: str, where: str, line: int, column: str) -> float:
@@ -477,7 +464,12 @@ def load_estimate(archive: Archive, source: str) -> Estimate:
     inside = f"{ESTIMATES_DIR}/{source}.csv"
     if "/" not in source and archive.exists(inside):
         where = f"{archive.path}/{inside}"
-        return parse_csv(_decode(archive.read_bytes(inside), where), where, source, _home(archive))
+        return parse_csv(
+            _decode(archive.read_bytes(inside), where),
+            where,
+            source,
+            manifest_home(archive.manifest),
+        )
     if source == SVO:
         return svo_estimate(archive)
     path = Path(source)
@@ -494,5 +486,5 @@ def load_estimate(archive: Archive, source: str) -> Estimate:
         raise EvalError(msg) from None
     text = _decode(data, str(path))
     if _looks_like_csv(text):
-        return parse_csv(text, str(path), source, _home(archive))
+        return parse_csv(text, str(path), source, manifest_home(archive.manifest))
     return parse_tum(text, str(path), source)

@@ -31,6 +31,7 @@ import numpy.typing as npt
 
 from air_sitl.camera.model import CameraModel
 from air_sitl.dataset.air_schema import FRAMES_CSV, IMU_COLUMNS, IMU_CSV, MANIFEST_JSON
+from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive, open_archive
 from air_sitl.errors import DatasetError, OptionError
 from air_sitl.localize.base import (
@@ -43,7 +44,7 @@ from air_sitl.localize.base import (
 )
 from air_sitl.localize.inputs import AirspeedModel, BaroModel
 from air_sitl.localize.output import write_estimates
-from air_sitl.state import GeoPoint, Quat
+from air_sitl.state import Quat
 
 ProgressFn = Callable[[int, int], None]  # (frames done, frames total)
 
@@ -94,13 +95,11 @@ def context_of(
     if manifest is None:
         msg = f"{where}: missing (localize needs an archive recorded by air-sitl)"
         raise DatasetError(msg)
+    home = manifest_home(manifest)
+    if home is None:
+        msg = f"{where}: no usable home ({manifest.get('home')!r})"
+        raise DatasetError(msg)
     try:
-        h = manifest["home"]
-        home = GeoPoint(
-            lat_deg=float(h["lat_deg"]),
-            lon_deg=float(h["lon_deg"]),
-            alt_amsl_m=float(h["alt_amsl_m"]),
-        )
         cam = manifest.get("camera") or {}
         fields = ("width_px", "height_px", "hfov_deg", "noise_sigma", "jpeg_quality")
         camera = CameraModel(
@@ -109,7 +108,7 @@ def context_of(
         )
         rate = float(manifest.get("frame_rate_hz", 50.0))
     except (KeyError, TypeError, ValueError) as err:
-        msg = f"{where}: no usable home/camera ({err!r})"
+        msg = f"{where}: no usable camera ({err!r})"
         raise DatasetError(msg) from None
     map_info = manifest.get("map")
     map_date = None
