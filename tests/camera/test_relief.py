@@ -216,4 +216,4 @@ def test_render_command_with_builtin_relief_and_an_absolute_altitude(tmp_path: P
     assert img.shape == (480, 640, 3) and img.std() > 10
     # One of --alt-agl / --alt-amsl, not both; not under the surface.
     assert main([*base, "--alt-amsl", "400", "--alt-agl", "200"]) == 2  # usage error
-    assert main([*base, "--alt-amsl", str(HOME.alt_amsl_m - 50.0)]) == 1
+    assert main([*base, "--alt-amsl", str(HOME.alt_amsl_m - 50.0)]) == 2
