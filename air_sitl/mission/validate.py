@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from air_sitl.errors import PlanError
+from air_sitl.mission.geometry import next_nav_index
 from air_sitl.mission.items import (
     FENCE_CIRCLE_COMMANDS,
     FENCE_COMMANDS,
@@ -359,10 +360,16 @@ def require_startable(mission: Mission) -> None:
 def item_warnings(items: Sequence[MissionItem]) -> list[str]:
     """One line per item flown differently from its definition, or skipped, and why."""
     out: list[str] = []
+    flat = tuple(items)
     for index, item in enumerate(items):
         if item.command in SKIPPED_COMMANDS:
             why = SKIPPED_COMMANDS[MavCmd(item.command)]
             out.append(f"item {index}: {command_name(item.command)} skipped: {why}")
+        elif item.command == MavCmd.NAV_LOITER_UNLIM and next_nav_index(flat, index + 1, {}) >= 0:
+            out.append(
+                f"item {index}: NAV_LOITER_UNLIM never ends (as in PX4): the items after it are "
+                "not flown and the flight ends only at the time limit (--max-sim-time)"
+            )
         elif item.command == MavCmd.NAV_SPLINE_WAYPOINT:
             out.append(
                 f"item {index}: NAV_SPLINE_WAYPOINT flown as a waypoint (straight legs, no spline)"

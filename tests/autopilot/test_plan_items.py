@@ -236,3 +236,20 @@ def test_a_plan_with_a_capture_item_has_no_default_window() -> None:
     log: list[bool] = []
     run(ex, plane, each=lambda x, _s, _o: log.append(x.capturing))
     assert ex.mission_completed and not any(log)
+
+
+def test_loiter_unlimited_before_other_items_says_the_flight_ends_at_the_time_limit() -> None:
+    """PX4: NAV_LOITER_UNLIM never ends; what follows it is never flown. Said at the start."""
+    m = mission(
+        wp(0, 0, 50, MavCmd.NAV_TAKEOFF),
+        wp(600, 0, 50, MavCmd.NAV_LOITER_UNLIM),
+        wp(1200, 0, 50),
+    )
+    (warning,) = mission_warnings(m)
+    assert warning.startswith("item 1: NAV_LOITER_UNLIM never ends")
+    assert "--max-sim-time" in warning
+    ex, plane = air_started(m)
+    run(ex, plane, until=lambda _x, _s: False, max_s=600)
+    assert not ex.mission_completed and ex.current_seq == 1
+    # As the last item it completes the mission once established (no warning).
+    assert mission_warnings(mission(*m.items[:2])) == []

@@ -74,3 +74,31 @@ def test_unmeasured_errors_print_as_not_available(tmp_path: Path) -> None:
     print_summary({**summary, "max_cross_track_m": 3.25, "max_alt_error_m": 0.0}, tmp_path, out)
     assert "max cross-track  3.2 m" in out.getvalue() or "3.3 m" in out.getvalue()
     assert "max alt error    0.0 m" in out.getvalue()
+
+
+def test_the_printed_summary_says_how_the_flight_ended(tmp_path: Path) -> None:
+    base = {
+        "plan": "x", "waypoints_reached": 1, "waypoints_total": 2, "capture_frames": 0,
+        "capture_distance_m": 0.0, "max_cross_track_m": None, "max_alt_error_m": None,
+        "sim_time_s": 14400.0, "wall_time_s": 1.0, "realtime_factor": 1.0, "landed": False,
+    }  # fmt: skip
+    cases = [
+        ({"mission_completed": False, "crashed": None}, "time limit (--max-sim-time)"),
+        (
+            {
+                "mission_completed": False,
+                "crashed": {
+                    "sim_time_s": 61.5,
+                    "lat_deg": 54.69,
+                    "lon_deg": 25.28,
+                    "reason": "ground contact outside a landing",
+                },
+            },
+            "CRASHED at 61.5 s, 54.690000, 25.280000: ground contact outside a landing",
+        ),
+        ({"mission_completed": True, "crashed": None, "landed": True}, "completed, landed"),
+    ]
+    for extra, expected in cases:
+        out = io.StringIO()
+        print_summary({**base, **extra}, tmp_path, out)
+        assert expected in out.getvalue().splitlines()[0]
