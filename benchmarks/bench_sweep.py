@@ -138,7 +138,7 @@ def main() -> None:
 
             ray_exec = RayExecutor(None, num_cpus=2)
             start = time.perf_counter()
-            ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+            ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
             init_s = time.perf_counter() - start
             floor = ray_task_floor()
             wall = timed(spec, root / "ray", ray_exec)  # joins the running Ray

@@ -183,6 +183,7 @@ class RayExecutor:
                     ray.init(address=self.address, log_to_driver=False)
                 else:
                     ray.init(
+                        address="local",  # a new local Ray, whatever cluster is running here
                         num_cpus=self.num_cpus or os.cpu_count() or 1,
                         include_dashboard=False,
                         log_to_driver=False,
