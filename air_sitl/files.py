@@ -1,5 +1,5 @@
-"""Atomic file writes (a temporary name beside the target, then a rename), JSON objects read
-back, deterministic zips.
+"""Atomic file writes (a temporary name beside the target, then a rename), UTF-8 text and JSON
+objects read back, deterministic zips.
 
 A reader (or a crash) never sees half a file: the target holds the old content or the new one.
 Every writer of an archive file (JPEG frames, camera.yaml, summary and manifest JSON, the
@@ -52,6 +52,14 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes, *, fsync: bool
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise write_error(final, err) from None
+
+
+def decode_text(data: bytes, where: str, error: type[AirSitlError]) -> str:
+    """UTF-8 text (a BOM dropped); ``error`` naming ``where`` when ``data`` is not UTF-8."""
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise error(f"{where}: not UTF-8 text ({err})") from None
 
 
 def parse_json_object(data: bytes | str, where: str, error: type[AirSitlError]) -> dict[str, Any]:

@@ -36,6 +36,7 @@ from air_sitl.dataset.air_schema import (
     RECORDING_JSON,
 )
 from air_sitl.errors import DatasetError
+from air_sitl.files import decode_text
 from air_sitl.state import Quat, Vec3
 
 Image = npt.NDArray[np.uint8]
@@ -169,11 +170,7 @@ class _Store:
 
 def _split_lines(data: bytes, where: str) -> tuple[list[list[str]], bool]:
     """CSV rows of ``data`` and whether its last line was torn (no newline at the end)."""
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        msg = f"{where}: not UTF-8 text ({err})"
-        raise DatasetError(msg) from None
+    text = decode_text(data, where, DatasetError)
     torn = bool(text) and not text.endswith("\n")
     if torn:
         text = text[: text.rfind("\n") + 1]

@@ -29,6 +29,7 @@ from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive
 from air_sitl.eval.errors import EvalError
 from air_sitl.eval.trajectory import F64, I64, NO_FRAME, NO_TIME, Bools, Estimate, Truth
+from air_sitl.files import decode_text
 from air_sitl.frames import geodetic2ned
 from air_sitl.state import GeoPoint
 
@@ -443,14 +444,6 @@ def svo_estimate(archive: Archive, name: str = SVO) -> Estimate:
     )
 
 
-def _decode(data: bytes, where: str) -> str:
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        msg = f"{where}: not UTF-8 text ({err})"
-        raise EvalError(msg) from None
-
-
 def _looks_like_csv(text: str) -> bool:
     for raw in text.splitlines():
         s = raw.strip()
@@ -465,7 +458,7 @@ def load_estimate(archive: Archive, source: str) -> Estimate:
     if "/" not in source and archive.exists(inside):
         where = f"{archive.path}/{inside}"
         return parse_csv(
-            _decode(archive.read_bytes(inside), where),
+            decode_text(archive.read_bytes(inside), where, EvalError),
             where,
             source,
             manifest_home(archive.manifest),
@@ -484,7 +477,7 @@ def load_estimate(archive: Archive, source: str) -> Estimate:
     except OSError as err:
         msg = f"{path}: cannot read: {err.strerror}"
         raise EvalError(msg) from None
-    text = _decode(data, str(path))
+    text = decode_text(data, str(path), EvalError)
     if _looks_like_csv(text):
         return parse_csv(text, str(path), source, manifest_home(archive.manifest))
     return parse_tum(text, str(path), source)
