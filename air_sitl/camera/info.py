@@ -14,6 +14,7 @@ from typing import Any
 
 import yaml
 
+from air_sitl.camera.effects import effects_from_settings
 from air_sitl.camera.model import CameraModel
 
 DEFAULT_MOUNTING = (
@@ -33,6 +34,7 @@ def camera_yaml_dict(
     q_camera_to_body_wxyz: Sequence[float],
     mounting: str = DEFAULT_MOUNTING,
     extra: Mapping[str, Any] | None = None,
+    distortion: Sequence[float] = (0.0, 0.0, 0.0, 0.0, 0.0),
 ) -> dict[str, Any]:
     """The camera description as a plain dict in ROS camera_info YAML order."""
     hfov = math.degrees(2.0 * math.atan(width_px / (2.0 * fx_px)))
@@ -47,7 +49,11 @@ def camera_yaml_dict(
             "data": [float(fx_px), 0.0, float(cx_px), 0.0, float(fy_px), float(cy_px), 0, 0, 1.0],
         },
         "distortion_model": "plumb_bob",
-        "distortion_coefficients": {"rows": 1, "cols": 5, "data": [0.0] * 5},
+        "distortion_coefficients": {
+            "rows": 1,
+            "cols": 5,
+            "data": [float(c) for c in distortion],
+        },
         "rectification_matrix": {
             "rows": 3,
             "cols": 3,
@@ -118,6 +124,7 @@ def camera_from_settings(settings: Mapping[str, Any]) -> CameraModel:
     A malformed mapping raises KeyError, TypeError, ValueError or IndexError.
     """
     rpy = tuple(float(a) for a in settings["mount_rpy_deg"])
+    effects = settings.get("effects")
     return CameraModel(
         width_px=int(settings["width_px"]),
         height_px=int(settings["height_px"]),
@@ -125,6 +132,7 @@ def camera_from_settings(settings: Mapping[str, Any]) -> CameraModel:
         mount_rpy_deg=(rpy[0], rpy[1], rpy[2]),
         noise_sigma=float(settings["noise_sigma"]),
         jpeg_quality=int(settings["jpeg_quality"]),
+        effects=None if effects is None else effects_from_settings(effects),
     )
 
 
@@ -144,7 +152,19 @@ def camera_yaml_for(camera: CameraModel) -> str:
     mounting = DEFAULT_MOUNTING
     if any(a != 0.0 for a in camera.mount_rpy_deg):
         mounting = f"{DEFAULT_MOUNTING}; then rotated by roll/pitch/yaw {camera.mount_rpy_deg} deg"
+    extra: dict[str, Any] = {
+        "mount_rpy_deg": [float(a) for a in camera.mount_rpy_deg],
+        "noise_sigma": float(camera.noise_sigma),
+        "jpeg_quality": int(camera.jpeg_quality),
+    }
+    distortion: tuple[float, ...] = (0.0,) * 5
+    if camera.effects is not None:
+        fx = camera.effects
+        distortion = fx.distortion
+        extra["exposure_time_s"] = float(fx.exposure_time_s)
+        extra["effects"] = fx.settings()
     content = camera_yaml_dict(
+        distortion=distortion,
         width_px=camera.width_px,
         height_px=camera.height_px,
         fx_px=camera.fx_px,
@@ -153,10 +173,6 @@ def camera_yaml_for(camera: CameraModel) -> str:
         cy_px=camera.cy_px,
         q_camera_to_body_wxyz=q_cam_to_body_wxyz(camera),
         mounting=mounting,
-        extra={
-            "mount_rpy_deg": [float(a) for a in camera.mount_rpy_deg],
-            "noise_sigma": float(camera.noise_sigma),
-            "jpeg_quality": int(camera.jpeg_quality),
-        },
+        extra=extra,
     )
     return camera_yaml_text(content)

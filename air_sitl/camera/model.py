@@ -5,7 +5,8 @@ right wing (body +y), image y (down the image) toward the tail (body -x): the no
 top of the image. ``mount_rpy_deg`` rotates the camera away from that default as if the
 airframe were rolled, pitched and yawed (ZYX, degrees) about its own axes:
 ``R_cam_to_body = R(mount_rpy) @ R_default``. Pixel centres are at integer coordinates and the
-principal point is the image centre ((W - 1) / 2, (H - 1) / 2). No lens distortion.
+principal point is the image centre ((W - 1) / 2, (H - 1) / 2). No lens distortion unless
+the ``distortion`` effect is on (:mod:`air_sitl.camera.effects`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from air_sitl.camera.effects import CameraEffects
 from air_sitl.errors import CameraError
 from air_sitl.frames import euler2quat, quat2matrix
 from air_sitl.state import Quat
@@ -43,6 +45,7 @@ class CameraModel:
     mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     noise_sigma: float = DEFAULT_NOISE_SIGMA  # grey levels (0..255), 0 = no noise
     jpeg_quality: int = DEFAULT_JPEG_QUALITY
+    effects: CameraEffects | None = None  # None: the perfect pinhole (frames as before)
 
     def __post_init__(self) -> None:
         if not (16 <= self.width_px <= 8192 and 16 <= self.height_px <= 8192):
@@ -62,8 +65,8 @@ class CameraModel:
             raise CameraError(msg)
 
     def settings(self) -> dict[str, Any]:
-        """The configuration as JSON values: ``CameraModel(**settings())`` rebuilds it."""
-        return {
+        """The configuration as JSON values (``camera_from_settings`` rebuilds it)."""
+        out: dict[str, Any] = {
             "width_px": self.width_px,
             "height_px": self.height_px,
             "hfov_deg": self.hfov_deg,
@@ -71,6 +74,14 @@ class CameraModel:
             "noise_sigma": self.noise_sigma,
             "jpeg_quality": self.jpeg_quality,
         }
+        if self.effects is not None:
+            out["effects"] = self.effects.settings()
+        return out
+
+    @property
+    def has_effects(self) -> bool:
+        """Whether any camera effect is on."""
+        return self.effects is not None and bool(self.effects.enabled)
 
     @property
     def fx_px(self) -> float:

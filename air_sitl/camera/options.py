@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 
+from air_sitl.camera.effects import NAMES as EFFECT_NAMES
+from air_sitl.camera.effects import effects_from_options
 from air_sitl.camera.model import DEFAULT_JPEG_QUALITY, DEFAULT_NOISE_SIGMA, CameraModel
 from air_sitl.errors import CameraError
 from air_sitl.maps.base import MapSource
@@ -65,6 +67,20 @@ def add_camera_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="R,P,Y",
         help="camera rotation from the default nadir mounting (nose at the image top), degrees",
     )
+    group.add_argument(
+        "--camera-profile",
+        default=None,
+        metavar="FILE.yaml",
+        help="camera effects and their physical parameters (keys of CameraEffects: enabled, "
+        "exposure_time_s, line_delay_s, vignette_power, distortion_coefficients ...)",
+    )
+    group.add_argument(
+        "--camera-effects",
+        default=None,
+        metavar="LIST",
+        help=f"camera effects to switch on: {','.join(EFFECT_NAMES)} (default: none, the "
+        "perfect pinhole); their parameters as in --camera-profile's defaults",
+    )
 
 
 def map_choice_from_args(args: argparse.Namespace) -> MapChoice:
@@ -109,4 +125,7 @@ def camera_from_args(args: argparse.Namespace) -> CameraModel:
         mount_rpy_deg=(parts[0], parts[1], parts[2]),
         noise_sigma=args.noise_sigma,
         jpeg_quality=args.jpeg_quality,
+        effects=effects_from_options(
+            getattr(args, "camera_profile", None), getattr(args, "camera_effects", None)
+        ),
     )
