@@ -28,7 +28,11 @@ from air_sitl.errors import OptionError
 from air_sitl.localize.base import Estimate, LocalizerContext, Observation
 from air_sitl.localize.inputs import fix_position_ned
 from air_sitl.localize.mapmatch_core import MapMatcher, MatchResult, decode_gray
-from air_sitl.localize.mapmatch_filter import PositionFilter, air_velocity_en
+from air_sitl.localize.mapmatch_filter import (
+    POSITION_NOISE_M2_S,
+    PositionFilter,
+    air_velocity_en,
+)
 from air_sitl.maps.base import MapSource
 from air_sitl.state import GeoPoint, Quat
 
@@ -74,19 +78,26 @@ class MapMatchBase:
     name = "mapmatch-base"
     needs_image = False  # frames are decoded here, in grey and reduced (the JPEG is given)
 
-    def __init__(self, *, every: int = 1, reference: MapSource | None = None, **_: Any) -> None:
+    def __init__(
+        self,
+        *,
+        every: int = 1,
+        reference: MapSource | None = None,
+        position_noise_m2_s: float = POSITION_NOISE_M2_S,
+        **_: Any,
+    ) -> None:
         if every < 1:
             msg = f"mapmatch every={every}: expected a positive frame interval"
             raise OptionError(msg)
         self.every = every
+        self.position_noise_m2_s = position_noise_m2_s
         self._given_reference = reference
         self.matcher: MapMatcher | None = None
         self.home = GeoPoint(lat_deg=0.0, lon_deg=0.0, alt_amsl_m=0.0)
-        self.filter = PositionFilter()
         self._clear()
 
     def _clear(self) -> None:
-        self.filter = PositionFilter()
+        self.filter = PositionFilter(position_noise_m2_s=self.position_noise_m2_s)
         self.prev_t_ns: int | None = None
         self.prev_q: Quat | None = None
         self.height_m: float | None = None
