@@ -67,26 +67,15 @@ METHODS: dict[str, Callable[..., Localizer]] = {
 }
 
 
-def localize_archive(
-    archive: Path,
-    method: str,
-    *,
-    name: str | None = None,
-    reference_map: str | None = None,
-    reference_date: int | None = None,
-    seed: int = 0,
-) -> Path:
-    """Run ``method`` over an archive folder; write and return ``ARCHIVE/estimates/NAME.csv``."""
+def localize_archive(archive: Path, method: str, **options: Any) -> Path:
+    """Run ``method`` over an archive folder; write and return ``ARCHIVE/estimates/NAME.csv``.
+
+    ``options`` are those of :func:`~air_sitl.localize.archive.run_archive` (``name``,
+    ``reference_map``, ``reference_date``, ``seed`` ...), imported only when called.
+    """
     from air_sitl.localize.archive import run_archive
 
-    return run_archive(
-        Path(archive),
-        method,
-        name=name,
-        reference_map=reference_map,
-        reference_date=reference_date,
-        seed=seed,
-    ).path
+    return run_archive(Path(archive), method, **options).path
 
 
 __all__ = [
