@@ -42,8 +42,11 @@ def pair(endpoint: str) -> tuple[Bus, Bus]:
     return a, b
 
 
-def wait_until(cond: Callable[[], bool], timeout_s: float = 5.0) -> bool:
-    """Poll ``cond`` until true or the timeout (wall time) passes."""
+SAFETY_S = 120.0  # wall seconds: only a stuck peer gets there (the machine may be loaded)
+
+
+def wait_until(cond: Callable[[], bool], timeout_s: float = SAFETY_S) -> bool:
+    """Wait for the event ``cond`` (polled); ``timeout_s`` is a safety bound, not a speed."""
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
         if cond():
@@ -112,7 +115,7 @@ def start(cmd: list[str], **kwargs: object) -> subprocess.Popen[str]:
     )
 
 
-def wait_for_line(proc: subprocess.Popen[str], text: str, timeout_s: float = 20.0) -> str:
+def wait_for_line(proc: subprocess.Popen[str], text: str, timeout_s: float = SAFETY_S) -> str:
     """Read stdout until a line containing ``text`` (fails on exit or timeout)."""
     assert proc.stdout is not None
     end = time.monotonic() + timeout_s

@@ -113,7 +113,8 @@ def test_a_silent_estimator_stops_the_run_after_the_timeout() -> None:
                 sample = make_sample(k * CAMERA_PERIOD_NS)
                 pub.on_sample(sample)
                 source.submit(sample, k)
-        assert 0.4 < time.monotonic() - start < 3.0
+        # It waited the whole --wait-for timeout (a wall-clock option by definition) first.
+        assert time.monotonic() - start >= 0.5
         source.close()
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import pytest
@@ -36,10 +35,8 @@ def test_publish_subscribe_with_attachment_and_query() -> None:
         assert (reply.payload, reply.attachment) == (b"cba", b"meta")
         with pytest.raises(BusError, match="bad request"):
             b.query("air/t/q", b"boom")
-        start = time.monotonic()
         with pytest.raises(BusError, match="no answer"):
             b.query("air/t/nobody", b"", timeout_s=0.5)
-        assert time.monotonic() - start < 3.0
         assert a.peers() and b.peers()
 
 
@@ -99,8 +96,14 @@ def test_access_control_config_keeps_truth_from_subscribers(tmp_path: Path, deny
         for step in range(50):
             publisher.on_sample(make_sample(step * 5_000_000))
         assert wait_until(lambda: got.get(keys.imu, 0) == 50)
-        time.sleep(0.2)
-        assert got.get(keys.truth, 0) == (0 if deny else 50)
+        if deny:
+            # One step more: its IMU sample is put after every truth sample of the 50 steps, on
+            # the same link; once it arrived, any truth sample let through would have too.
+            publisher.on_sample(make_sample(50 * 5_000_000))
+            assert wait_until(lambda: got.get(keys.imu, 0) == 51)
+            assert got.get(keys.truth, 0) == 0
+        else:
+            assert wait_until(lambda: got.get(keys.truth, 0) == 50)
         if deny:
             with pytest.raises(BusError):
                 client.query(keys.truth, timeout_s=0.5)
