@@ -402,8 +402,8 @@ class Renderer:
             vn * dt_s, ve * dt_s, vd * dt_s, state.lat_deg, state.lon_deg, state.alt_amsl_m
         )
         p, q, r = state.rate_frd_rad_s
-        ang = math.sqrt(p * p + q * q + r * r) * dt_s
-        if ang > 0.0:
+        ang = math.sqrt(p * p + q * q + r * r) * dt_s  # negative before the frame's time
+        if ang != 0.0:
             k = math.sin(ang / 2.0) / (ang / dt_s)
             dq = (math.cos(ang / 2.0), p * k, q * k, r * k)
             quat = quat_normalize(quat_multiply(state.q_body_to_ned_wxyz, dq))
