@@ -198,15 +198,18 @@ def assemble_flight(
     home = home or home_of(mission)
     gains = gains_for(options.aircraft)
     # Our UAV's parameter defaults; other aircraft fly inside their own speed envelope.
-    params = ParamStore(
-        None
-        if options.aircraft == DEFAULT_AIRCRAFT
-        else {
-            "FW_AIRSPD_TRIM": gains.ref_airspeed_m_s,
-            "FW_AIRSPD_MIN": gains.min_airspeed_m_s,
-            "FW_AIRSPD_MAX": gains.max_airspeed_m_s,
-        }
-    )
+    overrides: dict[str, float] = {}
+    if options.aircraft != DEFAULT_AIRCRAFT:
+        overrides.update(
+            FW_AIRSPD_TRIM=gains.ref_airspeed_m_s,
+            FW_AIRSPD_MIN=gains.min_airspeed_m_s,
+            FW_AIRSPD_MAX=gains.max_airspeed_m_s,
+        )
+    if options.nav_aid == "mavlink":
+        overrides["EKF2_EV_CTRL"] = 1  # horizontal position from external vision
+    if options.nav_aid_sigma_m != FlightOptions().nav_aid_sigma_m:
+        overrides["EKF2_EVP_NOISE"] = options.nav_aid_sigma_m
+    params = ParamStore(overrides or None)
     if options.air_start:
         lat, lon, alt, heading, airspeed = air_start_pose(mission, home, params)
         initial = InitialCondition(

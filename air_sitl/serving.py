@@ -17,6 +17,7 @@ from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_
 from air_sitl.bus.hookup import BusHookup
 from air_sitl.mavlink.codec import ParseCounters
 from air_sitl.mavlink.links import LinkSpec
+from air_sitl.mavlink.nav_aid import NavLink
 from air_sitl.mavlink.vehicle import EndpointOptions, Job, VehicleEndpoint
 from air_sitl.recording import CaptureRecorder
 from air_sitl.runner import Flight, InboxItem
@@ -53,7 +54,9 @@ def serve_vehicle(
     )
     try:
         addresses = endpoint.open()
-        sinks: list[Sink] = [endpoint.sink]
+        # The onboard estimate's telemetry (and, with --nav-aid mavlink, its aids).
+        nav_link = NavLink(endpoint, aid=setup.options.nav_aid == "mavlink")
+        sinks: list[Sink] = [endpoint.sink, nav_link]
         camera: FrameSource | None = None
         recorder = None
         if out is not None or bus.needs_camera:
@@ -72,6 +75,8 @@ def serve_vehicle(
         flight = build_flight(setup, sinks=sinks, camera=camera, auto_start=False)
         if flight.nav is not None and setup.options.nav_aid not in (None, "mavlink"):
             flight.nav.aid_feed = bus.nav_aid_feed(str(setup.options.nav_aid))
+        if flight.nav is not None:
+            nav_link.attach(flight.nav, flight.autopilot.params)
         endpoint.attach(flight.autopilot, flight.autopilot.params)
         if recorder is not None:
             recorder.autopilot = flight.autopilot

@@ -193,6 +193,41 @@ PARAMS: tuple[ParamSpec, ...] = (
         description="position failsafe action: 0 continue the mission and warn, 1 loiter "
         "(hold), 2 return to launch (numbered as PX4's NAV_DLL_ACT)",
     ),
+    ParamSpec(
+        name="EKF2_GPS_CTRL",
+        default=7.0,
+        min_value=0.0,
+        max_value=15.0,
+        is_int=True,
+        description="GNSS aiding bits (PX4): bit 0 horizontal position; 0 keeps the receiver's "
+        "fixes (position and velocity) out of the onboard filter",
+    ),
+    ParamSpec(
+        name="EKF2_EV_CTRL",
+        default=0.0,
+        min_value=0.0,
+        max_value=15.0,
+        is_int=True,
+        description="external vision aiding bits (PX4): bit 0 horizontal position "
+        "(VISION_POSITION_ESTIMATE, ODOMETRY); on by default with serve --nav-aid mavlink",
+    ),
+    ParamSpec(
+        name="EKF2_EV_NOISE_MD",
+        default=0.0,
+        min_value=0.0,
+        max_value=1.0,
+        is_int=True,
+        description="external vision noise: 0 the message's covariance (EKF2_EVP_NOISE "
+        "without one), 1 always EKF2_EVP_NOISE",
+    ),
+    ParamSpec(
+        name="EKF2_EVP_NOISE",
+        default=5.0,
+        min_value=0.01,
+        max_value=1000.0,
+        unit="m",
+        description="1-sigma of an aid position without covariance (--nav-aid-sigma)",
+    ),
 )
 
 _SPECS: dict[str, ParamSpec] = {spec.name: spec for spec in PARAMS}

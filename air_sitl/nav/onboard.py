@@ -37,6 +37,7 @@ from air_sitl.nav.sensors_extra import (
     Magnetometer,
     MagNoise,
 )
+from air_sitl.nav.status import NavStatus
 from air_sitl.nav.types import AidMeasurement, AidResult, NavEstimate
 from air_sitl.state import (
     AutopilotStatus,
@@ -137,6 +138,10 @@ class OnboardNav:
         self._last_reject_text_ns = -REJECT_TEXT_PERIOD_NS
         self.failsafe_active = False
         self.failsafe_count = 0
+        # Fuse the receiver's fixes (EKF2_GPS_CTRL bit 0 over MAVLink; read at every fix).
+        self.gnss_enabled: Callable[[], bool] = lambda: True
+        self.last_status: NavStatus | None = None  # at 5 Hz, for ESTIMATOR_STATUS
+        self._ticks = 0
 
     # ------------------------------------------------------------------ the loop
 
@@ -154,7 +159,7 @@ class OnboardNav:
         if airspeed is not None:
             nav.fuse_airspeed(airspeed, t)
             self._airspeed_m_s = airspeed.airspeed_m_s
-        if gps is not None:
+        if gps is not None and self.gnss_enabled():
             nav.fuse_gnss(gps, t)
         tick = t % SCORE_PERIOD_NS == 0
         if tick and self.aid_feed is not None:
@@ -175,6 +180,9 @@ class OnboardNav:
             if tick:
                 self._score(truth, est)
                 self._watch(t, est)
+                self._ticks += 1
+                if self._ticks % 10 == 0:
+                    self.last_status = nav.status()
         # Between periods the attitude and velocity of the last period (at most 15 ms old),
         # the position moved on along the velocity, the rates of this IMU sample.
         dt = (t - est.sim_time_ns) * 1e-9
@@ -183,7 +191,7 @@ class OnboardNav:
         f, ba = imu.accel_frd_m_s2, est.accel_bias_m_s2
         roll, pitch, yaw = self._euler
         alt = est.alt_amsl_m - v[2] * dt
-        airspeed = self._airspeed_m_s if self._airspeed_m_s > 0.0 else truth.airspeed_m_s
+        tas = self._airspeed_m_s if self._airspeed_m_s > 0.0 else truth.airspeed_m_s
         return VehicleState(
             sim_time_ns=t,
             lat_deg=est.lat_deg,
@@ -198,9 +206,15 @@ class OnboardNav:
             vel_ned_m_s=v,
             rate_frd_rad_s=(g[0] - bg[0], g[1] - bg[1], g[2] - bg[2]),
             specific_force_frd_m_s2=(f[0] - ba[0], f[1] - ba[1], f[2] - ba[2]),
-            airspeed_m_s=airspeed,
+            airspeed_m_s=tas,
             on_ground=truth.on_ground,  # weight on wheels: a switch, not an estimate
         )
+
+    @property
+    def now_ns(self) -> int:
+        """The newest IMU time: "now" for a measurement arriving from outside."""
+        t = self.filter._t_imu
+        return 0 if t is None else t
 
     def fuse_aid(self, m: AidMeasurement, now_ns: int) -> AidResult:
         """One external position (simulation thread: the bus feed or the MAVLink inbox)."""
@@ -309,17 +323,19 @@ class OnboardNav:
         status = self.filter.status()
         aid: dict[str, Any] | None = None
         if self.aid_name is not None:
-            found = next((a for a in status.aids if a.name == self.aid_name), None)
+            # One aid, or (MAVLink) every "NAME:kind" aid summed.
+            prefix = self.aid_name + ":"
+            found = [a for a in status.aids if a.name == self.aid_name or a.name.startswith(prefix)]
             aid = {"name": self.aid_name, "received": 0, "fused": 0, "rejected": 0, "empty": 0}
-            if found is not None:
-                aid.update(
-                    received=found.received,
-                    fused=found.fused,
-                    rejected=found.rejected,
-                    empty=found.empty,
-                    resets=found.resets,
-                    rejected_by_reason=found.rejected_by_reason,
-                )
+            reasons: dict[str, int] = {}
+            resets = 0
+            for a in found:
+                for key in ("received", "fused", "rejected", "empty"):
+                    aid[key] += getattr(a, key)
+                resets += a.resets
+                for k, v in a.rejected_by_reason.items():
+                    reasons[k] = reasons.get(k, 0) + v
+            aid.update(resets=resets, rejected_by_reason=dict(sorted(reasons.items())))
         rounded = self.truth_max_cross_track_m
         denied_xt = self.truth_max_cross_track_denied_m
         return {

@@ -32,7 +32,7 @@ from air_sitl.dataset.air_schema import (
 from air_sitl.dataset.estimates import fill_svo_columns
 from air_sitl.dataset.manifest import read_manifest, refresh_manifest, sha256_file
 from air_sitl.dataset.writer import DatasetWriter, read_run_key, recover_partial
-from air_sitl.errors import DatasetError
+from air_sitl.errors import DatasetError, OptionError
 from air_sitl.files import write_json_atomic
 from air_sitl.flightlog import TrajectoryWriter
 from air_sitl.mission.items import Mission
@@ -151,6 +151,9 @@ def record_flight(
     setup = request.setup
     out = request.out
     options = setup.options
+    if options.nav_aid == "mavlink":
+        msg = "--nav-aid mavlink: MAVLink aids come over serve's links; fly takes a bus name"
+        raise OptionError(msg)
     first_frame = 0
     resuming = request.resume and out.is_dir() and any(out.iterdir())
     if resuming and setup.camera is not None:
