@@ -13,17 +13,20 @@ import contextlib
 import sys
 from pathlib import Path
 
-from air_sitl.builder import load_setup
+from air_sitl.builder import FlightSetup, load_setup, open_setup_map
 from air_sitl.bus.hookup import bus_sinks_from_args
-from air_sitl.camera.options import camera_from_args, map_choice_from_args
+from air_sitl.camera.options import camera_from_args, close_map, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
-from air_sitl.mission.items import Mission
+from air_sitl.errors import MapError
+from air_sitl.maps.base import MapSource
+from air_sitl.mission.geometry import POSITIONED_COMMANDS
+from air_sitl.mission.items import MavCmd, Mission
 from air_sitl.mission.validate import mission_warnings, require_startable
 from air_sitl.options import flight_options_from_args, int_in_range
 from air_sitl.progress import ProgressBar, print_summary
 from air_sitl.recording import RecordingRequest, record_flight
 from air_sitl.runner import Flight
-from air_sitl.state import SimSample
+from air_sitl.state import GeoPoint, SimSample
 
 HELP = (
     "fly a QGC mission plan (.plan or QGC WPL) to its end and record trajectory, summary and frames"
@@ -57,6 +60,41 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_vehicle_arguments(parser, default_speed=0.0)
 
 
+def plan_off_map(mission: Mission, home: GeoPoint, map_source: MapSource) -> str:
+    """Why the plan leaves ``map_source`` (home or a positioned item outside it), or ''."""
+    width, height = map_source.georef.width_px, map_source.georef.height_px
+    if width is None or height is None:
+        return ""  # an unbounded (procedural) map covers any flight
+    points = [("home", home.lat_deg, home.lon_deg)]
+    points += [
+        (f"item {i}", item.lat_deg, item.lon_deg)
+        for i, item in enumerate(mission.items)
+        if item.command in POSITIONED_COMMANDS | {MavCmd.NAV_TAKEOFF, MavCmd.NAV_LAND}
+        and not (item.lat_deg == 0.0 and item.lon_deg == 0.0)
+    ]
+    for where, lat, lon in points:
+        x, y = map_source.latlon_to_map_px(lat, lon)
+        if not (0.0 <= x < width and 0.0 <= y < height):
+            return (
+                f"{where} ({lat:.6f}, {lon:.6f}) is outside the map {map_source.name} "
+                f"({width}x{height} px; at pixel {x:.0f}, {y:.0f}), expected a map covering "
+                "the whole flight"
+            )
+    return ""
+
+
+def require_on_map(setup: FlightSetup) -> None:
+    """MapError when the plan leaves the flight's map (the same check with or without camera)."""
+    map_source = open_setup_map(setup)
+    try:
+        problem = plan_off_map(setup.mission, setup.home, map_source)
+    finally:
+        close_map(map_source)
+    if problem:
+        msg = f"{setup.mission.source}: {problem}"
+        raise MapError(msg)
+
+
 def run(args: argparse.Namespace) -> int:
     """Fly the plan; exit 0 when the mission completed, 1 when it did not."""
     setup = load_setup(
@@ -67,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
         render_workers=int_in_range("--render-workers", args.render_workers, 0, 64),
     )
     require_startable(setup.mission)  # PX4 would refuse to start it: so do we
+    require_on_map(setup)  # with or without the camera: the flight is on its map
     out = Path(args.out) if args.out else Path("out") / (setup.mission.name or "flight")
     request = RecordingRequest(
         setup=setup, out=out, resume=bool(args.resume), bus=bus_sinks_from_args(args)
