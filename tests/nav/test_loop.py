@@ -10,6 +10,7 @@ import math
 import statistics
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -72,7 +73,9 @@ class TruthFeed:
         ]
 
 
-def run(flight: Flight, seconds: float, every_s: float = 1.0) -> tuple[dict, list[SimSample]]:
+def run(
+    flight: Flight, seconds: float, every_s: float = 1.0
+) -> tuple[dict[str, Any], list[SimSample]]:
     trace: list[SimSample] = []
     period = round(every_s * NS)
 
@@ -147,7 +150,7 @@ def test_position_failsafe_rtl_by_parameter() -> None:
 def test_an_aid_during_denial_holds_the_estimate() -> None:
     flight = flight_of(deny_after_s=30.0)
     flight.nav.aid_feed = TruthFeed(flight, start_s=25.0)  # type: ignore[union-attr]
-    summary, trace = run(flight, 200.0)
+    summary, _trace = run(flight, 200.0)
     nav = summary["nav"]
     assert nav["aid"]["fused"] > 1000 and nav["aid"]["rejected"] < 20, nav["aid"]
     assert nav["horizontal_error_denied_m"]["p95"] < 5.0, nav
@@ -205,7 +208,7 @@ def test_bad_aid_inputs_are_rejected_counted_and_harmless() -> None:
         return out
 
     feed.take = take  # type: ignore[method-assign]
-    summary, trace = run(flight, 90.0)
+    summary, _trace = run(flight, 90.0)
     aid = summary["nav"]["aid"]
     reasons = aid["rejected_by_reason"]
     for reason in ("invalid", "future", "stale", "frame", "gate"):

@@ -69,7 +69,7 @@ def aided_flight(tmp_path: Path, plan: Path, name: str, shift_east_m: float = 0.
             capture_output=True, text=True, timeout=300, check=False,
         )  # fmt: skip
     finally:
-        est_code, stdout, stderr = stop(est)
+        est_code, _stdout, stderr = stop(est)
     assert run.returncode == 0, run.stderr
     assert est_code == 0, stderr
     return out
@@ -80,9 +80,7 @@ def plan(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_short_plan(tmp_path_factory.mktemp("plan") / "UB-200.plan", HOME, leg_m=600.0)
 
 
-def test_a_lockstep_aid_over_zenoh_is_fused_and_deterministic(
-    plan: Path, tmp_path: Path
-) -> None:
+def test_a_lockstep_aid_over_zenoh_is_fused_and_deterministic(plan: Path, tmp_path: Path) -> None:
     a = aided_flight(tmp_path, plan, "a")
     b = aided_flight(tmp_path, plan, "b")
     summary = json.loads((a / "summary.json").read_text())
