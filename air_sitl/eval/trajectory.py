@@ -9,6 +9,7 @@ never the nearest sample).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,6 +87,14 @@ def _nearest_frame(t_frames: I64, t: I64) -> I64:
     return np.where(before, j - 1, j).astype(np.int64)
 
 
+def _refuse_first(est: Estimate, bad: Bools, what: Callable[[int], str]) -> None:
+    """EvalError naming the line of the first row where ``bad`` holds, and ``what(row)``."""
+    if bad.any():
+        k = int(np.argmax(bad))
+        msg = f"{est.where}: line {est.line[k]}: {what(k)}"
+        raise EvalError(msg)
+
+
 def match(truth: Truth, est: Estimate) -> Matched:
     """Each estimate row with the truth at its exposure time (see the module docstring).
 
@@ -95,23 +104,20 @@ def match(truth: Truth, est: Estimate) -> Matched:
     n = truth.frames
     by_frame: Bools = np.asarray(est.frame != NO_FRAME)
     bad = by_frame & ((est.frame < 0) | (est.frame >= n))
-    if bad.any():
-        k = int(np.argmax(bad))
-        msg = (
-            f"{est.where}: line {est.line[k]}: frame {est.frame[k]} is outside the archive "
-            f"(frames 0..{n - 1})"
-        )
-        raise EvalError(msg)
+    _refuse_first(
+        est, bad, lambda k: f"frame {est.frame[k]} is outside the archive (frames 0..{n - 1})"
+    )
     by_time: Bools = ~by_frame
     t_frames = truth.t_ns
+    window = f"{t_frames[0] / 1e9:.3f}..{t_frames[-1] / 1e9:.3f} s"
     outside = by_time & ((est.t_ns < t_frames[0]) | (est.t_ns > t_frames[-1]))
-    if outside.any():
-        k = int(np.argmax(outside))
-        msg = (
-            f"{est.where}: line {est.line[k]}: time {est.t_ns[k] / 1e9:.9f} s is outside the "
-            f"archive's capture window ({t_frames[0] / 1e9:.3f}..{t_frames[-1] / 1e9:.3f} s)"
-        )
-        raise EvalError(msg)
+    _refuse_first(
+        est,
+        outside,
+        lambda k: (
+            f"time {est.t_ns[k] / 1e9:.9f} s is outside the archive's capture window ({window})"
+        ),
+    )
     frame = est.frame.copy()
     if by_time.any():
         frame[by_time] = _nearest_frame(t_frames, est.t_ns[by_time])
