@@ -27,21 +27,8 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
 def test_render_writes_a_jpeg(tmp_path: Path) -> None:
     out = tmp_path / "f.jpg"
     r = _cli(
-        "render",
-        "--map",
-        "forest",
-        "--lat",
-        str(HOME.lat_deg),
-        "--lon",
-        str(HOME.lon_deg),
-        "--alt-agl",
-        "300",
-        "--roll",
-        "10",
-        "--yaw",
-        "45",
-        "--out",
-        str(out),
+        *f"render --map forest --lat {HOME.lat_deg} --lon {HOME.lon_deg} --alt-agl 300".split(),
+        *("--roll", "10", "--yaw", "45", "--out", str(out)),
     )
     assert r.returncode == 0, r.stderr
     img = cv2.imdecode(np.frombuffer(out.read_bytes(), np.uint8), cv2.IMREAD_COLOR)
@@ -53,136 +40,47 @@ def test_render_writes_a_jpeg(tmp_path: Path) -> None:
 def test_map_make_then_render_it(tmp_path: Path) -> None:
     tif = tmp_path / "m.tif"
     r = _cli(
-        "map",
-        "make",
-        "forest",
-        "--out",
-        str(tif),
-        "--size-m",
-        "900",
-        "700",
-        "--origin",
-        f"{HOME.lat_deg},{HOME.lon_deg}",
-        "--date",
-        "2",
+        *("map", "make", "forest", "--out", str(tif), "--size-m", "900", "700"),
+        *("--origin", f"{HOME.lat_deg},{HOME.lon_deg}", "--date", "2"),
     )
     assert r.returncode == 0, r.stderr
     out = tmp_path / "f.png"
     r = _cli(
-        "render",
-        "--map",
-        str(tif),
-        "--lat",
-        str(HOME.lat_deg),
-        "--lon",
-        str(HOME.lon_deg),
-        "--alt-agl",
-        "200",
-        "--out",
-        str(out),
-        "--noise-sigma",
-        "0",
+        *("render", "--map", str(tif), "--lat", str(HOME.lat_deg), "--lon", str(HOME.lon_deg)),
+        *("--alt-agl", "200", "--out", str(out), "--noise-sigma", "0"),
     )
     assert r.returncode == 0, r.stderr
     assert cv2.imread(str(out)).shape == (480, 640, 3)
 
 
+# Every case renders at one place into {d}/x.jpg unless it says otherwise ({d}: tmp_path).
+_RENDER = "render --lat 54.6 --lon 25.2 --alt-agl 300 --out {d}/x.jpg "
+
+
 @pytest.mark.parametrize(
-    "args",
+    "command",
     [
-        [
-            "render",
-            "--map",
-            "suburb",
-            "--lat",
-            "54.6",
-            "--lon",
-            "25.2",
-            "--alt-agl",
-            "300",
-            "--out",
-            "{d}/x.jpg",
-        ],
-        [
-            "render",
-            "--map",
-            "{d}/missing.tif",
-            "--lat",
-            "54.6",
-            "--lon",
-            "25.2",
-            "--alt-agl",
-            "300",
-            "--out",
-            "{d}/x.jpg",
-        ],
-        [
-            "render",
-            "--map",
-            "{d}/notes.tif",
-            "--lat",
-            "54.6",
-            "--lon",
-            "25.2",
-            "--alt-agl",
-            "300",
-            "--out",
-            "{d}/x.jpg",
-        ],
-        ["render", "--lat", "54.6", "--lon", "25.2", "--alt-agl", "-3", "--out", "{d}/x.jpg"],
-        ["render", "--lat", "54.6", "--lon", "25.2", "--alt-agl", "300", "--out", "{d}/x.gif"],
-        [
-            "render",
-            "--lat",
-            "54.6",
-            "--lon",
-            "25.2",
-            "--alt-agl",
-            "300",
-            "--out",
-            "{d}/x.jpg",
-            "--map-date",
-            "7",
-        ],
-        [
-            "render",
-            "--lat",
-            "54.6",
-            "--lon",
-            "25.2",
-            "--alt-agl",
-            "300",
-            "--out",
-            "{d}/x.jpg",
-            "--camera-mount-rpy-deg",
-            "1,2",
-        ],
-        [
-            "render",
-            "--lat",
-            "54.6",
-            "--lon",
-            "25.2",
-            "--alt-agl",
-            "300",
-            "--out",
-            "{d}/x.jpg",
-            "--jpeg-quality",
-            "0",
-        ],
-        ["map", "make", "urban", "--out", "{d}/nofolder/m.tif"],
-        ["map", "make", "urban", "--out", "{d}/m.png"],
-        ["map", "make", "urban", "--out", "{d}/m.tif", "--origin", "north"],
-        ["map", "make", "urban", "--out", "{d}/m.tif", "--size-m", "0", "100"],
-        ["map", "make", "urban", "--out", "{d}/m.tif", "--gsd-m", "-1"],
-        ["map", "make", "urban", "--out", "{d}/m.tif", "--date", "winter"],
+        _RENDER + "--map suburb",
+        _RENDER + "--map {d}/missing.tif",
+        _RENDER + "--map {d}/notes.tif",
+        "render --lat 54.6 --lon 25.2 --alt-agl -3 --out {d}/x.jpg",
+        "render --lat 54.6 --lon 25.2 --alt-agl 300 --out {d}/x.gif",
+        _RENDER + "--map-date 7",
+        _RENDER + "--camera-mount-rpy-deg 1,2",
+        _RENDER + "--jpeg-quality 0",
+        "map make urban --out {d}/nofolder/m.tif",
+        "map make urban --out {d}/m.png",
+        "map make urban --out {d}/m.tif --origin north",
+        "map make urban --out {d}/m.tif --size-m 0 100",
+        "map make urban --out {d}/m.tif --gsd-m -1",
+        "map make urban --out {d}/m.tif --date winter",
     ],
 )
 def test_bad_input_exits_2_with_one_line(
-    tmp_path: Path, args: list[str], capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, command: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     (tmp_path / "notes.tif").write_text("not a tiff")
-    code = main([a.format(d=tmp_path) for a in args])
+    code = main(command.format(d=tmp_path).split())
     err = capsys.readouterr().err
     assert code == 2, err
     lines = err.strip().splitlines()
