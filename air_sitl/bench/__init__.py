@@ -14,6 +14,7 @@ and the box plots (:mod:`~air_sitl.bench.plots`). Every measurement is saved as 
 from __future__ import annotations
 
 import contextlib
+import json
 import multiprocessing
 import queue
 import subprocess
@@ -26,6 +27,7 @@ from air_sitl.bench.config import BenchConfig, ExternalLocalizer, parse_localize
 from air_sitl.bench.leaderboard import Leaderboard, build
 from air_sitl.bench.results import EntryResult, load_errors
 from air_sitl.bench.tasks import MethodsTask, run_external, run_methods
+from air_sitl.dataset.air_schema import MANIFEST_JSON
 from air_sitl.errors import DatasetError
 from air_sitl.files import write_bytes_atomic, write_json_atomic
 
@@ -98,6 +100,24 @@ def make_archives(config: BenchConfig) -> None:
         raise DatasetError(msg)
 
 
+def check_archive_inputs(config: BenchConfig, scenario: str) -> None:
+    """A reused archive must be the flight this bench asks for: its manifest says so."""
+    archive = config.archives / scenario
+    manifest = json.loads((archive / MANIFEST_JSON).read_text(encoding="utf-8"))
+    found = {
+        "map date": manifest.get("map", {}).get("date_index"),
+        "seed": manifest.get("flight", {}).get("seed"),
+    }
+    wanted = {"map date": config.flight_date, "seed": config.seed}
+    for key, value in wanted.items():
+        if found[key] != value:
+            msg = (
+                f"{archive / MANIFEST_JSON}: {key} {found[key]!r}, but this bench flies "
+                f"{key} {value}: choose another --out (archives are reused, never overwritten)"
+            )
+            raise DatasetError(msg)
+
+
 def _init_worker(progress: Any) -> None:
     global _QUEUE  # noqa: PLW0603  (one queue per worker process)
     _QUEUE = progress
@@ -139,10 +159,12 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
     stream = stream if stream is not None else sys.stderr
     config.out.mkdir(parents=True, exist_ok=True)
     make_archives(config)
-    missing = [s for s in config.scenarios if not (config.archives / s / "manifest.json").is_file()]
+    missing = [s for s in config.scenarios if not (config.archives / s / MANIFEST_JSON).is_file()]
     if missing:
         msg = f"{config.archives}: no complete archive for {', '.join(missing)}"
         raise DatasetError(msg)
+    for scenario in config.scenarios:
+        check_archive_inputs(config, scenario)
     total = len(config.scenarios) * len(config.entries)
     progress = Progress(total, stream, config.quiet)
     tasks = [

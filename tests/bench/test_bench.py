@@ -108,3 +108,15 @@ def test_bad_options_get_one_line_and_exit_2(
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and expected in err, err
     assert not (tmp_path / "b").exists()  # nothing flown or written
+
+
+def test_archives_of_another_flight_are_refused_not_reused(
+    bench: Path, missions: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = [
+        "bench", "--scenarios", "UT-200", "--methods", "deadreckon", "--missions",
+        str(missions), "--out", str(bench), "--seed", "1", "--quiet",
+    ]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "manifest.json: seed 0, but this bench flies seed 1" in err, err
