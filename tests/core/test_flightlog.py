@@ -5,32 +5,24 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from vehicle_states import airborne_state
+
 from air_sitl.clock import PHYSICS_STEP_NS
 from air_sitl.flightlog import TRAJECTORY_COLUMNS, FlightStats, TrajectoryWriter
-from air_sitl.frames import euler2quat
 from air_sitl.sinks import FlightResult
-from air_sitl.state import AutopilotStatus, FlightMode, ImuSample, SimSample, VehicleState
+from air_sitl.state import AutopilotStatus, FlightMode, ImuSample, SimSample
 
 
 def _sample(k: int, *, capturing: bool, xt: float = 1.0, settled: bool = True) -> SimSample:
     t = k * PHYSICS_STEP_NS
     north = 15.0 * t / 1e9
-    state = VehicleState(
-        sim_time_ns=t,
+    state = airborne_state(
+        t,
         lat_deg=50.0,
         lon_deg=8.0,
         alt_amsl_m=300.0,
         alt_agl_m=200.0,
         pos_ned_m=(north, 0.0, -200.0),
-        q_body_to_ned_wxyz=euler2quat(0.0, 0.0, 0.0),
-        roll_rad=0.0,
-        pitch_rad=0.0,
-        yaw_rad=0.0,
-        vel_ned_m_s=(15.0, 0.0, 0.0),
-        rate_frd_rad_s=(0.0, 0.0, 0.0),
-        specific_force_frd_m_s2=(0.0, 0.0, -9.81),
-        airspeed_m_s=15.0,
-        on_ground=False,
     )
     status = AutopilotStatus(
         mode=FlightMode.MISSION,

@@ -5,8 +5,10 @@ from __future__ import annotations
 import math
 import statistics
 
+from vehicle_states import airborne_state
+
 from air_sitl.clock import PHYSICS_STEP_NS
-from air_sitl.frames import euler2quat, quat2euler
+from air_sitl.frames import quat2euler
 from air_sitl.sensors import SensorNoise, SensorSuite
 from air_sitl.state import GeoPoint, VehicleState
 
@@ -14,22 +16,16 @@ HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
 
 
 def _state(t_ns: int) -> VehicleState:
-    return VehicleState(
-        sim_time_ns=t_ns,
+    return airborne_state(
+        t_ns,
         lat_deg=HOME.lat_deg,
         lon_deg=HOME.lon_deg,
         alt_amsl_m=HOME.alt_amsl_m + 200.0,
         alt_agl_m=200.0,
         pos_ned_m=(0.0, 0.0, -200.0),
-        q_body_to_ned_wxyz=euler2quat(0.1, 0.05, 1.0),
-        roll_rad=0.1,
-        pitch_rad=0.05,
-        yaw_rad=1.0,
+        rpy_rad=(0.1, 0.05, 1.0),
         vel_ned_m_s=(10.0, 5.0, 0.0),
         rate_frd_rad_s=(0.01, 0.02, 0.03),
-        specific_force_frd_m_s2=(0.0, 0.0, -9.81),
-        airspeed_m_s=15.0,
-        on_ground=False,
     )
 
 

@@ -11,6 +11,7 @@ from collections.abc import Iterator
 
 import cv2
 import numpy as np
+from vehicle_states import airborne_state
 
 from air_sitl.clock import CAMERA_PERIOD_NS, PHYSICS_STEP_NS
 from air_sitl.frames import euler2quat, ned2geodetic
@@ -23,7 +24,6 @@ from air_sitl.state import (
     GpsFix,
     ImuSample,
     SimSample,
-    VehicleState,
 )
 
 HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
@@ -38,24 +38,19 @@ def sample_at(t_ns: int, frames: int) -> SimSample:
     roll = math.radians(10.0) * math.sin(0.3 * s)
     pitch = math.radians(2.0)
     yaw = math.radians(80.0) + 0.01 * s
-    q = euler2quat(roll, pitch, yaw)
     lat, lon, alt = ned2geodetic(north, east, down, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m)
-    state = VehicleState(
-        sim_time_ns=t_ns,
+    state = airborne_state(
+        t_ns,
         lat_deg=lat,
         lon_deg=lon,
         alt_amsl_m=alt,
         alt_agl_m=alt - HOME.alt_amsl_m,
         pos_ned_m=(north, east, down),
-        q_body_to_ned_wxyz=q,
-        roll_rad=roll,
-        pitch_rad=pitch,
-        yaw_rad=yaw,
+        rpy_rad=(roll, pitch, yaw),
         vel_ned_m_s=(0.5, 15.0, -0.1),
         rate_frd_rad_s=(0.003 * math.cos(0.3 * s), 0.0, 0.01),
         specific_force_frd_m_s2=(0.1, 0.0, -9.81),
         airspeed_m_s=15.2,
-        on_ground=False,
     )
     end = CAPTURE_START_NS + frames * CAMERA_PERIOD_NS
     capturing = CAPTURE_START_NS <= t_ns < end
