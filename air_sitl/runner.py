@@ -23,7 +23,7 @@ from air_sitl.fdm.jsbsim_model import JSBSimModel
 from air_sitl.flightlog import FlightStats
 from air_sitl.frames import geodetic2ned
 from air_sitl.mission.items import MavCmd, Mission
-from air_sitl.nav.onboard import OnboardNav, truth_nav_summary
+from air_sitl.nav.onboard import OnboardNav, denied_s, truth_nav_summary
 from air_sitl.nav.params import NavParams
 from air_sitl.options import DEFAULT_AIRCRAFT, FlightOptions
 from air_sitl.sensors import SensorNoise, SensorSuite
@@ -141,6 +141,11 @@ class Flight:
             summary = self.stats.summary(wall)
             if self.nav is not None:
                 summary.update(self.nav.summary())
+                nav_block = summary["nav"]  # denied by the windows, or GNSS lost otherwise
+                nav_block["gnss_denied_s"] = max(
+                    nav_block["gnss_denied_s"],
+                    denied_s(self.sensors.gps_denied_ns, self.stats.sim_time_ns),
+                )
             else:
                 summary.update(truth_nav_summary(summary, self.sensors, self.stats.sim_time_ns))
             result = FlightResult(

@@ -8,7 +8,8 @@ returns the estimate as the VehicleState the autopilot and the telemetry read.
 
 Until the filter has its first position (the GNSS fix of t=0 reaches the fusion horizon about
 0.6 s later), the autopilot reads the initial truth: a real aircraft waits on the ground for
-its EKF; here an air start begins at once. Afterwards only the estimate is read.
+its EKF; here an air start begins at once. Afterwards only the estimate is read (and after
+2 s in any case, when neither GNSS nor an aid ever gave a position).
 
 It also keeps what summary.json's ``nav`` block reports (horizontal error against truth, with
 and without GNSS, the aid's counters), the truth cross-track (guidance's cross-track on the
@@ -56,6 +57,7 @@ NS_PER_S = 1_000_000_000
 SCORE_PERIOD_NS = 20_000_000  # errors against truth at 50 Hz (the trajectory's rate)
 REJECT_TEXT_PERIOD_NS = 5 * NS_PER_S  # STATUSTEXT on aid rejections at most this often
 FAILSAFE_CLEAR_RATIO = 0.8  # the failsafe clears below 80 % of COM_POS_FS_EPH
+INIT_TIMEOUT_NS = 2 * NS_PER_S  # without any position source the estimate is used after this
 
 
 class AidFeed(Protocol):
@@ -142,6 +144,7 @@ class OnboardNav:
         self.gnss_enabled: Callable[[], bool] = lambda: True
         self.last_status: NavStatus | None = None  # at 5 Hz, for ESTIMATOR_STATUS
         self._ticks = 0
+        self._t0: int | None = None
 
     # ------------------------------------------------------------------ the loop
 
@@ -167,7 +170,13 @@ class OnboardNav:
                 self.fuse_aid(m, t)
         nav.predict(imu)
         if not self.valid:
-            self.valid = nav.aligned and nav.pos_valid and nav.vel_valid
+            if self._t0 is None:
+                self._t0 = t
+            # A position, or (no GNSS nor aid from the start) 2 s: then it flies on what the
+            # filter has, never on the truth for long.
+            self.valid = nav.aligned and (
+                (nav.pos_valid and nav.vel_valid) or t - self._t0 >= INIT_TIMEOUT_NS
+            )
             if not self.valid:
                 return truth
         out_t = nav.output.t_ns
@@ -358,20 +367,23 @@ class OnboardNav:
         }
 
 
+def denied_s(windows: tuple[tuple[int, int], ...], sim_time_ns: int) -> float:
+    """Seconds of the flight inside GNSS denial windows."""
+    ns = sum(max(0, min(b, sim_time_ns) - a) for a, b in windows if a < sim_time_ns)
+    return round(ns / NS_PER_S, 3)
+
+
 def truth_nav_summary(
     summary: dict[str, Any], sensors: SensorSuite, sim_time_ns: int
 ) -> dict[str, Any]:
     """The same keys for ``--nav truth``: the autopilot flew on the truth (no error)."""
-    denied_ns = sum(
-        max(0, min(b, sim_time_ns) - a) for a, b in sensors.gps_denied_ns if a < sim_time_ns
-    )
     return {
         "truth_max_cross_track_m": summary.get("max_cross_track_m"),
         "nav": {
             "source": "truth",
             "horizontal_error_m": None,
             "horizontal_error_denied_m": None,
-            "gnss_denied_s": round(denied_ns / NS_PER_S, 3),
+            "gnss_denied_s": denied_s(sensors.gps_denied_ns, sim_time_ns),
             "aid": None,
         },
     }
