@@ -32,13 +32,18 @@ def missions(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def bench(missions: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("bench") / "b"
-    example = f"{sys.executable} {ROOT / 'bridges' / 'example_localizer.py'} --name ex --quiet"
+    assert _run_bench(missions, out, "--name ex --quiet") == 0
+    return out
+
+
+def _run_bench(missions: Path, out: Path, example_options: str) -> int:
+    """``air-sitl bench`` of UT-200: two methods and the example localizer as ``ex``."""
+    example = f"{sys.executable} {ROOT / 'bridges' / 'example_localizer.py'} {example_options}"
     argv = [
         "bench", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
         str(missions), "--localizer", f"ex={example}", "--out", str(out), "--quiet",
     ]  # fmt: skip
-    assert main(argv) == 0
-    return out
+    return main(argv)
 
 
 def test_leaderboard_has_every_method_and_the_external_localizer(bench: Path) -> None:
@@ -65,12 +70,7 @@ def test_leaderboard_has_every_method_and_the_external_localizer(bench: Path) ->
 def test_a_second_run_resumes_without_measuring_again(bench: Path, missions: Path) -> None:
     reports = sorted((bench / "reports").rglob("*.json"))
     before = {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in reports}
-    example = f"{sys.executable} {ROOT / 'bridges' / 'example_localizer.py'} --name ex"
-    argv = [
-        "bench", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
-        str(missions), "--localizer", f"ex={example}", "--out", str(bench), "--quiet",
-    ]  # fmt: skip
-    assert main(argv) == 0
+    assert _run_bench(missions, bench, "--name ex") == 0
     assert {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in reports} == before
 
 
