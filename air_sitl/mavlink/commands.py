@@ -45,13 +45,14 @@ class Commands:
             "SET_MODE": self.on_set_mode,
             "MISSION_SET_CURRENT": self.on_mission_set_current,
             "TIMESYNC": self.on_timesync,
+            "REQUEST_DATA_STREAM": self.on_request_data_stream,
         }
 
     def ack(self, ch: Channel, msg: Message, result: int, text: str = "") -> None:
         """COMMAND_ACK to the sender of ``msg`` (and ``text`` as STATUSTEXT to everyone)."""
         if text:
             sev = SEVERITY_INFO if result == mav.MAV_RESULT_ACCEPTED else SEVERITY_CRITICAL
-            self._ep.broadcast(tm.statustext(sev, text))
+            self._ep.broadcast_text(sev, text)
         ack = mav.MAVLink_command_ack_message(
             msg.command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()
         )
@@ -126,11 +127,7 @@ class Commands:
         elif cmd == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             simple(lambda ap: ap.return_to_launch(), "RTL denied: ")
         elif cmd == mav.MAV_CMD_DO_SET_MISSION_CURRENT:
-            seq = whole(p1)
-            if not 0 <= seq < len(ep.protocol.items(MissionType.MISSION)):
-                self.ack(ch, msg, mav.MAV_RESULT_DENIED, f"No mission item {seq}")
-                return
-            simple(lambda ap: ap.set_current(seq))
+            self._set_mission_current(ch, msg, whole(p1), p2 >= 0.5, simple)
         elif cmd == mav.MAV_CMD_DO_REPOSITION:
             alt = p7 + home_alt if relative_alt and math.isfinite(p7) else p7
             here = ep.latest
@@ -149,7 +146,7 @@ class Commands:
         elif cmd == mav.MAV_CMD_REQUEST_MESSAGE:
             self.request_message(ch, msg, whole(p1))
         elif cmd == mav.MAV_CMD_SET_MESSAGE_INTERVAL:
-            ok = ep.streams.set_interval(whole(p1), p2)
+            ok = ep.streams.set_interval(ch.link, whole(p1), p2)
             self.ack(ch, msg, mav.MAV_RESULT_ACCEPTED if ok else mav.MAV_RESULT_UNSUPPORTED)
         elif cmd == mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES:
             self.request_message(ch, msg, mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
@@ -159,6 +156,34 @@ class Commands:
             self.request_message(ch, msg, mav.MAVLINK_MSG_ID_CAMERA_INFORMATION)
         else:
             self.ack(ch, msg, mav.MAV_RESULT_UNSUPPORTED)
+
+    def _set_mission_current(
+        self,
+        ch: Channel,
+        msg: Message,
+        seq: int,
+        reset: bool,
+        simple: Callable[[Callable[[AutopilotLike], Any]], None],
+    ) -> None:
+        """MAV_CMD_DO_SET_MISSION_CURRENT: ``seq`` -1 keeps the current item (common.xml); with
+        param2 = 1 ("reset mission") the item is entered again and a completed mission resumes.
+        """
+        ep = self._ep
+        total = len(ep.protocol.items(MissionType.MISSION))
+        if seq == -1:
+            if not reset:
+                self.ack(ch, msg, mav.MAV_RESULT_ACCEPTED)
+                return
+            if total == 0:
+                self.ack(ch, msg, mav.MAV_RESULT_DENIED, "No mission")
+                return
+            latest = ep.latest
+            here = latest.autopilot.current_seq if latest is not None else 0
+            seq = min(max(here, 0), total - 1)
+        if not 0 <= seq < total:
+            self.ack(ch, msg, mav.MAV_RESULT_DENIED, f"No mission item {seq}")
+            return
+        simple(lambda ap: ap.set_current(seq))
 
     def request_message(self, ch: Channel, msg: Message, msg_id: int) -> None:
         """ACK then send the message asked for, or UNSUPPORTED."""
@@ -190,6 +215,12 @@ class Commands:
             ap.set_current(seq)
 
         ep.on_sim(job)
+
+    def on_request_data_stream(self, ch: Channel, msg: Message) -> None:
+        """REQUEST_DATA_STREAM (MAVProxy sends it): stream groups on this link, as ArduPilot."""
+        self._ep.streams.request_data_stream(
+            ch.link, msg.req_stream_id, msg.req_message_rate, bool(msg.start_stop)
+        )
 
     def on_timesync(self, ch: Channel, msg: Message) -> None:
         """TIMESYNC request: answer with our clock."""

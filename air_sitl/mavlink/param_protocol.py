@@ -8,7 +8,6 @@ import struct
 from typing import TYPE_CHECKING, Any
 
 from air_sitl.errors import AirSitlError
-from air_sitl.mavlink import telemetry as tm
 from air_sitl.mavlink.codec import Message, mav
 from air_sitl.mavlink.interfaces import SEVERITY_WARNING, AutopilotLike, Handler
 from air_sitl.mavlink.links import Channel
@@ -94,7 +93,7 @@ class ParamProtocol:
             return
         name = param_name(msg.param_id)
         if name not in params.names():
-            ep.reply(ch, tm.statustext(SEVERITY_WARNING, f"Unknown parameter {name}"))
+            ep.reply_text(ch, SEVERITY_WARNING, f"Unknown parameter {name}")
             return
         value = float(msg.param_value)
         if msg.param_type in (mav.MAV_PARAM_TYPE_INT32, mav.MAV_PARAM_TYPE_UINT32):
@@ -109,7 +108,7 @@ class ParamProtocol:
 
             def answer() -> None:
                 if problem:
-                    ep.broadcast(tm.statustext(SEVERITY_WARNING, problem))
+                    ep.broadcast_text(SEVERITY_WARNING, problem)
                 reply = self.value_message(name)
                 if reply is not None:
                     ep.broadcast(reply)

@@ -1,4 +1,9 @@
-"""Telemetry streams: what is due at each simulated instant, and the message builders.
+"""Telemetry streams: what is due at each simulated instant on each link, and the builders.
+
+Rates are in simulated time at every speed (as PX4 in lockstep SITL): 50 Hz is 50 messages per
+simulated second. A token bucket per stream and link holds each stream to at most
+``max(wall_cap_hz, its rate)`` per wall second, so a fast simulation cannot flood a ground
+station; the default cap (200 Hz) never bites up to 50 Hz at --speed 4 or slower.
 
 :class:`TelemetrySink` runs on the simulation thread (it is the endpoint's Sink): it sees every
 SimSample, decides which streams are due in simulated time and posts them to the I/O thread.
@@ -8,6 +13,7 @@ a table another module extends with :meth:`Streams.add` (a new message and its d
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -17,6 +23,7 @@ from air_sitl.mavlink import telemetry as tm
 from air_sitl.mavlink.codec import Message, mav
 from air_sitl.mavlink.fence import Zone, breach
 from air_sitl.mavlink.interfaces import NS_PER_S, SEVERITY_CRITICAL, SEVERITY_INFO
+from air_sitl.mavlink.links import Link
 from air_sitl.mission.items import MissionType
 from air_sitl.sinks import FlightResult
 from air_sitl.state import CameraFrame, FlightMode, GpsFix, SimSample
@@ -26,29 +33,70 @@ if TYPE_CHECKING:
 
 EVENT_PERIOD_NS = 50_000_000  # autopilot events polled every 50 ms of simulated time
 FENCE_PERIOD_NS = 200_000_000
+WALL_BURST_S = 0.1  # the wall-clock cap lets a stream catch up this much after a stall
 
 # Builds one message from the latest sample and GNSS fix; None when it cannot be built yet.
 Builder = Callable[[SimSample | None, GpsFix | None], Message | None]
 
 
+# REQUEST_DATA_STREAM groups (ArduPilot's, as MAVProxy expects them) of the streams we have.
+DATA_STREAM_GROUPS: dict[int, tuple[int, ...]] = {
+    mav.MAV_DATA_STREAM_EXTENDED_STATUS: (
+        mav.MAVLINK_MSG_ID_SYS_STATUS,
+        mav.MAVLINK_MSG_ID_GPS_RAW_INT,
+        mav.MAVLINK_MSG_ID_MISSION_CURRENT,
+        mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE,
+    ),
+    mav.MAV_DATA_STREAM_POSITION: (
+        mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+        mav.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+    ),
+    mav.MAV_DATA_STREAM_EXTRA1: (
+        mav.MAVLINK_MSG_ID_ATTITUDE,
+        mav.MAVLINK_MSG_ID_ATTITUDE_QUATERNION,
+    ),
+    mav.MAV_DATA_STREAM_EXTRA2: (mav.MAVLINK_MSG_ID_VFR_HUD,),
+    mav.MAV_DATA_STREAM_EXTRA3: (mav.MAVLINK_MSG_ID_BATTERY_STATUS,),
+}
+Intervals = dict[int, int]  # message id -> interval in simulated ns (0: off)
+
+
 class Streams:
-    """Stream intervals and message builders (used on the I/O thread; read by the sink)."""
+    """Stream intervals of each link, and the message builders (I/O thread; the sink reads).
+
+    Like PX4, each link (a MAVLink instance) has its own stream rates: SET_MESSAGE_INTERVAL and
+    REQUEST_DATA_STREAM change those of the link they arrive on only.
+    """
 
     def __init__(self, ep: VehicleEndpoint) -> None:
         self._ep = ep
         self.builders: dict[int, Builder] = {}
         self.default_rates_hz: dict[int, float] = {}
-        self.intervals_ns: dict[int, int] = {}
+        self._defaults: Intervals = {}
+        self._overrides: dict[Link, Intervals] = {}
+        self.tables: dict[Link, Intervals] = {}  # replaced whole: the sink sees old or new
         self._add_standard()
 
     def add(self, msg_id: int, builder: Builder, rate_hz: float = 0.0) -> None:
         """Serve ``msg_id``: on request (MAV_CMD_REQUEST_MESSAGE), and streamed at ``rate_hz``
-        (0: only on request or after SET_MESSAGE_INTERVAL)."""
+        of simulated time on every link (0: only on request or after SET_MESSAGE_INTERVAL)."""
         self.builders[msg_id] = builder
         self.default_rates_hz[msg_id] = rate_hz
-        intervals = dict(self.intervals_ns)
-        intervals[msg_id] = round(NS_PER_S / rate_hz) if rate_hz > 0 else 0
-        self.intervals_ns = intervals  # one reference swap: the sink sees old or new
+        self._defaults[msg_id] = _interval_ns(rate_hz)
+        self._publish()
+
+    def links_opened(self, links: Sequence[Link]) -> None:
+        """Give each link its table (default rates)."""
+        for link in links:
+            self._overrides.setdefault(link, {})
+        self._publish()
+
+    def _publish(self) -> None:
+        self.tables = {link: {**self._defaults, **own} for link, own in self._overrides.items()}
+
+    def intervals_ns(self, link: Link) -> Intervals:
+        """The stream intervals of ``link``."""
+        return self.tables.get(link, self._defaults)
 
     def _add_standard(self) -> None:
         ep = self._ep
@@ -95,22 +143,36 @@ class Streams:
         builder = self.builders.get(msg_id)
         return builder(sample, fix) if builder is not None else None
 
-    def set_interval(self, msg_id: int, interval_us: float) -> bool:
-        """SET_MESSAGE_INTERVAL semantics (0 default, -1 off); False for an unknown stream."""
+    def _set(self, link: Link, changes: Intervals) -> None:
+        own = dict(self._overrides.get(link, {}))
+        own.update(changes)
+        self._overrides[link] = own
+        self._publish()
+
+    def set_interval(self, link: Link, msg_id: int, interval_us: float) -> bool:
+        """SET_MESSAGE_INTERVAL on ``link`` (0 default, -1 off); False for an unknown stream."""
         if msg_id not in self.default_rates_hz or not math.isfinite(interval_us):
             return False
         if msg_id == mav.MAVLINK_MSG_ID_HEARTBEAT:
             return False  # the heartbeat is paced in wall time, not a stream
-        intervals = dict(self.intervals_ns)
         if interval_us == 0:
-            rate = self.default_rates_hz[msg_id]
-            intervals[msg_id] = round(NS_PER_S / rate) if rate > 0 else 0
+            interval = self._defaults[msg_id]
         elif interval_us < 0:
-            intervals[msg_id] = 0
+            interval = 0
         else:
-            intervals[msg_id] = max(round(interval_us * 1000), 1_000_000)  # at most 1 kHz
-        self.intervals_ns = intervals  # one reference swap: the sink sees old or new
+            interval = max(round(interval_us * 1000), 1_000_000)  # at most 1 kHz
+        self._set(link, {msg_id: interval})
         return True
+
+    def request_data_stream(self, link: Link, stream_id: int, rate_hz: int, start: bool) -> None:
+        """REQUEST_DATA_STREAM on ``link`` as ArduPilot: a group's messages at ``rate_hz``,
+        stopped by ``start`` 0 or a rate of 0; MAV_DATA_STREAM_ALL sets every group."""
+        if stream_id == mav.MAV_DATA_STREAM_ALL:
+            ids = [i for group in DATA_STREAM_GROUPS.values() for i in group]
+        else:
+            ids = list(DATA_STREAM_GROUPS.get(stream_id, ()))
+        interval = _interval_ns(float(rate_hz)) if start else 0
+        self._set(link, {i: interval for i in ids if i in self.builders})
 
     def send(self, ids: Sequence[int], sample: SimSample | None, fix: GpsFix | None) -> None:
         """Build and broadcast the messages ``ids`` from ``sample``."""
@@ -119,14 +181,27 @@ class Streams:
             if msg is not None:
                 self._ep.broadcast(msg)
 
+    def send_on(
+        self, link: Link, ids: Sequence[int], sample: SimSample, fix: GpsFix | None
+    ) -> None:
+        """Build the messages ``ids`` and send them to every peer of ``link``."""
+        for msg_id in ids:
+            msg = self.build(msg_id, sample, fix)
+            if msg is not None:
+                link.send(link.encoder.encode(msg))  # type: ignore[attr-defined]
+
+
+def _interval_ns(rate_hz: float) -> int:
+    return round(NS_PER_S / rate_hz) if rate_hz > 0 and math.isfinite(rate_hz) else 0
+
 
 class TelemetrySink:
     """The endpoint's Sink: sees every SimSample on the simulation thread, never blocks."""
 
     def __init__(self, endpoint: VehicleEndpoint) -> None:
         self._ep = endpoint
-        self._next_due: dict[int, int] = {}
-        self._last_wall: dict[int, float] = {}
+        self._next_due: dict[tuple[int, int], int] = {}
+        self._tokens: dict[tuple[int, int], tuple[float, float]] = {}
         self._next_any_due_ns = 0
         self._next_event_ns = 0
         self._next_fence_ns = 0
@@ -139,7 +214,7 @@ class TelemetrySink:
         self.last_fix: GpsFix | None = None
 
     def on_sample(self, sample: SimSample) -> None:
-        """Queue what is due: events at once, streams by simulated time with a wall cap."""
+        """Queue what is due: events at once, streams by simulated time (capped in wall time)."""
         ep = self._ep
         ep.latest = sample
         if sample.gps is not None:
@@ -180,29 +255,39 @@ class TelemetrySink:
             self._ep.text(SEVERITY_INFO, text)
 
     def _streams(self, sample: SimSample, t: int) -> None:
-        intervals = self._ep.streams.intervals_ns
+        ep = self._ep
         now = time.monotonic()
-        due: list[int] = []
+        cap = ep.options.wall_cap_hz
         next_any = t + NS_PER_S
-        for msg_id, interval in intervals.items():
-            if interval <= 0:
-                continue
-            when = self._next_due.get(msg_id, 0)
-            if t >= when:
-                rate_hz = NS_PER_S / interval
-                if now - self._last_wall.get(msg_id, -1e9) >= 1.0 / max(
-                    self._ep.options.wall_cap_hz, rate_hz
-                ):
-                    due.append(msg_id)
-                    self._last_wall[msg_id] = now
-                when = when + interval if t - when < interval else t + interval
-                self._next_due[msg_id] = when
-            next_any = min(next_any, when)
+        for link, intervals in ep.streams.tables.items():
+            due: list[int] = []
+            for msg_id, interval in intervals.items():
+                if interval <= 0:
+                    continue
+                key = (id(link), msg_id)
+                when = self._next_due.get(key, 0)
+                if t >= when:
+                    if cap is None or self._wall_token(key, now, max(cap, NS_PER_S / interval)):
+                        due.append(msg_id)
+                    # On time: keep the phase, so the rate holds whatever the physics step.
+                    when = when + interval if t - when < interval else t + interval
+                    self._next_due[key] = when
+                next_any = min(next_any, when)
+            if due:
+                fix = self.last_fix
+                ep.to_io(functools.partial(ep.streams.send_on, link, due, sample, fix))
         self._next_any_due_ns = next_any
-        if due:
-            fix = self.last_fix
-            ep = self._ep
-            ep.to_io(lambda: ep.streams.send(due, sample, fix))
+
+    def _wall_token(self, key: tuple[int, int], now: float, rate_hz: float) -> bool:
+        """Token bucket in wall time: at most ``rate_hz`` on average, jitter tolerated."""
+        burst = max(2.0, rate_hz * WALL_BURST_S)
+        tokens, last = self._tokens.get(key, (burst, now))
+        tokens = min(burst, tokens + (now - last) * rate_hz)
+        if tokens >= 1.0:
+            self._tokens[key] = (tokens - 1.0, now)
+            return True
+        self._tokens[key] = (tokens, now)
+        return False
 
     def _check_fence(self, sample: SimSample) -> None:
         st, ap = sample.state, sample.autopilot

@@ -281,6 +281,26 @@ def camera_information(sim_time_ns: int) -> Message:
     )  # fmt: skip
 
 
-def statustext(severity: int, text: str) -> Message:
-    """STATUSTEXT (truncated to the 50 characters of one chunk)."""
-    return mav.MAVLink_statustext_message(severity, text.encode("utf-8")[:50], 0, 0)
+STATUSTEXT_CHUNK = 50  # characters (bytes) of text in one STATUSTEXT
+
+
+def statustext(severity: int, text: str, text_id: int = 0) -> list[Message]:
+    """STATUSTEXT of ``text``: one message when it fits in 50 bytes, else MAVLink 2 chunks.
+
+    Chunks share a non-zero ``id`` (``text_id``) and count ``chunk_seq`` from 0; a receiver
+    knows the last chunk by the NUL in its text, so a text of an exact multiple of 50 bytes
+    ends with an empty chunk (common.xml, STATUSTEXT).
+    """
+    data = text.encode("utf-8")
+    if len(data) <= STATUSTEXT_CHUNK:
+        return [mav.MAVLink_statustext_message(severity, data, 0, 0)]
+    if not 0 < text_id <= 0xFFFF:
+        msg = f"STATUSTEXT of {len(data)} bytes needs chunks with an id in 1..65535, got {text_id}"
+        raise ValueError(msg)
+    chunks = [data[i : i + STATUSTEXT_CHUNK] for i in range(0, len(data), STATUSTEXT_CHUNK)]
+    if len(chunks[-1]) == STATUSTEXT_CHUNK:
+        chunks.append(b"")
+    return [
+        mav.MAVLink_statustext_message(severity, chunk, text_id, seq & 0xFF)
+        for seq, chunk in enumerate(chunks)
+    ]

@@ -3,8 +3,8 @@
 Threads: the simulation thread calls :class:`TelemetrySink` (a Sink) at every physics step and
 runs the jobs this module posts (autopilot commands, parameter sets); one I/O thread owns the
 sockets, the mission protocol and all encoding. They talk through queues only: the simulation
-never waits for a socket. Stream rates are kept in simulated time and capped in wall time;
-the heartbeat is sent every wall-clock second whatever the simulation speed.
+never waits for a socket. Stream rates are per link, in simulated time, capped in wall time
+(:mod:`streams`); the heartbeat is sent every wall-clock second whatever the simulation speed.
 
 Incoming messages are dispatched by type name through :attr:`VehicleEndpoint.handlers`; a new
 part registers its messages with :meth:`VehicleEndpoint.register` (see :mod:`commands`,
@@ -67,7 +67,7 @@ __all__ = [
 ]
 
 HEARTBEAT_PERIOD_S = 1.0  # wall clock
-WALL_CAP_HZ = 50.0  # no stream goes faster than max(this, its own rate) in wall time
+WALL_CAP_HZ = 200.0  # no stream goes faster than max(this, its own rate) in wall time
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -77,7 +77,7 @@ class EndpointOptions:
     system_id: int = 1
     component_id: int = mav.MAV_COMP_ID_AUTOPILOT1
     signing_key: bytes | None = None
-    wall_cap_hz: float = WALL_CAP_HZ
+    wall_cap_hz: float | None = WALL_CAP_HZ  # None: rates in simulated time, uncapped
 
 
 class VehicleEndpoint:
@@ -121,6 +121,7 @@ class VehicleEndpoint:
         self._next_heartbeat = 0.0
         self.heartbeats_sent = 0
         self.io_errors = 0
+        self._text_id = 0
         self.commands = Commands(self)
         self.param_protocol = ParamProtocol(self)
         self.handlers: dict[str, Handler] = {}
@@ -145,6 +146,7 @@ class VehicleEndpoint:
         for spec in self._specs:
             encoder = Encoder(self.options.system_id, self.options.component_id, self._signing)
             self._links.append(open_link(spec, encoder, self._receive, self._new_parser))
+        self.streams.links_opened(self._links)
         return [link.local_address for link in self._links]
 
     def start(self) -> None:
@@ -191,7 +193,22 @@ class VehicleEndpoint:
 
     def text(self, severity: int, text: str) -> None:
         """Queue a STATUSTEXT to every client."""
-        self.to_io(lambda: self.broadcast(tm.statustext(severity, text)))
+        self.to_io(lambda: self.broadcast_text(severity, text))
+
+    def statustext(self, severity: int, text: str) -> list[Message]:
+        """The STATUSTEXT message(s) of ``text``, chunked with a fresh id when it is long."""
+        self._text_id = self._text_id % 0xFFFF + 1
+        return tm.statustext(severity, text, self._text_id)
+
+    def broadcast_text(self, severity: int, text: str) -> None:
+        """STATUSTEXT to every client now (I/O thread)."""
+        for msg in self.statustext(severity, text):
+            self.broadcast(msg)
+
+    def reply_text(self, ch: Channel, severity: int, text: str) -> None:
+        """STATUSTEXT to one peer now (I/O thread)."""
+        for msg in self.statustext(severity, text):
+            self.reply(ch, msg)
 
     def post(self, job: Job) -> None:
         """Run ``job`` on the simulation thread as it is (it handles its own errors)."""
@@ -318,7 +335,7 @@ class VehicleEndpoint:
         elif isinstance(out, Replaced):
             self._on_replaced(out.mission_type, out.items)
         elif out.result != MissionResult.OPERATION_CANCELLED or "timed out" in out.reason:
-            self.broadcast(tm.statustext(SEVERITY_WARNING, f"Upload refused: {out.reason}"))
+            self.broadcast_text(SEVERITY_WARNING, f"Upload refused: {out.reason}")
 
     def _on_replaced(self, mission_type: MissionType, items: tuple[MissionItem, ...]) -> None:
         if mission_type is MissionType.FENCE:

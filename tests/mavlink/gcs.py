@@ -1,4 +1,10 @@
-"""A plain pymavlink ground station and a ``serve`` process launcher for the endpoint tests."""
+"""A plain pymavlink ground station and a ``serve`` process launcher for the endpoint tests.
+
+Tests synchronise on events (a message, an ACK, a mission state) or on simulated time (the
+``time_boot_ms`` of received telemetry), never on wall-clock sleeps. ``SAFETY_S`` bounds every
+wait only so that a broken vehicle fails the test instead of hanging it: a busy machine must
+never reach it.
+"""
 
 from __future__ import annotations
 
@@ -22,6 +28,8 @@ from air_sitl.mavlink.messages import MissionItemMessage
 from air_sitl.mission.items import MissionItem
 
 PX4_MISSION = (1, 4, 4)  # DO_SET_MODE params QGroundControl sends for "Mission"
+# Wall seconds: only a vehicle that stopped answering gets there.
+SAFETY_S = float(os.environ.get("AIR_SITL_TEST_SAFETY_S", "300"))
 
 
 def free_udp_port() -> int:
@@ -52,7 +60,9 @@ class Served:
 
 
 @contextlib.contextmanager
-def serve(*args: str, timeout_s: float = 30.0, stderr: IO[str] | None = None) -> Iterator[Served]:
+def serve(
+    *args: str, timeout_s: float = SAFETY_S, stderr: IO[str] | None = None
+) -> Iterator[Served]:
     """Start ``air-sitl serve ARGS``, wait for its banner, stop it at the end."""
     cmd = [sys.executable, "-m", "air_sitl", "serve", *args]
     env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -91,25 +101,67 @@ class Gcs:
             url, source_system=system_id, source_component=component_id, dialect="common"
         )
         self.texts: list[str] = []
+        self.statustexts: list[Any] = []  # the messages, with their chunk id and chunk_seq
+        self.sim_ms = 0  # the latest time_boot_ms the vehicle sent
 
     def close(self) -> None:
         """Close the socket."""
         self.conn.close()
 
-    def recv(self, types: Sequence[str], timeout_s: float = 3.0) -> Any:
+    def recv(self, types: Sequence[str], timeout_s: float = SAFETY_S) -> Any:
         """The next message of one of ``types`` (STATUSTEXTs seen on the way are kept)."""
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             msg = self.conn.recv_match(blocking=True, timeout=0.05)
             if msg is None:
                 continue
-            if msg.get_type() == "STATUSTEXT":
-                self.texts.append(msg.text)
+            self._note(msg)
             if msg.get_type() in types:
                 return msg
         return None
 
-    def connect(self, timeout_s: float = 10.0) -> Any:
+    def _note(self, msg: Any) -> None:
+        kind = msg.get_type()
+        if kind == "STATUSTEXT":
+            self.texts.append(msg.text)
+            self.statustexts.append(msg)
+        if msg.get_srcSystem() == 1 and hasattr(msg, "time_boot_ms"):
+            self.sim_ms = max(self.sim_ms, int(msg.time_boot_ms))
+
+    def drain(self) -> None:
+        """Read what already waits in the socket (a backlog from before a change)."""
+        while (msg := self.conn.recv_match(blocking=False)) is not None:
+            self._note(msg)
+
+    def collect(self, types: Sequence[str], sim_s: float) -> list[Any]:
+        """Every message of ``types`` while ``sim_s`` simulated seconds pass (by time_boot_ms)."""
+        out: list[Any] = []
+        deadline = time.monotonic() + SAFETY_S
+        start = -1
+        while time.monotonic() < deadline:
+            msg = self.conn.recv_match(blocking=True, timeout=0.05)
+            if msg is None:
+                continue
+            self._note(msg)
+            if start < 0 and self.sim_ms > 0:
+                start = self.sim_ms
+            if msg.get_type() in types:
+                out.append(msg)
+            if start >= 0 and self.sim_ms >= start + sim_s * 1000:
+                return out
+        raise AssertionError(f"simulated time stopped at {self.sim_ms} ms")
+
+    def wait_text(self, fragment: str) -> str:
+        """The first STATUSTEXT (seen before or now) containing ``fragment``."""
+        deadline = time.monotonic() + SAFETY_S
+        while time.monotonic() < deadline:
+            for text in self.texts:
+                if fragment in text:
+                    return text
+            self.recv(["STATUSTEXT"], 1.0)
+        raise AssertionError(f"no STATUSTEXT with {fragment!r}: {self.texts}")
+
+    def connect(self, timeout_s: float = SAFETY_S) -> Any:
         """Send heartbeats until the vehicle's heartbeat arrives."""
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
@@ -117,7 +169,7 @@ class Gcs:
                 mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0
             )
             hb = self.recv(["HEARTBEAT"], timeout_s=0.5)
-            if hb is not None and hb.get_srcSystem() == 1:
+            if hb is not None and hb.get_srcSystem() == 1 and hb.get_srcComponent() == 1:
                 self.conn.target_system, self.conn.target_component = 1, 1
                 return hb
         raise AssertionError("no heartbeat from the vehicle")
@@ -126,7 +178,7 @@ class Gcs:
         """Upload by MISSION_COUNT / MISSION_REQUEST_INT / MISSION_ITEM_INT; the ACK result."""
         self.conn.mav.mission_count_send(1, 1, len(items), mission_type)
         while True:
-            msg = self.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], 5.0)
+            msg = self.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"])
             assert msg is not None, "upload: the vehicle stopped answering"
             if msg.get_type() == "MISSION_ACK":
                 return int(msg.type)
@@ -138,15 +190,18 @@ class Gcs:
     def download(self, mission_type: int = 0) -> list[MissionItem]:
         """Download with MISSION_REQUEST_LIST / MISSION_REQUEST_INT."""
         self.conn.mav.mission_request_list_send(1, 1, mission_type)
-        count = self.recv(["MISSION_COUNT"], 5.0)
+        count = self.recv(["MISSION_COUNT"])
         assert count is not None, "download: no MISSION_COUNT"
         items: list[MissionItem] = []
         for seq in range(count.count):
-            for _attempt in range(5):
+            deadline = time.monotonic() + SAFETY_S
+            msg = None
+            while msg is None and time.monotonic() < deadline:
+                # Re-asked as a GCS does (the protocol's retry), should a datagram be lost.
                 self.conn.mav.mission_request_int_send(1, 1, seq, mission_type)
-                msg = self.recv(["MISSION_ITEM_INT"], 1.0)
-                if msg is not None and msg.seq == seq:
-                    break
+                msg = self.recv(["MISSION_ITEM_INT"], 2.0)
+                if msg is not None and msg.seq != seq:
+                    msg = None
             assert msg is not None, f"download: no item {seq}"
             converted = to_mission_message(msg)
             assert isinstance(converted, MissionItemMessage)
@@ -154,15 +209,19 @@ class Gcs:
         self.conn.mav.mission_ack_send(1, 1, 0, mission_type)
         return items
 
-    def command(self, command: int, *params: float, timeout_s: float = 5.0) -> int:
-        """COMMAND_LONG, the result of its COMMAND_ACK."""
+    def command(self, command: int, *params: float, timeout_s: float = SAFETY_S) -> int:
+        """COMMAND_LONG, the result of its COMMAND_ACK (re-sent, as GCSs do, while unanswered)."""
         p = [*params, *([0.0] * (7 - len(params)))]
-        self.conn.mav.command_long_send(1, 1, command, 0, *p)
         deadline = time.monotonic() + timeout_s
+        confirmation = 0
         while time.monotonic() < deadline:
-            ack = self.recv(["COMMAND_ACK"], timeout_s=deadline - time.monotonic())
-            if ack is not None and ack.command == command:
-                return int(ack.result)
+            self.conn.mav.command_long_send(1, 1, command, confirmation, *p)
+            confirmation = min(confirmation + 1, 255)
+            resend = time.monotonic() + 2.0
+            while time.monotonic() < min(resend, deadline):
+                ack = self.recv(["COMMAND_ACK"], timeout_s=resend - time.monotonic())
+                if ack is not None and ack.command == command:
+                    return int(ack.result)
         raise AssertionError(f"no COMMAND_ACK for command {command}")
 
     def params(self) -> dict[str, float]:
@@ -171,7 +230,7 @@ class Gcs:
         values: dict[str, float] = {}
         total = math.inf
         while len(values) < total:
-            msg = self.recv(["PARAM_VALUE"], 3.0)
+            msg = self.recv(["PARAM_VALUE"])
             assert msg is not None, f"param list stopped after {len(values)}"
             total = msg.param_count
             values[msg.param_id] = msg.param_value
@@ -182,7 +241,7 @@ class Gcs:
         self.conn.mav.param_set_send(
             1, 1, name.encode("ascii"), value, mavutil.mavlink.MAV_PARAM_TYPE_REAL32
         )
-        deadline = time.monotonic() + 5.0
+        deadline = time.monotonic() + SAFETY_S
         while time.monotonic() < deadline:
             msg = self.recv(["PARAM_VALUE"], 1.0)
             if msg is not None and msg.param_id == name:

@@ -9,7 +9,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 from air_sitl.mavlink.links import parse_link
-from air_sitl.mavlink.vehicle import Job, VehicleEndpoint
+from air_sitl.mavlink.vehicle import EndpointOptions, Job, VehicleEndpoint
 from air_sitl.mission.items import Mission
 from air_sitl.options import FlightOptions
 from air_sitl.runner import Flight, InboxItem, assemble_flight
@@ -42,7 +42,12 @@ class Vehicle:
 
 @contextlib.contextmanager
 def running_vehicle(
-    links: Sequence[str], home: GeoPoint, *, speed: float, mission: Mission | None = None
+    links: Sequence[str],
+    home: GeoPoint,
+    *,
+    speed: float,
+    mission: Mission | None = None,
+    options: EndpointOptions | None = None,
 ) -> Iterator[Vehicle]:
     """Serve a vehicle on ``links`` until the block ends."""
     mission = mission or Mission(items=(), source="test")
@@ -52,7 +57,7 @@ def running_vehicle(
         inbox.put(lambda flight: job(flight.autopilot))
 
     endpoint = VehicleEndpoint(
-        [parse_link(u) for u in links], home=home, mission=mission, post=post
+        [parse_link(u) for u in links], home=home, mission=mission, post=post, options=options
     )
     endpoint.open()
     truth = TruthSink()
