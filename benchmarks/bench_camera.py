@@ -7,7 +7,10 @@ Run: ``python benchmarks/bench_camera.py [--frames N] [--cog /tmp/bench40k.tif]`
    (target <= 2.5); plus the first pass, which also generates the tiles of new ground;
 2. the threaded camera bridge (FrameSource) in frames/s with 1 and 2 workers;
 3. resident memory while flying over a 40,000 x 40,000 pixel COG (built with
-   ``air-sitl map make urban --size-m 24000 24000`` when missing; target < 1 GB).
+   ``air-sitl map make urban --size-m 24000 24000`` when missing; target < 1 GB);
+4. relief (``--dem builtin``): render cost per frame (geometry + pixels + noise) beside the
+   flat render of the same frames, and their ratio (target <= 3), at 200, 300 and 3000 m
+   over ``urban`` and ``forest`` (``--relief-only`` runs just this part).
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
 from air_sitl.frames import ned2geodetic
-from air_sitl.maps.open import open_map
+from air_sitl.maps.open import open_map, open_surface
 from air_sitl.state import GeoPoint, VehicleState, mission_sample
 
 REPEATS = 5
@@ -187,6 +190,54 @@ def big_cog(cog: Path, frames: int) -> None:
     )
 
 
+def relief(frames: int) -> None:
+    """Per-frame render cost with relief (built-in surface) vs flat, same frames, same run."""
+    cv2.setNumThreads(1)
+    print(
+        "4) relief (--dem builtin) vs flat, one core, render + noise, tiles warm "
+        "(median CPU ms per frame, best of 3 passes)"
+    )
+    print(f"{'map':>7} {'alt m':>6} {'flat':>7} {'relief':>7} {'ratio':>6} {'marched rays':>13}")
+    for kind in ("urban", "forest"):
+        m = open_map(kind, HOME, seed=0)
+        flat = Renderer(m, CameraModel(), seed=0)
+        rel = Renderer(m, CameraModel(), seed=0, surface=open_surface("builtin", m))
+        for alt in (200.0, 300.0, 3000.0):
+            states = path_states(alt, frames)
+            for s in states[:: max(1, frames // 10)]:  # generate the tiles, untimed
+                rel.render(s)
+            best: list[float] = []
+            for renderer in (flat, rel):
+                passes = []
+                for _ in range(3):
+                    times = []
+                    for i, s in enumerate(states):
+                        t0 = time.thread_time()
+                        renderer.render(s, noise_index=i)
+                        times.append(time.thread_time() - t0)
+                    passes.append(float(np.median(times)) * 1e3)
+                best.append(min(passes))
+            rays = _marched_rays(rel, states[len(states) // 2])
+            print(
+                f"{kind:>7} {alt:6.0f} {best[0]:7.2f} {best[1]:7.2f} {best[1] / best[0]:6.2f}"
+                f" {rays:13.0f}"
+            )
+
+
+def _marched_rays(renderer: Renderer, state: VehicleState) -> float:
+    """Rays marched for one frame (coarse grid and edge refinement)."""
+    from air_sitl.camera import relief as relief_mod
+
+    g = renderer.geometry(state)
+    r, jac, cx, cy = renderer._relief_setup(state, g.level)
+    window = renderer._relief_window(state, g, r, jac, cx, cy)
+    cam = renderer.camera
+    _maps, stats = relief_mod.ground_maps(
+        window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px
+    )
+    return stats["rays"] + stats["fixed_rays"]
+
+
 def main() -> None:
     """Parse options and run the three measurements."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -194,13 +245,18 @@ def main() -> None:
     parser.add_argument("--cog", type=Path, default=Path("/tmp/bench40k.tif"))
     parser.add_argument("--skip-cog", action="store_true")
     parser.add_argument("--only-cog", action="store_true")
+    parser.add_argument("--relief-only", action="store_true")
     args = parser.parse_args()
     print(f"RSS at start {rss_mb():.0f} MB")
+    if args.relief_only:
+        relief(args.frames)
+        return
     if not args.skip_cog:
         big_cog(args.cog, args.frames)  # first: its RSS is not mixed with the other maps'
     if not args.only_cog:
         one_core(args.frames)
         threaded(args.frames * 2)
+        relief(args.frames)
 
 
 if __name__ == "__main__":

@@ -98,7 +98,8 @@ def effects_from_settings(settings: Mapping[str, Any]) -> CameraEffects:
     known = {f.name for f in fields(CameraEffects)}
     unknown = sorted(set(settings) - known - {"effects"})
     if unknown:
-        msg = f"camera profile: unknown key(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})"
+        names = ", ".join(sorted(known))
+        msg = f"camera profile: unknown key(s) {', '.join(unknown)} (known: {names})"
         raise CameraError(msg)
     values: dict[str, Any] = {}
     for key, value in settings.items():

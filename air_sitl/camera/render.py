@@ -33,6 +33,7 @@ from air_sitl.state import CameraFrame, SimSample, VehicleState
 Mat3 = npt.NDArray[np.float64]
 Mat9 = tuple[float, float, float, float, float, float, float, float, float]
 Image = npt.NDArray[np.uint8]
+Jac4 = tuple[float, float, float, float]
 
 FILL_BGR: tuple[int, int, int] = FILL_BGRX[:3]
 MAX_MOSAIC_HALF_PX = 2048  # limit of the map area read for one frame, per side, at its level
@@ -256,9 +257,8 @@ class Renderer:
         return r, jac, (x0 - off) / s, (y0 - off) / s
 
     def _relief_window(
-        self, state: VehicleState, g: FrameGeometry, r: Mat9, jac: tuple[float, float, float, float],
-        cx: float, cy: float,
-    ) -> relief.HeightWindow:  # fmt: skip
+        self, state: VehicleState, g: FrameGeometry, r: Mat9, jac: Jac4, cx: float, cy: float
+    ) -> relief.HeightWindow:
         """Heights covering every ray's path between the highest and lowest surface seen.
 
         The footprint is taken at the lowest and the highest height of the window read so
@@ -298,7 +298,7 @@ class Renderer:
             if window.h_min >= z_lo and window.h_max <= z_hi:
                 break
             z_lo, z_hi = min(z_lo, window.h_min), max(z_hi, window.h_max)
-        assert window is not None
+        assert isinstance(window, relief.HeightWindow)
         return window
 
     def _relief_centre(self, state: VehicleState, g: FrameGeometry) -> FrameGeometry:
@@ -341,7 +341,7 @@ class Renderer:
         if (mx, my) != (window.x0, window.y0):
             maps = maps + np.array([window.x0 - mx, window.y0 - my], dtype=np.float32)
         warped = cv2.remap(
-            mosaic, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+            mosaic, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,  # type: ignore[call-overload]
             borderValue=FILL_BGRX,
         )  # fmt: skip
         cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR, dst=out)
@@ -372,9 +372,9 @@ class Renderer:
             return np.dstack([mx, my]).astype(np.float32)
         # Relief: march a grid covering the pinhole points, then sample it at them.
         g = self.geometry(state)
-        m = int(math.ceil(max(0.0, -float(pu.min()), -float(pv.min()),
+        m = math.ceil(max(0.0, -float(pu.min()), -float(pv.min()),
                               float(pu.max()) - cam.width_px + 1,
-                              float(pv.max()) - cam.height_px + 1))) + 2  # fmt: skip
+                              float(pv.max()) - cam.height_px + 1)) + 2  # fmt: skip
         r, jac, cx, cy = self._relief_setup(state, level)
         r = (r[0], r[1], r[2] - m * (r[0] + r[1]), r[3], r[4], r[5] - m * (r[3] + r[4]),
              r[6], r[7], r[8] - m * (r[6] + r[7]))  # fmt: skip
@@ -387,7 +387,7 @@ class Renderer:
         maps += np.array([window.x0, window.y0], dtype=np.float32)
         if m == 2 and pu.shape == (cam.height_px, cam.width_px) and _is_grid(pu, pv):
             return np.ascontiguousarray(maps[m:-m, m:-m])
-        out: npt.NDArray[np.float32] = cv2.remap(
+        out: npt.NDArray[np.float32] = cv2.remap(  # type: ignore[assignment]
             maps, (pu + m).astype(np.float32), (pv + m).astype(np.float32), cv2.INTER_LINEAR,
             borderMode=cv2.BORDER_REPLICATE,
         )  # fmt: skip
@@ -452,8 +452,10 @@ class Renderer:
                 m0, m1, m2 = (self._pose_maps(self._at_time(state, t + s * d), g.level, pu, pv)
                               for s in (-1.0, 0.0, 1.0))  # fmt: skip
                 a = rows / np.float32(max(half, 1.0))
-                maps = m1 + a * (m2 - m0) * np.float32(0.5) + a * a * (
-                    (m0 + m2) * np.float32(0.5) - m1
+                maps = (
+                    m1
+                    + a * (m2 - m0) * np.float32(0.5)
+                    + a * a * ((m0 + m2) * np.float32(0.5) - m1)
                 )
             else:
                 maps = self._pose_maps(self._at_time(state, t), g.level, pu, pv)
@@ -481,7 +483,7 @@ class Renderer:
         """Colours (float BGR) at absolute level-pixel coordinates, from one mosaic."""
         ok = maps[:, :, 0] > -1e6
         if not ok.any():
-            return np.zeros(maps.shape[:2] + (3,), dtype=np.float32)
+            return np.zeros((*maps.shape[:2], 3), dtype=np.float32)
         xs, ys = maps[:, :, 0][ok], maps[:, :, 1][ok]
         cx, cy = float(np.median(xs)), float(np.median(ys))
         lim = MAX_MOSAIC_HALF_PX
@@ -491,8 +493,8 @@ class Renderer:
         y1 = math.ceil(min(float(ys.max()), cy + lim)) + 1
         mosaic, mx, my = self._mosaic(level, x0, y0, x1, y1)
         rel = maps - np.array([mx, my], dtype=np.float32)
-        warped = cv2.remap(mosaic, rel, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                           borderValue=FILL_BGRX)  # fmt: skip
+        warped = cv2.remap(mosaic, rel, None, cv2.INTER_LINEAR,  # type: ignore[call-overload]
+                           borderMode=cv2.BORDER_CONSTANT, borderValue=FILL_BGRX)  # fmt: skip
         colour: npt.NDArray[np.float32] = warped[:, :, :3].astype(np.float32)
         return colour
 

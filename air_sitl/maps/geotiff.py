@@ -327,17 +327,16 @@ class GeoTiffDem(TiledSurface):
                     "(heights there extended from its edge)"
                 )
             if (missing & inside).any():
-                self.warn(
-                    f"--dem {self.path}: nodata holes in the DEM, filled from the neighbours"
-                )
+                self.warn(f"--dem {self.path}: nodata holes in the DEM, filled from the neighbours")
             values = _fill_from_neighbours(values, valid)
-        return cv2.remap(
+        heights: npt.NDArray[np.float32] = cv2.remap(  # type: ignore[assignment]
             values,
             (col - x0).astype(np.float32),
             (row - y0).astype(np.float32),
             interpolation=cv2.INTER_LINEAR,
             borderMode=cv2.BORDER_REPLICATE,
         )
+        return heights
 
     def describe(self) -> dict[str, Any]:
         """Provenance: file name, SHA-256, CRS."""
@@ -373,6 +372,6 @@ def _fill_from_neighbours(
     ys, xs = np.nonzero(valid)
     lut = np.zeros(labels.max() + 1, dtype=np.float32)
     lut[labels[ys, xs]] = values[ys, xs]
-    out = lut[labels]
+    out: npt.NDArray[np.float32] = lut[labels]
     out[valid] = values[valid]
     return out

@@ -12,8 +12,8 @@ from pathlib import Path
 
 from air_sitl.errors import MapError
 from air_sitl.maps.base import MapSource
-from air_sitl.maps.surface import SurfaceModel
 from air_sitl.maps.procedural import KINDS, ProceduralMap
+from air_sitl.maps.surface import SurfaceModel
 from air_sitl.state import GeoPoint
 
 _TIFF_SUFFIXES = (".tif", ".tiff", ".gtiff")

@@ -52,7 +52,7 @@ def camera(*names: str, **params: object) -> CameraModel:
 def dots(img: npt.NDArray[np.uint8], border: int = 8) -> npt.NDArray[np.float64]:
     """Dark dots: (x, y, var_x, var_y) from weighted moments in a window around each."""
     dark = np.clip(200.0 - cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float64), 0, None)
-    n, labels, stats, cents = cv2.connectedComponentsWithStats((dark > 60).astype(np.uint8))
+    n, _labels, _stats, cents = cv2.connectedComponentsWithStats((dark > 60).astype(np.uint8))
     out = []
     h, w = dark.shape
     for k in range(1, n):
@@ -90,7 +90,8 @@ def test_undistort_with_camera_yaml_recovers_the_pinhole_frame(marks: ArrayMap) 
     corner = np.array([[[0.0, 0.0]]])
     moved = cv2.undistortPoints(corner, k, d, P=k).reshape(2)
     assert 5.0 < float(np.hypot(*(moved - corner.reshape(2)))) < 20.0
-    a, b = dots(pinhole), dots(cv2.undistort(distorted, k, d, None, p), border=20)
+    undone = np.asarray(cv2.undistort(distorted, k, d, None, p), dtype=np.uint8)
+    a, b = dots(pinhole), dots(undone, border=20)
     off = match(b, a)
     assert len(b) > 200
     assert float(np.abs(off).max()) < 0.5, float(np.abs(off).max())
@@ -125,12 +126,16 @@ def test_motion_blur_grows_with_the_roll_rate_as_computed(marks: ArrayMap) -> No
     sharpness = []
     for rate in (0.0, 20.0, 60.0):
         img = Renderer(marks, cam).render(still(roll_rate_deg_s=rate))
-        sharpness.append(float(cv2.Laplacian(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), cv2.CV_64F).var()))
+        sharpness.append(
+            float(cv2.Laplacian(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), cv2.CV_64F).var())
+        )
         if rate == 60.0:
             blurred = dots(img)
             # A box of length L adds L^2 / 12 to the variance along the motion (image x).
             length = CameraModel().fx_px * math.radians(rate) * exposure
-            grow = float(np.median(blurred[:, 2] - blurred[:, 3]) - np.median(base[:, 2] - base[:, 3]))
+            grow = float(
+                np.median(blurred[:, 2] - blurred[:, 3]) - np.median(base[:, 2] - base[:, 3])
+            )
             assert grow == pytest.approx(length**2 / 12.0, rel=0.3), (grow, length)
     assert sharpness[0] > sharpness[1] > sharpness[2]
     assert sharpness[2] < 0.7 * sharpness[0]

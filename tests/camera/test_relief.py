@@ -20,6 +20,7 @@ from air_sitl.camera.render import Renderer, pose_state
 from air_sitl.maps.array import ArrayMap
 from air_sitl.maps.geotiff import GeoTiffDem
 from air_sitl.maps.open import open_map, open_surface
+from air_sitl.maps.procedural import ProceduralMap
 from air_sitl.maps.procedural.surface import ProceduralSurface
 from air_sitl.state import VehicleState
 
@@ -94,10 +95,10 @@ def test_points_on_a_plateau_image_as_the_pinhole_at_the_reduced_height(
     relief = Renderer(m, camera, surface=GeoTiffDem(dem, m))
     state = _pose(HOME.alt_amsl_m + 250.0, roll_deg=4.0)
     # The pinhole model at the reduced height: the same map as a plane at the plateau's top.
+    pixels = np.ascontiguousarray(m.read_level(0, 0, 0, size, size)[:, :, :3], dtype=np.uint8)
     top = ArrayMap(
-        m._image[:, :, :3].copy(), crs=crs, transform=transform,
-        ground_elevation_m=HOME.alt_amsl_m + PLATEAU_M,
-    )  # fmt: skip
+        pixels, crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m + PLATEAU_M
+    )
     flat = Renderer(top, camera)
     got, want = _dots(relief.render(state)), _dots(flat.render(state))
     assert len(want) > 100
@@ -139,7 +140,7 @@ def test_a_tall_block_leans_outward_and_hides_the_ground_behind_it(tmp_path: Pat
     # The roof's far edge (blue) images 300 / 200 = 1.5 times as far from the nadir as the
     # ground's; the walls between show the colour at the tower's foot (blue too).
     def far_x(img: npt.NDArray[np.uint8]) -> float:
-        ys, xs = np.nonzero(np.abs(img.astype(int) - (255, 0, 0)).sum(axis=2) < 200)
+        _ys, xs = np.nonzero(np.abs(img.astype(int) - (255, 0, 0)).sum(axis=2) < 200)
         return float(xs.max())
 
     cx = camera.cx_px
@@ -194,6 +195,7 @@ def test_builtin_surfaces_have_roofs_crowns_and_terrain_through_home() -> None:
         assert float(h.max() - h.min()) > 8.0  # roofs / canopy over the terrain
     # Roofs where houses are drawn: roof pixels differ in colour from the lawn around them.
     m = open_map("urban", HOME)
+    assert isinstance(m, ProceduralMap)
     s = ProceduralSurface(m)
     hx, hy = m.latlon_to_map_px(HOME.lat_deg, HOME.lon_deg)
     x0, y0 = round(hx) - 256, round(hy) - 256
@@ -213,6 +215,7 @@ def test_render_command_with_builtin_relief_and_an_absolute_altitude(tmp_path: P
     base += ["--ground-alt-m", str(HOME.alt_amsl_m), "--dem", "builtin", "--out", str(out)]
     assert main([*base, "--alt-amsl", str(HOME.alt_amsl_m + 200.0)]) == 0
     img = cv2.imread(str(out))
+    assert img is not None
     assert img.shape == (480, 640, 3) and img.std() > 10
     # One of --alt-agl / --alt-amsl, not both; not under the surface.
     assert main([*base, "--alt-amsl", "400", "--alt-agl", "200"]) == 2  # usage error

@@ -178,7 +178,8 @@ class ForestWorld:
         cover[opened] = 0.0
         # A crown edge is steep: the canopy keeps its height until the cover is mostly gone.
         cover = np.clip((cover - 0.2) * 2.0, 0.0, 1.0)
-        return (canopy * cover).astype(np.float32)
+        heights: npt.NDArray[np.float32] = (canopy * cover).astype(np.float32)
+        return heights
 
     def _dry_near_home(self, x0: int, y0: int, size: int, gsd_m: float) -> npt.NDArray[np.float32]:
         """0 within DRY_RADIUS_M of home, rising to 1 over the next 500 m."""

@@ -69,7 +69,9 @@ class ProceduralSurface(TiledSurface):
         ix, iy = math.floor(x), math.floor(y)
         t = self._terrain(ox + ix, oy + iy, 2, self.procedural.georef.gsd_m).astype(np.float64)
         fx, fy = x - ix, y - iy
-        v = (t[0, 0] * (1 - fx) + t[0, 1] * fx) * (1 - fy) + (t[1, 0] * (1 - fx) + t[1, 1] * fx) * fy
+        v = (t[0, 0] * (1 - fx) + t[0, 1] * fx) * (1 - fy) + (
+            t[1, 0] * (1 - fx) + t[1, 1] * fx
+        ) * fy
         return float(v + self.offset_m)
 
     def describe(self) -> dict[str, Any]:

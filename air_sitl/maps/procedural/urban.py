@@ -289,7 +289,8 @@ class UrbanWorld:
         v_lo, v_hi = min(vs) - margin, max(vs) + margin
         d = date.index
         # Painted from low to high: where objects overlap, the highest shows (a maximum).
-        shapes: list[tuple[float, int, object]] = []
+        circles: list[tuple[float, int, tuple[tuple[int, int], int]]] = []
+        polys: list[tuple[float, int, np.ndarray]] = []
         for ky in range(math.floor(v_lo / PITCH_M) - 1, math.floor(v_hi / PITCH_M) + 2):
             for kx in range(math.floor(u_lo / PITCH_M) - 1, math.floor(u_hi / PITCH_M) + 2):
                 blk = self.block(kx, ky)
@@ -303,11 +304,11 @@ class UrbanWorld:
                         # A crown: a dome of rings, lower toward the rim.
                         for frac, hgt in ((1.0, 0.6), (0.75, 0.85), (0.45, 1.0)):
                             rad = max(1, round(rr * frac / gsd_m * 16))
-                            shapes.append((top * hgt, 0, ((int(p[0]), int(p[1])), rad)))
+                            circles.append((top * hgt, 0, ((int(p[0]), int(p[1])), rad)))
                 for b in blk.buildings:
                     if not b.born <= d < b.gone:
                         continue
-                    shapes.append((b.height_m, 1, cv.px(self.to_world(b.corners))))
+                    polys.append((b.height_m, 1, cv.px(self.to_world(b.corners))))
                     if b.gabled:
                         # The ridge band (the middle half across the ridge), 1.5 m higher.
                         p = b.corners
@@ -315,14 +316,18 @@ class UrbanWorld:
                             band = _ridge_band(p[0], p[3], p[1], p[2])
                         else:  # ridge from mid(p0, p1) to mid(p3, p2)
                             band = _ridge_band(p[0], p[1], p[3], p[2])
-                        shapes.append((b.height_m + 1.5, 1, cv.px(self.to_world(band))))
-        shapes.sort(key=lambda item: (item[0], item[1]))
-        for height, kind, geom in shapes:
+                        polys.append((b.height_m + 1.5, 1, cv.px(self.to_world(band))))
+        # One order for both kinds (by height, crowns before roofs at equal heights).
+        order = sorted(
+            [(h, k, i) for i, (h, k, _c) in enumerate(circles)]
+            + [(h, k, i) for i, (h, k, _p) in enumerate(polys)]
+        )
+        for height, kind, i in order:
             if kind == 0:
-                centre, rad = geom  # type: ignore[misc]
+                centre, rad = circles[i][2]
                 cv2.circle(out, centre, rad, (height,), -1, cv2.LINE_8, 4)
             else:
-                cv2.fillPoly(out, [geom], (height,), cv2.LINE_8, 4)  # type: ignore[list-item]
+                cv2.fillPoly(out, [polys[i][2]], (height,), cv2.LINE_8, 4)
         return out
 
     def _draw_roads(
@@ -381,7 +386,7 @@ class UrbanWorld:
 
 
 def _ridge_band(a0: Point, a1: Point, b0: Point, b1: Point) -> list[Point]:
-    """Quarter to three-quarter band across edges a0-a1 and b0-b1 (the ridge joins their middles)."""
+    """The quarter to three-quarter band across edges a0-a1 and b0-b1 (ridge: their middles)."""
 
     def at(p: Point, q: Point, t: float) -> Point:
         return (p[0] + (q[0] - p[0]) * t, p[1] + (q[1] - p[1]) * t)
