@@ -30,7 +30,7 @@ from air_sitl.bus.session import Bus, Message, open_bus
 from air_sitl.bus.signals import wait_until_signalled
 from air_sitl.errors import AirSitlError, BusError
 from air_sitl.localize.base import GnssFix, LocalizerContext, Observation
-from air_sitl.localize.online import camera_from_info
+from air_sitl.localize.online import camera_from_info, gnss_fix_of
 from air_sitl.localize.vo import VisualOdometry
 from air_sitl.state import GeoPoint, Quat
 
@@ -81,15 +81,9 @@ class Localizer:
             self._lock.notify_all()
 
     def _on_gps(self, message: Message) -> None:
-        m = codec.loads(message.payload, message.key)
-        v = m["vel_ned_m_s"]
-        fix = GnssFix(
-            sim_time_ns=int(m["sim_time_ns"]),
-            lat_deg=float(m["lat_deg"]),
-            lon_deg=float(m["lon_deg"]),
-            alt_amsl_m=float(m["alt_amsl_m"]),
-            vel_ned_m_s=(float(v[0]), float(v[1]), float(v[2])),
-        )
+        fix = gnss_fix_of(message)
+        if fix is None:
+            return  # no 3D fix: keep the last one
         with self._lock:
             self._fix = fix
 

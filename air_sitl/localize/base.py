@@ -20,19 +20,13 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.camera.model import CameraModel
-from air_sitl.state import GeoPoint, Quat, Vec3
+from air_sitl.state import GeoPoint, ImuSample, Quat, Vec3
 
 Image = npt.NDArray[np.uint8]
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class ImuReading:
-    """One raw IMU sample (noise, bias and AHRS drift included)."""
-
-    sim_time_ns: int
-    gyro_frd_rad_s: Vec3
-    accel_frd_m_s2: Vec3  # specific force
-    q_ahrs_body_to_ned_wxyz: Quat  # the attitude the on-board AHRS reports
+# One raw IMU sample (noise, bias and AHRS drift included): the simulator's own type.
+ImuReading = ImuSample
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

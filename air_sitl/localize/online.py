@@ -78,6 +78,22 @@ def camera_from_info(info: codec.CameraInfo) -> CameraModel:
     )
 
 
+def gnss_fix_of(message: Message) -> GnssFix | None:
+    """The 3D fix a ``gps`` message holds, None without one; BusError naming the key when bad."""
+    m = codec.loads(message.payload, message.key)
+    with codec.fields_of(message.key, "fix"):
+        if int(m.get("fix_type", 3)) < 3:
+            return None
+        v = m["vel_ned_m_s"]
+        return GnssFix(
+            sim_time_ns=int(m["sim_time_ns"]),
+            lat_deg=float(m["lat_deg"]),
+            lon_deg=float(m["lon_deg"]),
+            alt_amsl_m=float(m["alt_amsl_m"]),
+            vel_ned_m_s=(float(v[0]), float(v[1]), float(v[2])),
+        )
+
+
 class BusLocalizer:
     """Feeds one method from the bus and publishes its estimates (see the module docstring)."""
 
@@ -160,13 +176,7 @@ class BusLocalizer:
     # -- zenoh threads: decode and queue, nothing else ------------------------------------
 
     def _on_imu(self, message: Message) -> None:
-        s = codec.decode_imu(message.payload)
-        reading = ImuReading(
-            sim_time_ns=s.sim_time_ns,
-            gyro_frd_rad_s=s.gyro_frd_rad_s,
-            accel_frd_m_s2=s.accel_frd_m_s2,
-            q_ahrs_body_to_ned_wxyz=s.q_ahrs_body_to_ned_wxyz,
-        )
+        reading = codec.decode_imu(message.payload)
         with self._cond:
             if not self._imu or self._imu[-1].sim_time_ns < reading.sim_time_ns:
                 self._imu.append(reading)
@@ -174,21 +184,9 @@ class BusLocalizer:
             self._cond.notify_all()
 
     def _on_gps(self, message: Message) -> None:
-        m = codec.loads(message.payload, message.key)
-        try:
-            if int(m.get("fix_type", 3)) < 3:
-                return
-            v = m["vel_ned_m_s"]
-            fix = GnssFix(
-                sim_time_ns=int(m["sim_time_ns"]),
-                lat_deg=float(m["lat_deg"]),
-                lon_deg=float(m["lon_deg"]),
-                alt_amsl_m=float(m["alt_amsl_m"]),
-                vel_ned_m_s=(float(v[0]), float(v[1]), float(v[2])),
-            )
-        except (KeyError, TypeError, ValueError, IndexError) as err:
-            msg = f"{message.key}: bad fix ({err!r})"
-            raise BusError(msg) from None
+        fix = gnss_fix_of(message)
+        if fix is None:
+            return
         with self._cond:
             if not self._fixes or self._fixes[-1].sim_time_ns < fix.sim_time_ns:
                 self._fixes.append(fix)
