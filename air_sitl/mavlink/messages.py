@@ -15,10 +15,14 @@ MISSION_TYPE_ALL = 255  # MAV_MISSION_TYPE_ALL: only valid in MISSION_CLEAR_ALL
 
 @dataclass(frozen=True, slots=True)
 class Peer:
-    """The MAVLink system and component on the other side of a transfer."""
+    """The MAVLink system and component on the other side of a transfer, and the route (link
+    and address) it spoke from: two ground stations with the same ids (QGroundControl and
+    MAVProxy both default to 255/190) on two routes are two peers, as PX4 keeps transfers per
+    link."""
 
     system_id: int
     component_id: int
+    route: int = 0
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

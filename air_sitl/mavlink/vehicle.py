@@ -109,7 +109,7 @@ class VehicleEndpoint:
         self.latest: SimSample | None = None
         self.autopilot: AutopilotLike | None = None
         self.params: ParamsLike | None = None
-        self._routes: dict[Peer, Channel] = {}
+        self._routes: dict[int, Channel] = {}  # Peer.route -> the channel it came from
         self._links: list[Link] = []
         self._queue: queue.SimpleQueue[Callable[[], None]] = queue.SimpleQueue()
         self._wake_r, self._wake_w = socket.socketpair()
@@ -306,13 +306,13 @@ class VehicleEndpoint:
         return ts in (0, self.options.system_id) and tc in (0, self.options.component_id, 190)
 
     def _dispatch(self, ch: Channel, msg: Message) -> None:
-        src = Peer(msg.get_srcSystem(), msg.get_srcComponent())
+        src = Peer(msg.get_srcSystem(), msg.get_srcComponent(), id(ch))
         if (src.system_id, src.component_id) == (
             self.options.system_id,
             self.options.component_id,
         ):
             return  # our own frames echoed back
-        self._routes[src] = ch
+        self._routes[src.route] = ch
         if not self._for_us(msg):
             return
         mission_msg = to_mission_message(msg)
@@ -328,7 +328,7 @@ class VehicleEndpoint:
 
     def _protocol_output(self, out: Send | Replaced | Failed) -> None:
         if isinstance(out, Send):
-            ch = self._routes.get(out.peer)
+            ch = self._routes.get(out.peer.route)
             if ch is not None:
                 msg = from_mission_message(out.message, out.peer.system_id, out.peer.component_id)
                 self.reply(ch, msg)
