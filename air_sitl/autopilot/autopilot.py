@@ -95,8 +95,8 @@ class Autopilot:
         params = ex.params
         self._target = dataclasses.replace(
             nav.target,
-            pitch_max_rad=math.radians(params.get("FW_P_LIM_MAX")),
-            pitch_min_rad=math.radians(params.get("FW_P_LIM_MIN")),
+            pitch_max_rad=math.radians(params.in_range("FW_P_LIM_MAX")),
+            pitch_min_rad=math.radians(params.in_range("FW_P_LIM_MIN")),
         )
         self._status = AutopilotStatus(
             mode=ex.mode,
@@ -260,7 +260,7 @@ def air_start_pose(
         raise PlanError(msg)
     speed = mission.cruise_speed_m_s
     if not (math.isfinite(speed) and speed > 0.0):
-        speed = params.get("FW_AIRSPD_TRIM")
+        speed = params.in_range("FW_AIRSPD_TRIM")
     for item in items[:first]:
         if (
             item.command == MavCmd.DO_CHANGE_SPEED
@@ -272,7 +272,7 @@ def air_start_pose(
     n, e, alt = item_point(items[first], home)
     if math.isnan(n):
         n, e = 0.0, 0.0
-    default_radius = params.get("NAV_LOITER_RAD")
+    default_radius = params.in_range("NAV_LOITER_RAD")
     if items[first].command not in WAYPOINT_COMMANDS:
         # Start on the loiter circle, on the side facing home, flying along it.
         radius, direction = loiter_geometry(items[first], default_radius)

@@ -1,8 +1,10 @@
-"""The autopilot's parameters: a small PX4-named set with types, defaults and limits.
+"""The autopilot's parameters: a PX4-named set with types, defaults and limits.
 
 The autopilot reads them at every guidance update, so a change (for example a PARAM_SET from
 QGroundControl) takes effect in flight. The order of :data:`PARAMS` is the MAVLink
-``param_index`` order and never changes at run time.
+``param_index`` order and never changes at run time. As PX4, a set stores any finite value (a
+ground station warns about values outside the range); whoever uses a value clamps it to the
+range (:meth:`ParamStore.in_range`). Overrides given at start are checked against the range.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
+from air_sitl.autopilot.px4_params import PX4_CONNECT_PARAMS
 from air_sitl.errors import AirSitlError
 
 
@@ -230,6 +233,19 @@ PARAMS: tuple[ParamSpec, ...] = (
     ),
 )
 
+PARAMS = PARAMS + tuple(
+    ParamSpec(
+        name=name,
+        default=float(default),
+        min_value=-(2.0**31) if is_int else -1e9,
+        max_value=2.0**31 - 1 if is_int else 1e9,
+        is_int=is_int,
+        unit=unit,
+        description=description,
+    )
+    for name, default, is_int, unit, description in PX4_CONNECT_PARAMS
+)
+
 _SPECS: dict[str, ParamSpec] = {spec.name: spec for spec in PARAMS}
 
 
@@ -243,6 +259,7 @@ class ParamStore:
         self._values: dict[str, float] = {spec.name: spec.default for spec in PARAMS}
         self.version = 0
         for name, value in (overrides or {}).items():
+            self._check_range(name, value)
             self.set(name, value)
 
     @staticmethod
@@ -279,14 +296,12 @@ class ParamStore:
             raise
 
     def set(self, name: str, value: float) -> float:
-        """Validate and store ``value``; return the stored value (integers are rounded)."""
+        """Store ``value`` as PX4 does, even outside the range; return the stored value
+        (integers are rounded). Raises :class:`ParamError` for an unknown name or NaN/inf."""
         spec = self.spec(name)
         value = float(value)
-        if not math.isfinite(value) or not spec.min_value <= value <= spec.max_value:
-            msg = (
-                f"parameter {name}: value {value} is outside "
-                f"[{spec.min_value:g}, {spec.max_value:g}] {spec.unit}".rstrip()
-            )
+        if not math.isfinite(value):
+            msg = f"parameter {name}: value {value} is not a finite number"
             raise ParamError(msg)
         if spec.is_int:
             value = float(round(value))
@@ -294,6 +309,20 @@ class ParamStore:
             self._values[name] = value
             self.version += 1
         return value
+
+    def _check_range(self, name: str, value: float) -> None:
+        spec = self.spec(name)
+        if not math.isfinite(value) or not spec.min_value <= value <= spec.max_value:
+            msg = (
+                f"parameter {name}: value {value} is outside "
+                f"[{spec.min_value:g}, {spec.max_value:g}] {spec.unit}".rstrip()
+            )
+            raise ParamError(msg)
+
+    def in_range(self, name: str) -> float:
+        """The value of ``name`` clamped to its range: what the controller uses."""
+        spec = self.spec(name)
+        return min(spec.max_value, max(spec.min_value, self._values[name]))
 
     def items(self) -> Iterable[tuple[str, float]]:
         """(name, value) pairs in index order."""
@@ -324,24 +353,24 @@ class GuidanceParams:
     @classmethod
     def from_store(cls, p: ParamStore) -> GuidanceParams:
         """Snapshot of the store."""
-        lo = p.get("FW_AIRSPD_MIN")
+        lo = p.in_range("FW_AIRSPD_MIN")
         return cls(
-            trim_m_s=p.get("FW_AIRSPD_TRIM"),
+            trim_m_s=p.in_range("FW_AIRSPD_TRIM"),
             min_m_s=lo,
-            max_m_s=max(lo, p.get("FW_AIRSPD_MAX")),
-            bank_limit_rad=math.radians(p.get("FW_R_LIM")),
-            l1_period_s=p.get("NAV_L1_PERIOD"),
-            l1_damping=p.get("NAV_L1_DAMPING"),
-            acc_radius_m=p.get("NAV_ACC_RAD"),
-            alt_acc_m=p.get("NAV_FW_ALT_RAD"),
-            loiter_radius_m=p.get("NAV_LOITER_RAD"),
-            climb_max_m_s=p.get("FW_T_CLMB_MAX"),
-            sink_max_m_s=p.get("FW_T_SINK_MAX"),
-            climbout_diff_m=p.get("FW_CLMBOUT_DIFF"),
-            takeoff_alt_m=p.get("MIS_TAKEOFF_ALT"),
-            rtl_alt_m=p.get("RTL_RETURN_ALT"),
-            land_angle_rad=math.radians(p.get("FW_LND_ANG")),
-            land_airspeed_m_s=p.get("FW_LND_AIRSPD"),
+            max_m_s=max(lo, p.in_range("FW_AIRSPD_MAX")),
+            bank_limit_rad=math.radians(p.in_range("FW_R_LIM")),
+            l1_period_s=p.in_range("NAV_L1_PERIOD"),
+            l1_damping=p.in_range("NAV_L1_DAMPING"),
+            acc_radius_m=p.in_range("NAV_ACC_RAD"),
+            alt_acc_m=p.in_range("NAV_FW_ALT_RAD"),
+            loiter_radius_m=p.in_range("NAV_LOITER_RAD"),
+            climb_max_m_s=p.in_range("FW_T_CLMB_MAX"),
+            sink_max_m_s=p.in_range("FW_T_SINK_MAX"),
+            climbout_diff_m=p.in_range("FW_CLMBOUT_DIFF"),
+            takeoff_alt_m=p.in_range("MIS_TAKEOFF_ALT"),
+            rtl_alt_m=p.in_range("RTL_RETURN_ALT"),
+            land_angle_rad=math.radians(p.in_range("FW_LND_ANG")),
+            land_airspeed_m_s=p.in_range("FW_LND_AIRSPD"),
         )
 
     def clamp_speed(self, speed_m_s: float) -> float:

@@ -1,5 +1,10 @@
 """The parameter protocol: PARAM_REQUEST_LIST, PARAM_REQUEST_READ and PARAM_SET answered with
 PARAM_VALUE; integers travel bytewise in the float field (PARAM_ENCODE_BYTEWISE capability).
+
+As PX4 (mavlink_parameters.cpp): a set stores the value as sent, with no range check, and is
+answered with PARAM_VALUE to every client; an unknown name or index gets no PARAM_VALUE but an
+informational STATUSTEXT "[pm] unknown param: NAME" ("[pm] unknown param ID: N"); PX4 sends no
+PARAM_ERROR (a newer message of the development dialect), and neither do we.
 """
 
 from __future__ import annotations
@@ -9,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from air_sitl.errors import AirSitlError
 from air_sitl.mavlink.codec import Message, mav
-from air_sitl.mavlink.interfaces import SEVERITY_WARNING, AutopilotLike, Handler
+from air_sitl.mavlink.interfaces import SEVERITY_INFO, SEVERITY_WARNING, AutopilotLike, Handler
 from air_sitl.mavlink.links import Channel
 
 if TYPE_CHECKING:
@@ -75,11 +80,13 @@ class ParamProtocol:
         names = params.names()
         if msg.param_index >= 0:
             if msg.param_index >= len(names):
+                self._ep.reply_text(ch, SEVERITY_INFO, f"[pm] unknown param ID: {msg.param_index}")
                 return
             name = names[msg.param_index]
         else:
             name = param_name(msg.param_id)
             if name not in names:
+                self._ep.reply_text(ch, SEVERITY_INFO, f"[pm] unknown param: {name}")
                 return
         value = self.value_message(name)
         if value is not None:
@@ -93,7 +100,7 @@ class ParamProtocol:
             return
         name = param_name(msg.param_id)
         if name not in params.names():
-            ep.reply_text(ch, SEVERITY_WARNING, f"Unknown parameter {name}")
+            ep.reply_text(ch, SEVERITY_INFO, f"[pm] unknown param: {name}")
             return
         value = float(msg.param_value)
         if msg.param_type in (mav.MAV_PARAM_TYPE_INT32, mav.MAV_PARAM_TYPE_UINT32):

@@ -44,8 +44,10 @@ def test_set_validates_and_counts_versions() -> None:
     assert p.version == v0 + 1
     p.set("FW_R_LIM", 20.0)  # no change, no new version
     assert p.version == v0 + 1
-    with pytest.raises(ParamError, match=r"FW_R_LIM.*99"):
-        p.set("FW_R_LIM", 99.0)
+    # As PX4: a set outside the range is stored; the controller clamps what it uses.
+    assert p.set("FW_R_LIM", 99.0) == 99.0
+    assert p.in_range("FW_R_LIM") == 65.0
+    p.set("FW_R_LIM", 20.0)
     with pytest.raises(ParamError, match="FW_R_LIM"):
         p.set("FW_R_LIM", math.nan)
     with pytest.raises(ParamError, match="NO_SUCH"):
@@ -73,3 +75,5 @@ def test_changes_take_effect_in_flight() -> None:
     assert abs(ex.update(plane.state()).target.roll_rad) == pytest.approx(math.radians(35.0))
     params.set("FW_R_LIM", 20.0)
     assert abs(ex.update(plane.state()).target.roll_rad) == pytest.approx(math.radians(20.0))
+    params.set("FW_R_LIM", 80.0)  # stored as sent; never flown beyond the range's top, 65
+    assert math.radians(20.0) < abs(ex.update(plane.state()).target.roll_rad) <= math.radians(65)

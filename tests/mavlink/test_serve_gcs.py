@@ -85,7 +85,8 @@ def test_ci_smoke_flight_uc200_records_a_valid_archive(tmp_path: Path) -> None:
         params = gcs.params()
         assert {"FW_AIRSPD_TRIM", "NAV_LOITER_RAD", "RTL_RETURN_ALT", "FW_R_LIM"} <= set(params)
         assert gcs.set_param("NAV_LOITER_RAD", 90.0) == pytest.approx(90.0)
-        assert gcs.set_param("FW_R_LIM", 500.0) == pytest.approx(params["FW_R_LIM"])  # refused
+        assert gcs.set_param("FW_R_LIM", 80.0) == pytest.approx(80.0)  # stored, as PX4
+        assert gcs.set_param("FW_R_LIM", 35.0) == pytest.approx(35.0)
         assert gcs.params()["NAV_LOITER_RAD"] == pytest.approx(90.0)
 
         # Mission, fence and rally: upload, download, compare.
