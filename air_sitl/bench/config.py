@@ -12,18 +12,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from air_sitl.errors import OptionError
+from air_sitl.localize.external import ExternalLocalizer
 
 FLIGHT_DATE = 1  # the flight imagery's map date (the issue's default)
 REFERENCE_DATE = 0  # what map-matching methods match against
+__all__ = [
+    "FLIGHT_DATE",
+    "REFERENCE_DATE",
+    "BenchConfig",
+    "ExternalLocalizer",
+    "parse_localizer",
+    "parse_methods",
+]
 _NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class ExternalLocalizer:
-    """A localizer program run on the bus in lockstep: ``NAME=COMMAND``."""
-
-    name: str
-    argv: tuple[str, ...]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -8,27 +8,28 @@ free loopback port, keeps its ``estimates/<name>.csv`` and scores it.
 
 from __future__ import annotations
 
-import os
 import shutil
-import signal
-import socket
-import subprocess
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from air_sitl.bench.config import BenchConfig, ExternalLocalizer
+from air_sitl.bench.config import BenchConfig
 from air_sitl.bench.results import EntryResult, archive_id, load, save
-from air_sitl.dataset.air_schema import ESTIMATES_DIR, TRAJECTORY_CSV
-from air_sitl.dataset.manifest import refresh_manifest, sha256_bytes
 from air_sitl.errors import AirSitlError
 from air_sitl.eval import score_sources
-from air_sitl.files import write_bytes_atomic
 from air_sitl.localize.archive import run_archive
+from air_sitl.localize.external import (
+    ExternalLocalizer,
+    adopt_estimates,
+    fly_in_lockstep,
+    localizer_argv,
+    same_flight,
+)
 
 Notify = Callable[[EntryResult], None]
-SHUTDOWN_GRACE_S = 10.0  # a localizer gets this long to exit after SIGINT (then SIGKILL)
+
+# localizer_argv: sweep/run.py still imports it from here
+__all__ = ["MethodsTask", "Notify", "localizer_argv", "run_external", "run_methods"]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -88,37 +89,6 @@ def run_methods(task: MethodsTask, notify: Notify | None = None) -> list[EntryRe
     return results
 
 
-def free_port() -> int:
-    """A TCP port on loopback that nothing listens on right now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
-def localizer_argv(localizer: ExternalLocalizer, endpoint: str) -> list[str]:
-    """The user's command with the bus endpoint: ``{endpoint}`` replaced, else appended as
-    ``--zenoh-connect ENDPOINT`` (what air-sitl's own bus programs take)."""
-    if any("{endpoint}" in arg for arg in localizer.argv):
-        return [arg.replace("{endpoint}", endpoint) for arg in localizer.argv]
-    return [*localizer.argv, "--zenoh-connect", endpoint]
-
-
-def _stop(proc: subprocess.Popen[bytes]) -> None:
-    if proc.poll() is not None:
-        return
-    proc.send_signal(signal.SIGINT)
-    try:
-        proc.wait(SHUTDOWN_GRACE_S)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-
-
-def _last_line(text: bytes) -> str:
-    lines = [ln for ln in text.decode("utf-8", "replace").strip().splitlines() if ln.strip()]
-    return lines[-1] if lines else ""
-
-
 def run_external(
     config: BenchConfig, scenario: str, archive: Path, localizer: ExternalLocalizer
 ) -> EntryResult:
@@ -133,62 +103,24 @@ def run_external(
     done = load(config.reports, scenario, localizer.name, ident)
     if done is not None:
         return done
-    port = free_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
     flight_dir = config.out / "external" / localizer.name / scenario
     if flight_dir.exists():
         shutil.rmtree(flight_dir)
     flight_dir.parent.mkdir(parents=True, exist_ok=True)
-    fly_cmd = [
-        sys.executable,
-        "-m",
-        "air_sitl",
-        "fly",
-        str(config.missions / f"{scenario}.plan"),
-        "--out",
-        str(flight_dir),
-        "--map",
-        "urban" if scenario.upper().startswith("U") else "forest",
-        "--map-date",
-        str(config.flight_date),
-        "--seed",
-        str(config.seed),
-        "--zenoh",
-        "--zenoh-listen",
-        endpoint,
-        "--wait-for",
-        localizer.name,
-        "--quiet",
+    fly_args = [
+        *("--map", "urban" if scenario.upper().startswith("U") else "forest"),
+        *("--map-date", str(config.flight_date), "--seed", str(config.seed)),
         *config.extra_dataset_args,
     ]
     log_path = flight_dir.parent / f"{scenario}.log"
-    env = {**os.environ, "AIR_SITL_ZENOH_ENDPOINT": endpoint}
-    fly = subprocess.Popen(fly_cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    with log_path.open("wb") as log:
-        try:
-            user = subprocess.Popen(
-                localizer_argv(localizer, endpoint), stdout=log, stderr=log, env=env
-            )
-        except OSError as err:
-            _stop(fly)
-            msg = f"--localizer {localizer.name}: cannot start {localizer.argv[0]}: {err}"
-            return _failed(config, scenario, localizer.name, ident, msg)
-        try:
-            _, fly_err = fly.communicate()
-        finally:
-            _stop(fly)
-            _stop(user)
-    if fly.returncode != 0:
-        why = _last_line(fly_err) or f"fly exited with {fly.returncode}"
+    plan = config.missions / f"{scenario}.plan"
+    why = fly_in_lockstep(plan, fly_args, flight_dir, localizer, log_path)
+    if why is not None:
         msg = f"{localizer.name} on {scenario}: {why} (localizer log: {log_path})"
         return _failed(config, scenario, localizer.name, ident, msg)
     scored_archive = archive
-    same = (flight_dir / TRAJECTORY_CSV).read_bytes() == (archive / TRAJECTORY_CSV).read_bytes()
-    if same:
-        relative = f"{ESTIMATES_DIR}/{localizer.name}.csv"
-        data = (flight_dir / relative).read_bytes()
-        write_bytes_atomic(archive / relative, data)
-        refresh_manifest(archive, {relative: sha256_bytes(data)})
+    if same_flight(flight_dir, archive):
+        adopt_estimates(flight_dir, archive, localizer.name)
         shutil.rmtree(flight_dir)
     else:
         scored_archive = flight_dir

@@ -11,8 +11,8 @@ import pytest
 import short_plans
 
 from air_sitl.bench.config import parse_localizer
-from air_sitl.bench.tasks import localizer_argv
 from air_sitl.cli import main
+from air_sitl.localize.external import localizer_argv
 from air_sitl.state import GeoPoint
 
 pytestmark = pytest.mark.integration

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -145,16 +146,7 @@ def test_deadreckon_without_airspeed_or_baro_holds_the_fix() -> None:
     dr = DeadReckoning()
     dr.reset(_context())
     obs = [
-        Observation(
-            frame=o.frame,
-            sim_time_ns=o.sim_time_ns,
-            image_bgr=None,
-            imu=o.imu,
-            q_ahrs_body_to_ned_wxyz=o.q_ahrs_body_to_ned_wxyz,
-            airspeed_m_s=None,
-            baro_alt_rel_m=None,
-            gnss=o.gnss,
-        )
+        replace(o, airspeed_m_s=None, baro_alt_rel_m=None)
         for o in _observations(51, math.pi / 2, 15.0, fixes=False)
     ]
     last = [dr.step(o) for o in obs][-1]
