@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import re
 import shlex
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -21,6 +22,7 @@ __all__ = [
     "REFERENCE_DATE",
     "BenchConfig",
     "ExternalLocalizer",
+    "method_problem",
     "parse_localizer",
     "parse_methods",
 ]
@@ -58,6 +60,16 @@ class BenchConfig:
         return (*self.methods, *(loc.name for loc in self.localizers))
 
 
+def method_problem(names: Sequence[str], known: Sequence[str]) -> tuple[int, str] | None:
+    """The index of the first name that is not a known method or repeats one, and why."""
+    for i, name in enumerate(names):
+        if name not in known:
+            return i, f"unknown method {name!r}; known: {', '.join(known)}"
+        if name in names[:i]:
+            return i, f"method {name!r} named twice"
+    return None
+
+
 def parse_methods(text: str, known: tuple[str, ...]) -> tuple[str, ...]:
     """``deadreckon,vo`` (or ``all``) -> the method names, each one registered."""
     names = [n.strip() for n in text.split(",") if n.strip()]
@@ -66,12 +78,9 @@ def parse_methods(text: str, known: tuple[str, ...]) -> tuple[str, ...]:
     if not names:
         msg = f"--methods {text!r}: expected a comma-separated list of {', '.join(known)}"
         raise OptionError(msg)
-    for name in names:
-        if name not in known:
-            msg = f"--methods: unknown method {name!r}; known: {', '.join(known)}"
-            raise OptionError(msg)
-    if len(set(names)) != len(names):
-        msg = f"--methods {text!r}: a method is named twice"
+    problem = method_problem(names, known)
+    if problem is not None:
+        msg = f"--methods {text!r}: {problem[1]}"
         raise OptionError(msg)
     return tuple(names)
 
