@@ -39,6 +39,7 @@ from air_sitl.mavlink.codec import (
 )
 from air_sitl.mavlink.commands import Commands
 from air_sitl.mavlink.fence import zones_of
+from air_sitl.mavlink.ftp import Ftp
 from air_sitl.mavlink.interfaces import (
     SEVERITY_CRITICAL,
     SEVERITY_WARNING,
@@ -125,7 +126,7 @@ class VehicleEndpoint:
         self.commands = Commands(self)
         self.param_protocol = ParamProtocol(self)
         self.handlers: dict[str, Handler] = {}
-        for part in (self.commands, self.param_protocol):
+        for part in (self.commands, self.param_protocol, Ftp(self)):
             for name, handler in part.handlers().items():
                 self.register(name, handler)
 
