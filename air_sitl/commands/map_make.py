@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -56,6 +57,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     make.add_argument(
         "--lossless", action="store_true", help="DEFLATE instead of JPEG q90 compression"
     )
+    fetch = sub.add_parser(
+        "fetch",
+        help="mosaic real imagery or elevation from a STAC API or static catalog, one COG per date",
+        description="find STAC items over a box and dates, read only the needed windows of "
+        "their COG assets, write DIR/<collection>_<YYYY-MM-DD>.tif (elevation: DIR/dem.tif) "
+        "and DIR/fetch.json; again into the same DIR skips what is done. Public collections: "
+        "--stac https://planetarycomputer.microsoft.com/api/stac/v1 with --collection naip, "
+        "3dep-seamless or cop-dem-glo-30 (needs pystac-client and signed asset URLs)",
+    )
+    # Western longitudes start with '-': let them through as values (-90.2,38.6,...).
+    fetch._negative_number_matcher = re.compile(r"^-\d[\d.,-]*$")
+    fetch.add_argument("--bbox", required=True, metavar="W,S,E,N", help="degrees")
+    fetch.add_argument(
+        "--collection", required=True, metavar="ID", help="naip, 3dep, cop-dem-glo-30 or ANY"
+    )
+    fetch.add_argument(
+        "--stac", required=True, metavar="URL_OR_PATH", help="STAC API URL or catalog.json"
+    )
+    fetch.add_argument("--datetime", default=None, metavar="START/END", help="ISO dates or ..")
+    fetch.add_argument("--out", required=True, metavar="DIR", help="output folder")
 
 
 def _parse_origin(text: str | None) -> tuple[float, float]:
@@ -74,7 +95,9 @@ def _parse_origin(text: str | None) -> tuple[float, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Generate the map window block by block and write it as a COG."""
+    """Generate the map window block by block and write it as a COG (or fetch one)."""
+    if args.map_command == "fetch":
+        return _fetch(args)
     lat, lon = _parse_origin(args.origin)
     out = Path(args.out)
     if out.suffix.lower() not in (".tif", ".tiff"):
@@ -125,4 +148,20 @@ def run(args: argparse.Namespace) -> int:
         f"{gsd} m, {pmap.georef.crs}",
         file=sys.stdout,
     )
+    return 0
+
+
+def _fetch(args: argparse.Namespace) -> int:
+    """``map fetch``: STAC items over a box to one COG per date."""
+    from air_sitl.maps.stac import fetch, parse_bbox, parse_datetime
+
+    record = fetch(
+        str(args.stac),
+        str(args.collection),
+        parse_bbox(str(args.bbox)),
+        parse_datetime(args.datetime),
+        Path(args.out),
+    )
+    for name, ids in sorted(record["outputs"].items()):
+        print(f"{Path(args.out) / name}: {len(ids)} item(s)", file=sys.stdout)
     return 0

@@ -375,3 +375,73 @@ def _fill_from_neighbours(
     out: npt.NDArray[np.float32] = lut[labels]
     out[valid] = values[valid]
     return out
+
+
+def mosaic_cog(hrefs: list[str], bbox_wgs84: tuple[float, float, float, float], out: Path) -> None:
+    """One COG over a WGS84 box from several rasters, on the first one's pixel grid.
+
+    Sources sharing that grid (CRS, pixel size, aligned origin) are copied by window, pixels
+    untouched; others are reprojected onto it (bilinear). Later sources fill only what the
+    earlier ones left empty (nodata or outside them).
+    """
+    from rasterio.warp import Resampling, reproject, transform_bounds
+
+    try:
+        srcs = [rasterio.open(h) for h in hrefs]
+    except RasterioError as err:
+        raise map_error(hrefs[0], f"cannot open the asset ({err})") from None
+    try:
+        ref = srcs[0]
+        t = ref.transform
+        left, bottom, right, top = transform_bounds("EPSG:4326", ref.crs, *bbox_wgs84)
+        col0, col1 = math.floor((left - t.c) / t.a), math.ceil((right - t.c) / t.a)
+        row0, row1 = math.floor((top - t.f) / t.e), math.ceil((bottom - t.f) / t.e)
+        width, height = col1 - col0, row1 - row0
+        out_t = Affine(t.a, 0.0, t.c + col0 * t.a, 0.0, t.e, t.f + row0 * t.e)
+        nodata = ref.nodata
+        data = np.zeros((ref.count, height, width), dtype=ref.dtypes[0])
+        filled = np.zeros((height, width), dtype=bool)
+        for src in srcs:
+            st = src.transform
+            cx = (out_t.c - st.c) / st.a
+            cy = (out_t.f - st.f) / st.e
+            aligned = (
+                src.crs == ref.crs
+                and (st.a, st.e) == (t.a, t.e)
+                and abs(cx - round(cx)) < 1e-6
+                and abs(cy - round(cy)) < 1e-6
+            )
+            if aligned:
+                block = src.read(
+                    window=Window(round(cx), round(cy), width, height), boundless=True, masked=True
+                )
+                valid = ~np.ma.getmaskarray(block).any(axis=0)
+                values = block.filled(0)
+            else:
+                values = np.zeros_like(data)
+                for b in range(src.count):
+                    reproject(
+                        rasterio.band(src, b + 1), values[b], dst_transform=out_t,
+                        dst_crs=ref.crs, resampling=Resampling.bilinear, dst_nodata=0,
+                    )  # fmt: skip
+                valid = (values != 0).any(axis=0)
+            take = valid & ~filled
+            data[:, take] = values[:, take]
+            filled |= take
+        tmp = out.with_name(out.name + ".tmp.tif")
+        profile = {
+            "driver": "GTiff", "width": width, "height": height, "count": ref.count,
+            "dtype": ref.dtypes[0], "crs": ref.crs, "transform": out_t, "nodata": nodata,
+            "tiled": True, "blockxsize": 256, "blockysize": 256,
+        }  # fmt: skip
+        try:
+            with rasterio.open(tmp, "w", **profile) as dst:
+                dst.write(data)
+            rio_copy(tmp, out, driver="COG", COMPRESS="DEFLATE", BLOCKSIZE="256")
+        finally:
+            tmp.unlink(missing_ok=True)
+    except RasterioError as err:
+        raise map_error(str(out), f"cannot write the mosaic ({err})") from None
+    finally:
+        for s in srcs:
+            s.close()
