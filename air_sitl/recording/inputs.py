@@ -112,6 +112,8 @@ def archive_info_for(setup: FlightSetup, map_source: MapSource, *, plan_sha256: 
     map_info = jsonable(map_source.describe())
     if isinstance(map_info, dict) and "date" not in map_info:
         map_info["date"] = setup.map.date  # GeoTIFF dates are files: the one chosen, as asked
+    if isinstance(map_info, dict) and setup.map.dem is not None:
+        map_info["dem"] = setup.map.dem  # relief (issue 15); absent for flat maps, as before
     run_key = jsonable(
         {
             "plan_sha256": plan_sha256,
