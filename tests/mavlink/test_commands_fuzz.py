@@ -6,7 +6,7 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from gcs import Gcs
+from gcs import SAFETY_S, Gcs
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from inproc import Vehicle, running_vehicle
@@ -45,10 +45,10 @@ def test_every_command_is_acknowledged(
     vehicle, gcs = vehicle_gcs
     errors = vehicle.endpoint.io_errors
     gcs.conn.mav.command_long_send(1, 1, command, 0, *params)
-    deadline = time.monotonic() + 3.0
+    deadline = time.monotonic() + SAFETY_S
     ack = None
     while time.monotonic() < deadline and ack is None:
-        msg = gcs.recv(["COMMAND_ACK"], 0.5)
+        msg = gcs.recv(["COMMAND_ACK"], 1.0)
         if msg is not None and msg.command == command:
             ack = msg
     assert ack is not None, f"no COMMAND_ACK for {command} {params}"

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from gcs import free_udp_port
+from gcs import SAFETY_S, free_udp_port
 from inproc import Vehicle, running_vehicle
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
 from mavsdk.asyncio.plugins.action import ActionAsync
@@ -54,7 +54,7 @@ async def _fly(plan: Path, port: int, vehicle: Vehicle) -> dict[str, float]:
     config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
     async with Mavsdk(config) as sdk:
         await sdk.add_any_connection(f"udpin://127.0.0.1:{port}")
-        system = await sdk.first_autopilot(timeout_s=15)
+        system = await sdk.first_autopilot(timeout_s=SAFETY_S)
         assert system is not None, "MAVSDK found no autopilot"
         mission = MissionRawAsync(system)
         telemetry = TelemetryAsync(system)
@@ -72,7 +72,7 @@ async def _fly(plan: Path, port: int, vehicle: Vehicle) -> dict[str, float]:
         assert [i.command for i in stored] == [i.command for i in items]
 
         # Wait until the vehicle reports a usable position (GPS fix, home), as apps do.
-        position = await asyncio.wait_for(anext(telemetry.subscribe_position()), 10)
+        position = await asyncio.wait_for(anext(telemetry.subscribe_position()), SAFETY_S)
         assert math.isfinite(position.latitude_deg)
 
         await action.arm()
@@ -109,7 +109,7 @@ async def _fly(plan: Path, port: int, vehicle: Vehicle) -> dict[str, float]:
                 if progress.total > 0 and progress.current == progress.total:
                     return
 
-        await asyncio.wait_for(follow(), timeout=120)
+        await asyncio.wait_for(follow(), timeout=SAFETY_S)  # mission progress is the event
         for task in tasks:
             task.cancel()
         assert await mission.is_mission_finished()

