@@ -18,10 +18,19 @@ from air_sitl.bus.hookup import BusHookup
 from air_sitl.mavlink.codec import ParseCounters
 from air_sitl.mavlink.links import LinkSpec
 from air_sitl.mavlink.nav_aid import NavLink
+from air_sitl.mavlink.telemetry import CameraInfo
 from air_sitl.mavlink.vehicle import EndpointOptions, Job, VehicleEndpoint
 from air_sitl.recording import CaptureRecorder
 from air_sitl.runner import Flight, InboxItem
 from air_sitl.sinks import FrameSource, Sink
+
+
+def camera_info(setup: FlightSetup) -> CameraInfo | None:
+    """What the camera component reports: the flight's camera (its --camera-* options)."""
+    cam = setup.camera
+    if cam is None:
+        return None
+    return CameraInfo(width_px=cam.width_px, height_px=cam.height_px, hfov_deg=cam.hfov_deg)
 
 
 def serve_vehicle(
@@ -50,7 +59,7 @@ def serve_vehicle(
         home=home,
         mission=setup.mission,
         post=post,
-        options=EndpointOptions(signing_key=signing_key),
+        options=EndpointOptions(signing_key=signing_key, camera=camera_info(setup)),
     )
     try:
         addresses = endpoint.open()

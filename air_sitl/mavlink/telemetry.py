@@ -269,16 +269,34 @@ def _padded(text: bytes, size: int = 32) -> list[int]:
     return list(text[:size].ljust(size, b"\0"))
 
 
-def camera_information(sim_time_ns: int) -> Message:
-    """CAMERA_INFORMATION of the nadir camera (640x480, 57 degree horizontal FOV)."""
-    width_px, height_px, hfov_deg = 640, 480, 57.0
-    sensor_w_mm = 6.4  # 10 um pixels
-    focal_mm = (sensor_w_mm / 2) / math.tan(math.radians(hfov_deg) / 2)
+@dataclass(frozen=True, slots=True, kw_only=True)
+class CameraInfo:
+    """What CAMERA_INFORMATION says about the simulated camera (``--camera-*`` options)."""
+
+    width_px: int = 640
+    height_px: int = 480
+    hfov_deg: float = 57.0
+    pixel_um: float = 10.0  # a nominal sensor: focal length and sensor size follow from it
+
+
+def camera_information(sim_time_ns: int, camera: CameraInfo | None = None) -> Message:
+    """CAMERA_INFORMATION of the nadir camera: its resolution and a sensor/focal length pair
+    that gives its horizontal field of view (square pixels)."""
+    cam = camera or CameraInfo()
+    sensor_w_mm = cam.width_px * cam.pixel_um / 1000
+    focal_mm = (sensor_w_mm / 2) / math.tan(math.radians(cam.hfov_deg) / 2)
     return mav.MAVLink_camera_information_message(
         sim_time_ns // 1_000_000, _padded(b"air-sitl"), _padded(b"nadir camera"), 0, focal_mm,
-        sensor_w_mm, sensor_w_mm * height_px / width_px, width_px, height_px, 0,
+        sensor_w_mm, sensor_w_mm * cam.height_px / cam.width_px, cam.width_px, cam.height_px, 0,
         mav.CAMERA_CAP_FLAGS_CAPTURE_IMAGE, 0, b"", 0, 0,
     )  # fmt: skip
+
+
+def camera_heartbeat() -> Message:
+    """HEARTBEAT of the camera component (MAV_COMP_ID_CAMERA), as a PX4 vehicle's camera."""
+    return mav.MAVLink_heartbeat_message(
+        mav.MAV_TYPE_CAMERA, mav.MAV_AUTOPILOT_INVALID, 0, 0, mav.MAV_STATE_ACTIVE, 3
+    )
 
 
 STATUSTEXT_CHUNK = 50  # characters (bytes) of text in one STATUSTEXT

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 from air_sitl.errors import AirSitlError
 from air_sitl.mavlink import telemetry as tm
+from air_sitl.mavlink.camera import COMPONENT_ID as CAMERA_COMPONENT_ID
+from air_sitl.mavlink.camera import CameraComponent
 from air_sitl.mavlink.codec import (
     Encoder,
     Message,
@@ -79,6 +81,7 @@ class EndpointOptions:
     component_id: int = mav.MAV_COMP_ID_AUTOPILOT1
     signing_key: bytes | None = None
     wall_cap_hz: float | None = WALL_CAP_HZ  # None: rates in simulated time, uncapped
+    camera: tm.CameraInfo | None = None  # None: no camera component (component id 100)
 
 
 class VehicleEndpoint:
@@ -126,6 +129,8 @@ class VehicleEndpoint:
         self.commands = Commands(self)
         self.param_protocol = ParamProtocol(self)
         self.handlers: dict[str, Handler] = {}
+        cam = self.options.camera
+        self.camera = CameraComponent(self, cam) if cam is not None else None
         for part in (self.commands, self.param_protocol, Ftp(self)):
             for name, handler in part.handlers().items():
                 self.register(name, handler)
@@ -148,6 +153,8 @@ class VehicleEndpoint:
             encoder = Encoder(self.options.system_id, self.options.component_id, self._signing)
             self._links.append(open_link(spec, encoder, self._receive, self._new_parser))
         self.streams.links_opened(self._links)
+        if self.camera is not None:
+            self.camera.open(tuple(self._links), self._signing)
         return [link.local_address for link in self._links]
 
     def start(self) -> None:
@@ -283,6 +290,8 @@ class VehicleEndpoint:
         mode, armed = (s.autopilot.mode, s.autopilot.armed) if s else (FlightMode.IDLE, False)
         self.broadcast(tm.heartbeat(mode, armed))
         self.heartbeats_sent += 1
+        if self.camera is not None:
+            self.camera.send_heartbeat()
 
     def broadcast(self, msg: Message) -> None:
         """Send one message on every link to every peer."""
@@ -314,6 +323,10 @@ class VehicleEndpoint:
         ):
             return  # our own frames echoed back
         self._routes[src.route] = ch
+        if self.camera is not None and getattr(msg, "target_component", 0) == CAMERA_COMPONENT_ID:
+            if getattr(msg, "target_system", 0) in (0, self.options.system_id):
+                self.camera.on_message(ch, msg)
+            return
         if not self._for_us(msg):
             return
         mission_msg = to_mission_message(msg)

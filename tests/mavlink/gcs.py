@@ -209,18 +209,21 @@ class Gcs:
         self.conn.mav.mission_ack_send(1, 1, 0, mission_type)
         return items
 
-    def command(self, command: int, *params: float, timeout_s: float = SAFETY_S) -> int:
+    def command(
+        self, command: int, *params: float, timeout_s: float = SAFETY_S, component: int = 1
+    ) -> int:
         """COMMAND_LONG, the result of its COMMAND_ACK (re-sent, as GCSs do, while unanswered)."""
         p = [*params, *([0.0] * (7 - len(params)))]
         deadline = time.monotonic() + timeout_s
         confirmation = 0
         while time.monotonic() < deadline:
-            self.conn.mav.command_long_send(1, 1, command, confirmation, *p)
+            self.conn.mav.command_long_send(1, component, command, confirmation, *p)
             confirmation = min(confirmation + 1, 255)
             resend = time.monotonic() + 2.0
             while time.monotonic() < min(resend, deadline):
                 ack = self.recv(["COMMAND_ACK"], timeout_s=resend - time.monotonic())
                 if ack is not None and ack.command == command:
+                    assert ack.get_srcComponent() == component, "answered by another component"
                     return int(ack.result)
         raise AssertionError(f"no COMMAND_ACK for command {command}")
 
