@@ -14,6 +14,7 @@ A frame is a pure function of (map, camera, state, frame index, seed).
 from __future__ import annotations
 
 import math
+import sys
 import threading
 from dataclasses import dataclass, replace
 
@@ -38,6 +39,7 @@ Jac4 = tuple[float, float, float, float]
 FILL_BGR: tuple[int, int, int] = FILL_BGRX[:3]
 MAX_MOSAIC_HALF_PX = 2048  # limit of the map area read for one frame, per side, at its level
 _MIN_DOWN = 1e-6  # rays flatter than this (horizon) count as missing the ground
+_COARSE_MAP = 0.5  # warn when a map pixel spans more than 2 image pixels
 _NOISE_BANK_FACTOR = 2
 _STRIP_BYTES = 320 * 1024  # 4-channel warp output per strip: well inside a core's L2 cache
 _STRIP_SOURCE_BYTES = 640 * 1024  # largest map window copied for one strip (see _strip_source)
@@ -69,6 +71,7 @@ class Renderer:
         self.camera = camera
         self.seed = seed
         self.surface = surface  # None: the flat ground plane of the map (frames as before)
+        self._warned_gsd = False
         c2b_kinv = camera.r_cam_to_body() @ np.linalg.inv(camera.intrinsics())
         self._c2b_kinv = _tuple9(c2b_kinv)  # image (u, v, 1) -> body-frame ray
         # Noise: a pre-drawn bank split into its positive and negative parts (uint8), so a
@@ -169,6 +172,8 @@ class Renderer:
             )
             effective = math.sqrt(centre_step * widest)
             level = self.map.level_for_gsd(effective * self.map.georef.gsd_m)
+            if effective < _COARSE_MAP and not self._warned_gsd:
+                self._warn_coarse(effective, height)
         g = FrameGeometry(_mat(h), level, centre_px, sees_horizon, height)
         if self.surface is not None and centre_px is not None:
             g = self._relief_centre(state, g)
@@ -177,6 +182,18 @@ class Renderer:
     def map_xy_px(self, state: VehicleState) -> tuple[float, float] | None:
         """Continuous level-0 map pixel of the image-centre ground point (None: no ground)."""
         return self.geometry(state).center_map_px
+
+    def _warn_coarse(self, effective: float, height_m: float) -> None:
+        """Once: the map's pixels are much larger than the camera's at this height."""
+        self._warned_gsd = True
+        gsd = self.map.georef.gsd_m
+        print(
+            f"air-sitl: warning: map {self.map.name}: its {gsd:.2f} m pixels are "
+            f"{1.0 / effective:.1f}x coarser than the camera's {effective * gsd:.2f} m at "
+            f"{height_m:.0f} m above the ground: frames will look blurred",
+            file=sys.stderr,
+            flush=True,
+        )
 
     # -- pixels -------------------------------------------------------------------------------
     def render(

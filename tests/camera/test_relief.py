@@ -220,3 +220,17 @@ def test_render_command_with_builtin_relief_and_an_absolute_altitude(tmp_path: P
     # One of --alt-agl / --alt-amsl, not both; not under the surface.
     assert main([*base, "--alt-amsl", "400", "--alt-agl", "200"]) == 2  # usage error
     assert main([*base, "--alt-amsl", str(HOME.alt_amsl_m - 50.0)]) == 2
+
+
+def test_a_map_much_coarser_than_the_camera_is_named_once(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    crs, transform, size = utm_grid(HOME, 2.0, 1000.0)
+    image = np.full((size, size, 3), 90, dtype=np.uint8)
+    m = ArrayMap(image, crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m)
+    r = Renderer(m, CameraModel(noise_sigma=0.0))
+    for _ in range(3):
+        r.render(_pose(HOME.alt_amsl_m + 200.0))
+    err = capsys.readouterr().err
+    assert err.count("coarser than the camera") == 1
+    assert "2.00 m pixels are 5.8x coarser than the camera's 0.34 m at 200 m" in err
