@@ -216,11 +216,12 @@ def ground_maps(
     if edge.any():
         zr = grid[:, :, 2]
         ej, ei = np.nonzero(edge)
-        py = (ej[:, None] * st - pad + np.array([[0, 0, 1, 1]])).ravel()
-        px = (ei[:, None] * st - pad + np.array([[0, 1, 0, 1]])).ravel()
+        # The cell's own sample (offset 0, 0) is exact already: its three other pixels.
+        py = (ej[:, None] * st - pad + np.array([[0, 1, 1]])).ravel()
+        px = (ei[:, None] * st - pad + np.array([[1, 0, 1]])).ravel()
         corners = np.stack([zr[ej, ei], zr[ej, ei + 1], zr[ej + 1, ei], zr[ej + 1, ei + 1]])
         top, bot = _range(corners, window, cam_z)
-        top, bot = np.repeat(top, 4), np.repeat(bot, 4)
+        top, bot = np.repeat(top, 3), np.repeat(bot, 3)
         keep = (px >= 0) & (py >= 0) & (px < width) & (py < height)
         px, py, top, bot = px[keep], py[keep], top[keep], bot[keep]
         fine = ray_slopes(r, jac, level, px.astype(np.float32), py.astype(np.float32))
