@@ -13,7 +13,7 @@ from typing import IO, Any
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S
 from air_sitl.errors import DatasetError
 from air_sitl.sinks import FlightResult, NullSink
-from air_sitl.state import FlightMode, SimSample
+from air_sitl.state import BatteryState, FlightMode, SimSample
 
 TRAJECTORY_COLUMNS = (
     "sim_time_ns",
@@ -121,12 +121,18 @@ class FlightStats:
         self._last_capture_ne: tuple[float, float] | None = None
         self.mission_completed = False
         self.sim_time_ns = 0
+        self.battery: BatteryState | None = None
+        self.min_battery_v: float | None = None
 
     def add(self, sample: SimSample) -> None:
         """Account for one physics sample."""
         s = sample.state
         a = sample.autopilot
         self.sim_time_ns = s.sim_time_ns
+        if sample.battery is not None:
+            self.battery = sample.battery
+            v = sample.battery.voltage_v
+            self.min_battery_v = v if self.min_battery_v is None else min(self.min_battery_v, v)
         if a.reached_seq >= 0:
             self.reached.add(a.reached_seq)
         self._ground_contact(sample)
@@ -218,4 +224,18 @@ class FlightStats:
             "waypoints_total": self.waypoints_total,
             "crashed": self.crashed,
             "landed": self.landed,
+            "battery": self._battery_block(),
+        }
+
+    def _battery_block(self) -> dict[str, Any] | None:
+        """The propulsion battery at the end of the flight (None when not modelled)."""
+        b = self.battery
+        if b is None:
+            return None
+        return {
+            "consumed_mah": round(b.consumed_mah, 1),
+            "consumed_wh": round(b.consumed_wh, 2),
+            "remaining": round(b.remaining, 4),
+            "voltage_v": round(b.voltage_v, 3),
+            "min_voltage_v": _rounded(self.min_battery_v),
         }

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from air_sitl.autopilot.autopilot import Autopilot, air_start_pose
 from air_sitl.autopilot.control import Controller, gains_for
 from air_sitl.autopilot.params import ParamStore
+from air_sitl.battery import Battery, BatterySpec
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S, PHYSICS_STEP_NS, Pacer, SimClock
 from air_sitl.errors import PlanError
 from air_sitl.fdm.base import FlightModel, InitialCondition
@@ -63,6 +64,7 @@ class Flight:
     last_sample: SimSample | None = None
     # The onboard filter the autopilot steers on (--nav ekf); None: it steers on the truth.
     nav: OnboardNav | None = None
+    battery: Battery | None = None  # the propulsion battery (truth in: throttle flown)
 
     def step(self) -> SimSample:
         """Run one physics step: sensors, navigation, autopilot, sinks, camera, flight model."""
@@ -72,11 +74,21 @@ class Flight:
         nav = self.nav
         if nav is None:
             command, status = self.autopilot.update(state)
-            sample = SimSample(state=state, autopilot=status, imu=imu, gps=gps)
         else:
             command, status = self.autopilot.update(nav.update(state, imu, gps))
             nav.observe(state, status)
-            sample = SimSample(state=state, autopilot=status, imu=imu, gps=gps, nav=nav.estimate)
+        battery = None
+        if self.battery is not None:
+            battery = self.battery.step(state.sim_time_ns, command.throttle)
+        sample = SimSample(
+            state=state,
+            autopilot=status,
+            imu=imu,
+            gps=gps,
+            nav=nav.estimate if nav is not None else None,
+            actuators=command,
+            battery=battery,
+        )
         self.stats.add(sample)
         for sink in self.sinks:
             sink.on_sample(sample)
@@ -280,5 +292,6 @@ def assemble_flight(
         ),
         clock=SimClock(fdm.step_ns),
         state=state0,
+        battery=Battery(lambda: BatterySpec.from_params(params.get)),
     )
     return flight, home, initial

@@ -117,6 +117,17 @@ class GpsFix:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class BatteryState:
+    """The propulsion battery after one step (:mod:`air_sitl.battery`)."""
+
+    voltage_v: float  # at the terminals, under load (sags with current)
+    current_a: float
+    consumed_mah: float
+    consumed_wh: float
+    remaining: float  # 1.0 full .. 0.0 empty (of the capacity)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class SimSample:
     """Everything produced at one physics step; what sinks receive."""
 
@@ -126,6 +137,8 @@ class SimSample:
     gps: GpsFix | None  # None between GPS updates or while GPS is denied
     # The onboard estimate the autopilot flew on (``--nav ekf``); None with ``--nav truth``.
     nav: NavEstimate | None = None
+    actuators: ActuatorCommand | None = None  # what the autopilot commanded for this step
+    battery: BatteryState | None = None
 
 
 def mission_sample(

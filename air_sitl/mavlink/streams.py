@@ -19,10 +19,16 @@ import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
+from air_sitl import battery
 from air_sitl.mavlink import telemetry as tm
 from air_sitl.mavlink.codec import Message, mav
 from air_sitl.mavlink.fence import Zone, breach
-from air_sitl.mavlink.interfaces import NS_PER_S, SEVERITY_CRITICAL, SEVERITY_INFO
+from air_sitl.mavlink.interfaces import (
+    NS_PER_S,
+    SEVERITY_CRITICAL,
+    SEVERITY_INFO,
+    SEVERITY_WARNING,
+)
 from air_sitl.mavlink.links import Link
 from air_sitl.mission.items import MissionType
 from air_sitl.sinks import FlightResult
@@ -115,8 +121,9 @@ class Streams:
         standard: dict[int, Builder] = {
             mav.MAVLINK_MSG_ID_HEARTBEAT: heartbeat,
             mav.MAVLINK_MSG_ID_SYS_STATUS: lambda s, _f: tm.sys_status(
-                tm.Health(errors_comm=ep.counters.dropped)
+                tm.Health(errors_comm=ep.counters.dropped), s.battery if s is not None else None
             ),
+            mav.MAVLINK_MSG_ID_BATTERY_STATUS: self._battery_status,
             mav.MAVLINK_MSG_ID_HOME_POSITION: lambda s, _f: tm.home_position(ep.home, sim_ns(s)),
             mav.MAVLINK_MSG_ID_MISSION_CURRENT: lambda s, _f: tm.mission_current(
                 s, len(ep.protocol.items(MissionType.MISSION))
@@ -139,6 +146,18 @@ class Streams:
         }
         for msg_id, builder in standard.items():
             self.add(msg_id, builder, rates.get(msg_id, 0.0))
+
+    def _battery_status(self, s: SimSample | None, _fix: GpsFix | None) -> Message | None:
+        params = self._ep.params
+        if s is None or s.battery is None or params is None:
+            return None
+        level = battery.warning_level(
+            s.battery.remaining,
+            params.get("BAT_LOW_THR"),
+            params.get("BAT_CRIT_THR"),
+            params.get("BAT_EMERGEN_THR"),
+        )
+        return tm.battery_status(s.battery, round(params.get("BAT1_N_CELLS")), level)
 
     def build(self, msg_id: int, sample: SimSample | None, fix: GpsFix | None) -> Message | None:
         """The message ``msg_id`` now; None when unknown or not buildable yet."""
@@ -212,6 +231,8 @@ class TelemetrySink:
         self._last_completed = False
         self._last_reached = -1
         self._fence_latched = False
+        self._next_battery_ns = 0
+        self._battery_level = battery.LEVEL_OK
         self.zones: tuple[Zone, ...] = ()
         self.last_fix: GpsFix | None = None
 
@@ -246,6 +267,9 @@ class TelemetrySink:
         if self.zones and t >= self._next_fence_ns:
             self._next_fence_ns = t + FENCE_PERIOD_NS
             self._check_fence(sample)
+        if sample.battery is not None and t >= self._next_battery_ns:
+            self._next_battery_ns = t + FENCE_PERIOD_NS
+            self._check_battery(sample)
         if t >= self._next_any_due_ns:
             self._streams(sample, t)
 
@@ -306,6 +330,37 @@ class TelemetrySink:
         if autopilot is not None:
             autopilot.return_to_launch()
         self._ep.text(SEVERITY_CRITICAL, f"Geofence breached ({why}): RTL")
+
+    def _check_battery(self, sample: SimSample) -> None:
+        """PX4's low-battery warnings and failsafe (COM_LOW_BAT_ACT), once per level."""
+        ep, params = self._ep, self._ep.params
+        if params is None or sample.battery is None:
+            return
+        level = battery.warning_level(
+            sample.battery.remaining,
+            params.get("BAT_LOW_THR"),
+            params.get("BAT_CRIT_THR"),
+            params.get("BAT_EMERGEN_THR"),
+        )
+        if level <= self._battery_level:
+            return
+        self._battery_level = level
+        name = {battery.LEVEL_LOW: "Low", battery.LEVEL_CRITICAL: "Critical"}.get(
+            level, "Emergency"
+        )
+        percent = sample.battery.remaining * 100
+        action = battery.failsafe_action(level, round(params.get("COM_LOW_BAT_ACT")))
+        ap, autopilot = sample.autopilot, ep.autopilot
+        flying = ap.armed and not sample.state.on_ground
+        if action == battery.ACTION_NONE or not flying or autopilot is None:
+            ep.text(SEVERITY_WARNING, f"{name} battery level: {percent:.0f}% remaining")
+            return
+        if action == battery.ACTION_RETURN and ap.mode not in (FlightMode.RTL, FlightMode.LAND):
+            autopilot.return_to_launch()
+            ep.text(SEVERITY_CRITICAL, f"{name} battery level ({percent:.0f}%): RTL")
+        elif action == battery.ACTION_LAND and ap.mode is not FlightMode.LAND:
+            autopilot.set_mode(FlightMode.LAND)
+            ep.text(SEVERITY_CRITICAL, f"{name} battery level ({percent:.0f}%): landing")
 
     def on_frame(self, frame: CameraFrame) -> None:
         """Frames are not sent over MAVLink."""

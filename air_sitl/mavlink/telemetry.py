@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 
 from air_sitl.mavlink.codec import Message, mav
-from air_sitl.state import FlightMode, GeoPoint, GpsFix, SimSample
+from air_sitl.state import BatteryState, FlightMode, GeoPoint, GpsFix, SimSample
 
 # PX4 custom modes: custom_mode = main << 16 | sub << 24.
 PX4_MAIN_AUTO = 4
@@ -72,6 +72,7 @@ DEFAULT_RATES_HZ: dict[int, float] = {
     mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0,
     mav.MAVLINK_MSG_ID_HOME_POSITION: 0.5,
     mav.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,
+    mav.MAVLINK_MSG_ID_BATTERY_STATUS: 1.0,
 }
 
 # MISSION_CURRENT.mission_state
@@ -128,12 +129,32 @@ def boot_ms(sample: SimSample) -> int:
     return (sample.state.sim_time_ns // 1_000_000) & 0xFFFFFFFF
 
 
-def sys_status(health: Health) -> Message:
-    """SYS_STATUS with every simulated sensor present, enabled and healthy."""
+def sys_status(health: Health, battery: BatteryState | None = None) -> Message:
+    """SYS_STATUS with every simulated sensor present, enabled and healthy, and the battery
+    (voltage mV, current cA, remaining %; -1 for what is unknown)."""
     healthy = SENSORS if health.prearm_ok else SENSORS & ~mav.MAV_SYS_STATUS_PREARM_CHECK
+    volt_mv, current_ca, remaining = (
+        (_clamp_int(battery.voltage_v * 1000, 0, 65534),
+         _clamp_int(battery.current_a * 100, 0, 32767),
+         _clamp_int(battery.remaining * 100, 0, 100))
+        if battery is not None else (65535, -1, -1)
+    )  # fmt: skip
     return mav.MAVLink_sys_status_message(
-        SENSORS, SENSORS, healthy, 100, 12600, -1, -1, 0, min(health.errors_comm, 65535),
-        0, 0, 0, 0,
+        SENSORS, SENSORS, healthy, 100, volt_mv, current_ca, remaining, 0,
+        min(health.errors_comm, 65535), 0, 0, 0, 0,
+    )  # fmt: skip
+
+
+def battery_status(battery: BatteryState, cells: int, charge_state: int) -> Message:
+    """BATTERY_STATUS of the propulsion pack (cell voltages equal, the pack's in total)."""
+    cell_mv = _clamp_int(battery.voltage_v * 1000 / max(cells, 1), 0, 65534)
+    voltages = [cell_mv if i < cells else 65535 for i in range(10)]
+    return mav.MAVLink_battery_status_message(
+        0, mav.MAV_BATTERY_FUNCTION_ALL, mav.MAV_BATTERY_TYPE_LIPO, 32767, voltages,
+        _clamp_int(battery.current_a * 100, 0, 32767),
+        _clamp_int(battery.consumed_mah, 0, 2**31 - 1),
+        _clamp_int(battery.consumed_wh * 36, 0, 2**31 - 1),  # hJ
+        _clamp_int(battery.remaining * 100, 0, 100), 0, charge_state, [0, 0, 0, 0], 0, 0,
     )  # fmt: skip
 
 
@@ -204,12 +225,14 @@ def gps_raw_int(sample: SimSample, fix: GpsFix | None) -> Message:
 
 
 def vfr_hud(sample: SimSample) -> Message:
-    """VFR_HUD: airspeed, ground speed, heading, AMSL altitude, climb rate."""
+    """VFR_HUD: airspeed, ground speed, heading, throttle flown (%), AMSL altitude, climb."""
     s = sample.state
     vn, ve, vd = s.vel_ned_m_s
     heading = round(math.degrees(s.yaw_rad)) % 360
+    act = sample.actuators
+    throttle = _clamp_int(act.throttle * 100, 0, 100) if act is not None else 0
     return mav.MAVLink_vfr_hud_message(
-        s.airspeed_m_s, math.hypot(vn, ve), heading, 0, s.alt_amsl_m, -vd
+        s.airspeed_m_s, math.hypot(vn, ve), heading, throttle, s.alt_amsl_m, -vd
     )
 
 
