@@ -201,10 +201,11 @@ class Autopilot:
         self._after_command()
         return self._exec.start_mission()
 
-    def set_mission(self, mission: Mission) -> None:
-        """Replace the mission; raises PlanError when it cannot be flown."""
+    def set_mission(self, mission: Mission, current_seq: int | None = None) -> None:
+        """Replace the mission; raises PlanError when it cannot be flown. ``current_seq``:
+        see :meth:`MissionSequencer.set_mission` (-1 keeps the current index, as PX4)."""
         self._after_command()
-        self._exec.set_mission(mission)
+        self._exec.set_mission(mission, current_seq)
 
     def set_current(self, seq: int) -> tuple[bool, str]:
         """Continue at item ``seq``."""

@@ -116,18 +116,27 @@ class MissionSequencer:
         for warning in item_warnings(mission.items):
             self._emit(f"Mission: {warning}")
 
-    def set_mission(self, mission: Mission) -> None:
+    def set_mission(self, mission: Mission, current_seq: int | None = None) -> None:
         """Replace the mission (PX4-like: allowed on the ground and in flight).
 
-        In MISSION mode in the air the new mission is flown from its first item.
+        ``current_seq`` None: the new mission starts at its first item (a plan loaded by the
+        fly command). Otherwise, as PX4 after an upload: the item flagged current by the ground
+        station, or (-1, none flagged) the current index kept, clamped to the new list; in
+        MISSION mode in the air that item is flown next, nothing before it is re-reported.
         """
+        keep = self.current_seq
         self._set_mission_fields(mission)
         self._speed_override = None  # the new plan's speeds apply
         self._ground_speed_mode = False
         self._emit(f"Mission replaced: {len(mission.items)} items")
+        seq = 0
+        if current_seq is not None and mission.items:
+            seq = current_seq if current_seq >= 0 else keep
+            seq = min(max(seq, 0), len(mission.items) - 1)
+            self.current_seq = seq
         if self.mode is FlightMode.MISSION and self._in_mission and self._state is not None:
             if mission.items:
-                self._enter_item(0)
+                self._enter_item(seq)
             else:
                 self._hold_here("Mission cleared: holding")
 

@@ -52,10 +52,16 @@ class Send:
 
 @dataclass(frozen=True, slots=True)
 class Replaced:
-    """A stored list changed (upload completed or cleared): the vehicle must use ``items``."""
+    """A stored list changed (upload completed or cleared): the vehicle must use ``items``.
+
+    ``current_seq``: the item the ground station flagged current, -1 for none (PX4 then keeps
+    its current index). ``changed``: False when the upload had the stored items exactly.
+    """
 
     mission_type: MissionType
     items: tuple[MissionItem, ...]
+    current_seq: int = -1
+    changed: bool = True
 
 
 @dataclass(frozen=True, slots=True)
@@ -105,6 +111,7 @@ class _Upload:
     items: list[MissionItem] = field(default_factory=list)
     last_request_ns: int = 0
     retries: int = 0
+    current_seq: int = -1  # the item flagged current, -1 for none
 
 
 @dataclass(slots=True)
@@ -268,15 +275,21 @@ class MissionProtocol:
                 Failed(up.mission_type, result, f"item {msg.seq}: {problem.message}"),
             ]
         up.int_form = msg.int_form  # answer an old-style client in its own form
+        if msg.current:
+            up.current_seq = msg.seq
         up.items.append(msg.item)
         up.retries = 0
         if len(up.items) < up.count:
             return [self._request_next(up, now_ns)]
         self._upload = None
-        return self._finish(peer, up.mission_type, up.items)
+        return self._finish(peer, up.mission_type, up.items, up.current_seq)
 
     def _finish(
-        self, peer: Peer, mission_type: MissionType, items: list[MissionItem]
+        self,
+        peer: Peer,
+        mission_type: MissionType,
+        items: list[MissionItem],
+        current_seq: int = -1,
     ) -> list[Output]:
         candidate = tuple(items)
         problem = self._list_check(candidate, mission_type)
@@ -286,6 +299,7 @@ class MissionProtocol:
             self._done = _Done(peer, mission_type, len(candidate), ack)
             where = f"item {problem.index}: " if problem.index >= 0 else ""
             return [Send(peer, ack), Failed(mission_type, result, where + problem.message)]
+        changed = _wire_key(self._stores[mission_type]) != _wire_key(candidate)
         self._stores[mission_type] = candidate
         self._opaque[mission_type] = opaque_id_of(candidate)
         ack = MissionAck(
@@ -294,7 +308,7 @@ class MissionProtocol:
             opaque_id=self._opaque[mission_type],
         )
         self._done = _Done(peer, mission_type, len(candidate), ack)
-        return [Send(peer, ack), Replaced(mission_type, candidate)]
+        return [Send(peer, ack), Replaced(mission_type, candidate, current_seq, changed)]
 
     def _on_request_list(self, peer: Peer, msg: MissionRequestList) -> list[Output]:
         mission_type = self._mission_type(msg.mission_type)
@@ -348,6 +362,25 @@ class MissionProtocol:
             return [Failed(up.mission_type, MissionResult.OPERATION_CANCELLED,
                            f"cancelled by the ground station (result {msg.result})")]  # fmt: skip
         return []  # the end of a download: nothing to do
+
+
+def _wire_key(items: Sequence[MissionItem]) -> bytes:
+    """The list as MISSION_ITEM_INT carries it (float32 params, degE7 positions): a plan read
+    from a file and the same plan uploaded compare equal, as PX4's mission id does."""
+    out = bytearray()
+    for item in items:
+        lat, lon = (round(v * 1e7) if math.isfinite(v) else 0 for v in (item.lat_deg, item.lon_deg))
+        out += struct.pack(
+            "<HBB4fqqf",
+            item.command & 0xFFFF,
+            item.frame & 0xFF,
+            int(item.autocontinue),
+            *item.params[:4],
+            lat,
+            lon,
+            item.alt_m,
+        )
+    return bytes(out)
 
 
 def same_items(a: Sequence[MissionItem], b: Sequence[MissionItem]) -> bool:

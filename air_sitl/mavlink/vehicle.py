@@ -347,11 +347,15 @@ class VehicleEndpoint:
                 msg = from_mission_message(out.message, out.peer.system_id, out.peer.component_id)
                 self.reply(ch, msg)
         elif isinstance(out, Replaced):
-            self._on_replaced(out.mission_type, out.items)
+            if out.mission_type is MissionType.MISSION and not out.changed:
+                return  # PX4 ignores a re-upload of the same mission: nothing restarts
+            self._on_replaced(out.mission_type, out.items, out.current_seq)
         elif out.result != MissionResult.OPERATION_CANCELLED or "timed out" in out.reason:
             self.broadcast_text(SEVERITY_WARNING, f"Upload refused: {out.reason}")
 
-    def _on_replaced(self, mission_type: MissionType, items: tuple[MissionItem, ...]) -> None:
+    def _on_replaced(
+        self, mission_type: MissionType, items: tuple[MissionItem, ...], current_seq: int = -1
+    ) -> None:
         if mission_type is MissionType.FENCE:
             zones = zones_of(items)
             sink = self.sink
@@ -376,6 +380,7 @@ class VehicleEndpoint:
         )
 
         def load(ap: AutopilotLike) -> None:
-            ap.set_mission(mission)
+            # As PX4: the item flagged current, else the current index kept (-1).
+            ap.set_mission(mission, current_seq)
 
         self.on_sim(load)

@@ -174,8 +174,11 @@ class Gcs:
                 return hb
         raise AssertionError("no heartbeat from the vehicle")
 
-    def upload(self, items: Sequence[MissionItem], mission_type: int = 0) -> int:
-        """Upload by MISSION_COUNT / MISSION_REQUEST_INT / MISSION_ITEM_INT; the ACK result."""
+    def upload(
+        self, items: Sequence[MissionItem], mission_type: int = 0, current: int | None = 0
+    ) -> int:
+        """Upload by MISSION_COUNT / MISSION_REQUEST_INT / MISSION_ITEM_INT; the ACK result.
+        ``current``: the item flagged current (None: none flagged)."""
         self.conn.mav.mission_count_send(1, 1, len(items), mission_type)
         while True:
             msg = self.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"])
@@ -183,7 +186,10 @@ class Gcs:
             if msg.get_type() == "MISSION_ACK":
                 return int(msg.type)
             item = MissionItemMessage(
-                seq=msg.seq, item=items[msg.seq], mission_type=mission_type, current=msg.seq == 0
+                seq=msg.seq,
+                item=items[msg.seq],
+                mission_type=mission_type,
+                current=msg.seq == current,
             )
             self.conn.mav.send(from_mission_message(item, 1, 1))
 
