@@ -46,6 +46,7 @@ from air_sitl.state import (
     GeoPoint,
     GpsFix,
     ImuSample,
+    Vec3,
     VehicleState,
 )
 
@@ -145,6 +146,7 @@ class OnboardNav:
         self.last_status: NavStatus | None = None  # at 5 Hz, for ESTIMATOR_STATUS
         self._ticks = 0
         self._t0: int | None = None
+        self._flown: Vec3 = (0.0, 0.0, 0.0)  # the position flown on at the last 50 Hz tick
 
     # ------------------------------------------------------------------ the loop
 
@@ -181,21 +183,23 @@ class OnboardNav:
                 return truth
         out_t = nav.output.t_ns
         est = self.estimate
-        if est is None or out_t != self._out_t or tick:
-            # A filter period passed (every 20 ms, with the guidance update): the full estimate.
+        if est is None or out_t != self._out_t:
+            # A filter period passed (every 20 ms): the full estimate.
             self._out_t = out_t
             est = self.estimate = nav.estimate()
             self._euler = quat2euler(est.q_body_to_ned_wxyz)
-            if tick:
-                self._score(truth, est)
-                self._watch(t, est)
-                self._ticks += 1
-                if self._ticks % 10 == 0:
-                    self.last_status = nav.status()
         # Between periods the attitude and velocity of the last period (at most 15 ms old),
         # the position moved on along the velocity, the rates of this IMU sample.
         dt = (t - est.sim_time_ns) * 1e-9
         p, v = est.pos_ned_m, est.vel_ned_m_s
+        pos = (p[0] + v[0] * dt, p[1] + v[1] * dt, p[2] + v[2] * dt)
+        if tick:
+            self._flown = pos
+            self._score(truth, pos)
+            self._watch(t, est)
+            self._ticks += 1
+            if self._ticks % 10 == 0:
+                self.last_status = nav.status()
         g, bg = imu.gyro_frd_rad_s, est.gyro_bias_rad_s
         f, ba = imu.accel_frd_m_s2, est.accel_bias_m_s2
         roll, pitch, yaw = self._euler
@@ -207,7 +211,7 @@ class OnboardNav:
             lon_deg=est.lon_deg,
             alt_amsl_m=alt,
             alt_agl_m=alt - self.home.alt_amsl_m,
-            pos_ned_m=(p[0] + v[0] * dt, p[1] + v[1] * dt, p[2] + v[2] * dt),
+            pos_ned_m=pos,
             q_body_to_ned_wxyz=est.q_body_to_ned_wxyz,
             roll_rad=roll,
             pitch_rad=pitch,
@@ -232,7 +236,9 @@ class OnboardNav:
     def observe(self, truth: VehicleState, status: AutopilotStatus) -> None:
         """After the autopilot's update: the truth cross-track of the tracked segment."""
         est = self.estimate
-        if est is None or not status.tracking_settled or math.isnan(status.cross_track_m):
+        if truth.sim_time_ns % SCORE_PERIOD_NS or est is None:
+            return  # at 50 Hz, the guidance rate
+        if not status.tracking_settled or math.isnan(status.cross_track_m):
             return
         vn, ve = est.vel_ned_m_s[0], est.vel_ned_m_s[1]
         gs = math.hypot(vn, ve)
@@ -240,8 +246,8 @@ class OnboardNav:
             return
         # Guidance's cross-track is positive right of the direction of travel; the estimate's
         # error across the track moves the true aircraft by that much.
-        dn = truth.pos_ned_m[0] - est.pos_ned_m[0]
-        de = truth.pos_ned_m[1] - est.pos_ned_m[1]
+        dn = truth.pos_ned_m[0] - self._flown[0]
+        de = truth.pos_ned_m[1] - self._flown[1]
         xt = abs(status.cross_track_m + (-dn * ve + de * vn) / gs)
         self.truth_max_cross_track_m = max(self.truth_max_cross_track_m or 0.0, xt)
         if self.gps_denied(truth.sim_time_ns):
@@ -249,10 +255,8 @@ class OnboardNav:
                 self.truth_max_cross_track_denied_m or 0.0, xt
             )
 
-    def _score(self, truth: VehicleState, est: NavEstimate) -> None:
-        err = math.hypot(
-            est.pos_ned_m[0] - truth.pos_ned_m[0], est.pos_ned_m[1] - truth.pos_ned_m[1]
-        )
+    def _score(self, truth: VehicleState, pos: Vec3) -> None:
+        err = math.hypot(pos[0] - truth.pos_ned_m[0], pos[1] - truth.pos_ned_m[1])
         self.errors.append(err)
         if self.gps_denied(truth.sim_time_ns):
             self.errors_denied.append(err)
