@@ -13,7 +13,10 @@ import argparse
 import sys
 import threading
 import time
-from typing import IO
+from typing import IO, TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from air_sitl.localize.archive import LocalizeRun
 
 HELP = "run a baseline localizer (deadreckon, vo, ...) over an archive or on the zenoh bus"
 
@@ -39,6 +42,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--seed", type=int, default=0, help="seed of the barometer/airspeed models (default 0)"
+    )
+    parser.add_argument(
+        "--every",
+        type=int,
+        default=1,
+        metavar="K",
+        help="mapmatch, fused: match every K-th frame, dead reckoning between (default 1)",
     )
     parser.add_argument(
         "--bus-inputs",
@@ -104,24 +114,43 @@ def run(args: argparse.Namespace) -> int:
     return _run_offline(args)
 
 
+EVERY_METHODS = ("mapmatch", "fused")  # the methods with an ``every`` option
+
+
+def _method_options(args: argparse.Namespace) -> dict[str, int]:
+    """The method's own options from the command line (``--every``)."""
+    from air_sitl.errors import OptionError
+
+    if args.every == 1:
+        return {}
+    if args.method not in EVERY_METHODS:
+        msg = f"--every {args.every}: only for {', '.join(EVERY_METHODS)}, not {args.method}"
+        raise OptionError(msg)
+    return {"every": args.every}  # the method refuses an interval below 1
+
+
 def _run_offline(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from air_sitl.localize.archive import run_archive
 
     name = args.name or args.method
+    options = _method_options(args)
     progress = None if args.quiet or not sys.stderr.isatty() else _Progress(name, sys.stderr)
     try:
-        result = run_archive(
-            Path(args.archive),
-            args.method,
-            name=args.name,
-            reference_map=args.reference_map,
-            reference_date=args.reference_date,
-            seed=args.seed,
-            bus_inputs=args.bus_inputs,
-            progress=progress,
-        )
+        if options:
+            result = _run_offline_with(args, options, progress)
+        else:
+            result = run_archive(
+                Path(args.archive),
+                args.method,
+                name=args.name,
+                reference_map=args.reference_map,
+                reference_date=args.reference_date,
+                seed=args.seed,
+                bus_inputs=args.bus_inputs,
+                progress=progress,
+            )
     finally:
         if progress is not None:
             progress.finish()
@@ -132,6 +161,49 @@ def _run_offline(args: argparse.Namespace) -> int:
             flush=True,
         )
     return 0
+
+
+def _run_offline_with(
+    args: argparse.Namespace, options: dict[str, int], progress: _Progress | None
+) -> LocalizeRun:
+    """``run_archive`` with method options (it builds its method without any)."""
+    from pathlib import Path
+
+    from air_sitl.bus.keys import check_chunk
+    from air_sitl.dataset.reader import open_archive
+    from air_sitl.localize.archive import (
+        LocalizeRun,
+        check_writable,
+        context_of,
+        make_method,
+        observations,
+        run_method,
+    )
+    from air_sitl.localize.output import write_estimates
+
+    archive = Path(args.archive)
+    name = check_chunk("--name", args.name or args.method)
+    check_writable(archive)
+    loc = make_method(args.method, **options)
+    with open_archive(archive) as arch:
+        context = context_of(
+            arch, reference_map=args.reference_map, reference_date=args.reference_date,
+            seed=args.seed,
+        )  # fmt: skip
+        start = time.perf_counter()
+        source = observations(
+            arch, needs_image=loc.needs_image, seed=args.seed, bus_inputs=args.bus_inputs
+        )
+        estimates = run_method(loc, context, source, total=len(arch), progress=progress)
+        wall = time.perf_counter() - start
+    return LocalizeRun(
+        path=write_estimates(archive, name, estimates, context.home),
+        method=args.method,
+        name=name,
+        frames=len(estimates),
+        estimated_frames=sum(1 for e in estimates if e.enu_m is not None),
+        wall_s=wall,
+    )
 
 
 def _run_bus(args: argparse.Namespace) -> int:
@@ -146,7 +218,7 @@ def _run_bus(args: argparse.Namespace) -> int:
 
     name = check_chunk("--name", args.name or args.method)
     keys = KeySpace(args.vehicle)
-    method = make_method(args.method)
+    method = make_method(args.method, **_method_options(args))
     stop = threading.Event()
 
     def on_signal(_signum: int, _frame: FrameType | None) -> None:

@@ -77,6 +77,7 @@ class MapMatchBase:
 
     name = "mapmatch-base"
     needs_image = False  # frames are decoded here, in grey and reduced (the JPEG is given)
+    tilt_states = False  # the filter also estimates the AHRS tilt error (``fused``)
 
     def __init__(
         self,
@@ -97,7 +98,9 @@ class MapMatchBase:
         self._clear()
 
     def _clear(self) -> None:
-        self.filter = PositionFilter(position_noise_m2_s=self.position_noise_m2_s)
+        self.filter = PositionFilter(
+            position_noise_m2_s=self.position_noise_m2_s, tilt=self.tilt_states
+        )
         self.prev_t_ns: int | None = None
         self.prev_q: Quat | None = None
         self.height_m: float | None = None

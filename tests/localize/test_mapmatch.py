@@ -21,7 +21,13 @@ from air_sitl.camera.model import CameraModel
 from air_sitl.cli import main
 from air_sitl.dataset.reader import open_archive
 from air_sitl.frames import ned2geodetic
-from air_sitl.localize.archive import context_of, observations, run_archive, run_method
+from air_sitl.localize.archive import (
+    context_of,
+    observations,
+    read_rows,
+    run_archive,
+    run_method,
+)
 from air_sitl.localize.base import Estimate, Observation
 from air_sitl.localize.mapmatch import MapMatchLocalizer, open_reference
 from air_sitl.localize.mapmatch_core import MapMatcher
@@ -121,6 +127,22 @@ def test_the_driver_writes_mapmatch_estimates(flight: Path) -> None:
     with result.path.open(encoding="utf-8", newline="") as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == result.frames == result.estimated_frames
+
+
+def test_localize_every_k_matches_every_kth_frame(flight: Path) -> None:
+    """``air-sitl localize --every 4`` runs ``mapmatch`` with ``every=4``: a match on every
+    4th frame only (the propagated position between), a position at every frame."""
+    argv = ["localize", str(flight), "--method", "mapmatch", "--every", "4", "--name", "mm4"]
+    assert main([*argv, "--quiet"]) == 0
+    written = read_rows(flight / "estimates" / "mm4.csv")
+    method = MapMatchLocalizer(every=4)
+    estimates = run(flight, method)
+    assert method.matches_tried == math.ceil(len(estimates) / 4)
+    assert len(written) == len(estimates)
+    for row, est in zip(written, estimates, strict=True):
+        assert est.enu_m is not None
+        assert abs(float(row["east_m"]) - est.enu_m[0]) < 1e-3
+        assert abs(float(row["north_m"]) - est.enu_m[1]) < 1e-3
 
 
 def test_truth_pose_rectification_recovers_a_prior_offset(flight: Path) -> None:
