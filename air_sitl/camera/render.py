@@ -274,7 +274,14 @@ class Renderer:
         return r, jac, (x0 - off) / s, (y0 - off) / s
 
     def _relief_window(
-        self, state: VehicleState, g: FrameGeometry, r: Mat9, jac: Jac4, cx: float, cy: float
+        self,
+        state: VehicleState,
+        g: FrameGeometry,
+        r: Mat9,
+        jac: Jac4,
+        cx: float,
+        cy: float,
+        size: tuple[int, int] | None = None,
     ) -> relief.HeightWindow:
         """Heights covering every ray's path between the highest and lowest surface seen.
 
@@ -284,7 +291,14 @@ class Renderer:
         around the nadir per side.
         """
         assert self.surface is not None
-        pts = self._border if g.sees_horizon else np.array([(u, v, 1.0) for u, v in self._corners])
+        if size is None:  # the image; else a larger grid (distortion's margin)
+            corners = self._corners
+            border = self._border
+        else:
+            w1, h1 = size[0] - 1.0, size[1] - 1.0
+            corners = ((0.0, 0.0), (w1, 0.0), (0.0, h1), (w1, h1))
+            border = _border_points(size[0], size[1])
+        pts = border if g.sees_horizon else np.array([(u, v, 1.0) for u, v in corners])
         rays = relief.ray_slopes(
             r, jac, g.level, pts[:, 0].astype(np.float32), pts[:, 1].astype(np.float32)
         )
@@ -395,19 +409,27 @@ class Renderer:
         r, jac, cx, cy = self._relief_setup(state, level)
         r = (r[0], r[1], r[2] - m * (r[0] + r[1]), r[3], r[4], r[5] - m * (r[3] + r[4]),
              r[6], r[7], r[8] - m * (r[6] + r[7]))  # fmt: skip
-        g = FrameGeometry(g.h_img_to_map0, level, g.center_map_px, True, g.height_m)
-        window = self._relief_window(state, g, r, jac, cx, cy)
+        g = FrameGeometry(g.h_img_to_map0, level, g.center_map_px, g.sees_horizon, g.height_m)
+        size = (cam.width_px + 2 * m, cam.height_px + 2 * m)
+        window = self._relief_window(state, g, r, jac, cx, cy, size)
         maps, _ = relief.ground_maps(
             window, r, jac, level, cx, cy, state.alt_amsl_m, cam.width_px + 2 * m,
             cam.height_px + 2 * m,
         )  # fmt: skip
         maps += np.array([window.x0, window.y0], dtype=np.float32)
+        if g.sees_horizon:  # rays that never descend: far off the map (the fill colour)
+            down = r[6] * (pu + m) + r[7] * (pv + m) + r[8] > _MIN_DOWN
         if m == 2 and pu.shape == (cam.height_px, cam.width_px) and _is_grid(pu, pv):
-            return np.ascontiguousarray(maps[m:-m, m:-m])
+            grid = np.ascontiguousarray(maps[m:-m, m:-m])
+            if g.sees_horizon:
+                grid[~down] = -1e7
+            return grid
         out: npt.NDArray[np.float32] = cv2.remap(  # type: ignore[assignment]
             maps, (pu + m).astype(np.float32), (pv + m).astype(np.float32), cv2.INTER_LINEAR,
             borderMode=cv2.BORDER_REPLICATE,
         )  # fmt: skip
+        if g.sees_horizon:
+            out[~down] = -1e7
         return out
 
     def _at_time(self, state: VehicleState, dt_s: float) -> VehicleState:

@@ -11,6 +11,7 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 import rasterio
+import yaml
 from georef_helpers import HOME, marks_image, utm_grid
 from rasterio.transform import Affine
 from rasterio.warp import Resampling, calculate_default_transform, reproject
@@ -234,3 +235,28 @@ def test_a_map_much_coarser_than_the_camera_is_named_once(
     err = capsys.readouterr().err
     assert err.count("coarser than the camera") == 1
     assert "2.00 m pixels are 5.8x coarser than the camera's 0.34 m at 200 m" in err
+
+
+def test_lens_distortion_over_relief_is_undone_by_camera_yaml(
+    marks_map: tuple[ArrayMap, str, tuple[float, float, float, float, float, float]],
+    tmp_path: Path,
+) -> None:
+    from air_sitl.camera.effects import CameraEffects
+    from air_sitl.camera.info import camera_yaml_for
+
+    m, crs, transform = marks_map
+    size = round(2 * HALF / GSD)
+    dem = write_dem(tmp_path / "plateau.tif", plateau_heights(size, PLATEAU_M, 200), crs, transform)
+    surface = GeoTiffDem(dem, m)
+    state = _pose(HOME.alt_amsl_m + 250.0, roll_deg=4.0)
+    lens = CameraModel(noise_sigma=0.0, effects=CameraEffects(enabled=("distortion",)))
+    info = yaml.safe_load(camera_yaml_for(lens))
+    k = np.array(info["camera_matrix"]["data"]).reshape(3, 3)
+    d = np.array(info["distortion_coefficients"]["data"])
+    pinhole = Renderer(m, CameraModel(noise_sigma=0.0), surface=surface).render(state)
+    distorted = Renderer(m, lens, surface=surface).render(state)
+    undone = np.asarray(cv2.undistort(distorted, k, d, None, k), dtype=np.uint8)
+    got, want = _dots(undone[20:-20, 20:-20]), _dots(pinhole[20:-20, 20:-20])
+    dist = np.hypot(got[:, None, 0] - want[None, :, 0], got[:, None, 1] - want[None, :, 1])
+    assert len(got) > 100
+    assert float(dist.min(axis=1).max()) < 0.5
