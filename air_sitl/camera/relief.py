@@ -1,16 +1,20 @@
 """Frames over relief: every pixel shows the FIRST surface its ray meets (ray marching).
 
 Rays are marched over the surface's height field on the map's level-L pixel grid, from the
-highest height in the footprint down to the lowest, in equal altitude steps that move the
-most oblique ray by at most one level pixel; the first step below the surface is refined by
-bisection. So tall things lean away from the nadir and hide what is behind them (a
-"project at the height found there" iteration would not occlude).
+highest height in the footprint (or the camera) down to the lowest, in equal altitude steps
+that move the ray by at most one level pixel; the first step under the surface is refined
+by bisection and a secant (exact on a plane). So tall things lean away from the nadir and
+hide what is behind them (a "project at the height found there" iteration would not
+occlude). A wall shows the map's colour at its foot, stretched.
 
-Speed: a coarse grid of rays (every ``STRIDE``-th pixel, one more all around) is marched
-and its ground points are interpolated per pixel (bilinear, exact for a plane to far below a
-pixel); cells whose corners meet surfaces at heights that would move a pixel by more than
-``EDGE_PX`` (roof edges, crowns, occlusion boundaries) are marched again at full resolution
-over their corners' altitude range. Then one remap from the map window.
+Speed: a coarse grid of rays (every ``STRIDE``-th pixel, half a stride beyond the image) is
+marched; the grid is refined by halving the stride down to 2 only in cells next to a sample
+where the parallax (pixels of lean) bends by more than ``EDGE_PX`` (roof edges, crowns,
+occlusion boundaries), marching the new rays over their cell's corners' altitude range;
+then every pixel of the remaining edge cells is marched on its own and the rest is
+interpolated bilinearly (exact for a plane to far below a pixel). Then one remap from the
+map window. Cost (bench_camera.py part 4): 11-31x the flat render on this machine, NumPy
+per-ray work at about 0.3 us a ray being the floor; a compiled march would be the next step.
 """
 
 from __future__ import annotations
