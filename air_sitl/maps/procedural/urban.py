@@ -328,7 +328,9 @@ class UrbanWorld:
                 cv2.circle(out, centre, rad, (height,), -1, cv2.LINE_8, 4)
             else:
                 cv2.fillPoly(out, [polys[i][2]], (height,), cv2.LINE_8, 4)
-        return out
+        # Polygon edges drawn without anti-aliasing (float layers) would show as stairs along
+        # roof edges seen closer than a pixel; a 3-tap blur spreads each edge over a pixel.
+        return np.asarray(cv2.GaussianBlur(out, (3, 3), 0.0, borderType=cv2.BORDER_REPLICATE))
 
     def _draw_roads(
         self,
