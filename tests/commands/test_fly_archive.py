@@ -7,6 +7,7 @@ moments followed by ``check`` and ``--resume``, a full disk and a read-only fold
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
@@ -226,9 +227,19 @@ def _signal_when(out: Path, proc: subprocess.Popen[bytes], marker: str, sig: int
     return False
 
 
-def _kill_when(out: Path, proc: subprocess.Popen[bytes], marker: str) -> bool:
-    """SIGKILL ``proc`` when ``out/marker`` appears; True when the kill ended the flight."""
-    _signal_when(out, proc, marker, signal.SIGKILL)
+def _kill_when(out: Path, proc: subprocess.Popen[bytes], marker: str | int) -> bool:
+    """SIGKILL ``proc`` when ``out/marker`` appears, or (an int) when metadata.csv holds that
+    many rows on disk; True when the kill ended the flight."""
+    if isinstance(marker, str):
+        _signal_when(out, proc, marker, signal.SIGKILL)
+    else:
+        metadata = out / "metadata.csv"
+        while proc.poll() is None:
+            with contextlib.suppress(OSError):
+                if metadata.read_bytes().count(b"\n") > marker:  # header + rows
+                    proc.send_signal(signal.SIGKILL)
+                    break
+            time.sleep(0.001)
     proc.wait()
     return proc.returncode == -signal.SIGKILL
 
@@ -238,16 +249,19 @@ def test_sigkill_at_random_moments_then_check_and_resume(
 ) -> None:
     total = len(minimal_read(clean))
     rng = np.random.default_rng(20261122)
-    # Three kills when a random frame of the capture has just been written, one as soon as the
-    # output folder exists (start-up). Moments are frames, so a busy machine moves none of them.
-    frames = sorted(int(n) for n in rng.integers(1, total * 2 // 3, size=3))
-    markers = [f"frame_{n:06d}.jpg" for n in frames] + [""]
+    # Kills when a random frame of the capture has just been written, when metadata.csv holds a
+    # random number of rows on disk (rows are flushed each simulated second, so those kills
+    # always leave a partial archive), and as soon as the output folder exists (start-up).
+    # Moments are events of the flight, so a busy machine moves none of them.
+    frames = sorted(int(n) for n in rng.integers(1, total * 2 // 3, size=2))
+    rows = sorted(int(n) for n in rng.integers(1, total // 2, size=2))
+    markers: list[str | int] = [f"frame_{n:06d}.jpg" for n in frames] + rows + [""]
     kept: list[int] = []
     for k, marker in enumerate(markers):
         out = tmp_path / f"k{k}"
         proc = _spawn_fly(plan, out)
         landed = _kill_when(out, proc, marker)
-        what = f"killed when {marker or 'the folder'} appeared (landed: {landed})"
+        what = f"killed at {marker or 'the folder'!r} (landed: {landed})"
         if out.is_dir() and any(out.iterdir()):
             assert main(["check", str(out)]) == 0, what
             if landed and (out / "metadata.csv").exists():
