@@ -13,6 +13,8 @@ rejected by the filter); one without a position counts as empty.
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
+from dataclasses import replace
 
 from air_sitl.bus.codec import Estimate
 from air_sitl.nav.types import AidFrame, AidMeasurement
@@ -23,9 +25,18 @@ _INVALID = ("invalid",)  # a position the filter refuses as invalid (a payload t
 class BusAidFeed:
     """Estimates of one estimator, waiting for the simulation thread."""
 
-    def __init__(self, name: str, *, lockstep_lag: int | None = None) -> None:
+    def __init__(
+        self,
+        name: str,
+        *,
+        lockstep_lag: int | None = None,
+        time_of: Callable[[int], int | None] | None = None,
+    ) -> None:
         self.name = name
         self.lockstep_lag = lockstep_lag
+        # The exposure time of a frame (an estimate naming only its frame may arrive before
+        # the frame was published, when its time was not known yet).
+        self.time_of = time_of
         self._lock = threading.Lock()
         self._pending: list[tuple[int, int, AidMeasurement]] = []  # (frame or -1, seq, m)
         self._seq = 0
@@ -74,4 +85,11 @@ class BusAidFeed:
                 ready = [p for p in self._pending if p[0] <= limit]
                 self._pending = [p for p in self._pending if p[0] > limit]
         ready.sort(key=lambda p: (p[0], p[1]) if lag is not None else (0, p[1]))
-        return [m for _, _, m in ready]
+        return [self._timed(frame, m) for frame, _, m in ready]
+
+    def _timed(self, frame: int, m: AidMeasurement) -> AidMeasurement:
+        if m.sim_time_ns is None and frame >= 0 and self.time_of is not None:
+            t = self.time_of(frame)
+            if t is not None:
+                return replace(m, sim_time_ns=t)
+        return m

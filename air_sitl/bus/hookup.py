@@ -137,7 +137,8 @@ class BusHookup(Closeable):
             return None
         wait = self.options.wait
         lag = wait.max_lag if wait is not None and wait.name == name else None
-        feed = BusAidFeed(name, lockstep_lag=lag)
+        ledger = self.log.ledger
+        feed = BusAidFeed(name, lockstep_lag=lag, time_of=lambda f: ledger.lookup(f, None)[1])
         self.log.listeners.append(feed.on_estimate)
         return feed
 
