@@ -32,7 +32,7 @@ def test_without_lockstep_everything_is_taken_and_odd_payloads_pass_through() ->
     feed.on_estimate("mm", None, 8, Estimate(frame=None, sim_time_ns=8, enu_m=None, geo=geo))
     feed.on_estimate("mm", None, 9, Estimate(frame=None, sim_time_ns=9, enu_m=None, geo=None))
     a, b, c = feed.take(frames_submitted=0)
-    assert a.position == ("invalid",)
+    assert a.position == ("invalid",)  # type: ignore[comparison-overlap]
     assert b.frame == "wgs84" and b.position == (1.0, 2.0, 3.0)
     assert c.position is None  # "no estimate": counted as empty
     assert feed.take(frames_submitted=0) == []
