@@ -70,6 +70,7 @@ __all__ = [
 ]
 
 HEARTBEAT_PERIOD_S = 1.0  # wall clock
+MAX_ROUTES = 1024  # peers remembered for replies; forgotten ones are the links' dropped peers
 WALL_CAP_HZ = 200.0  # no stream goes faster than max(this, its own rate) in wall time
 
 
@@ -322,6 +323,9 @@ class VehicleEndpoint:
             self.options.component_id,
         ):
             return  # our own frames echoed back
+        if src.route not in self._routes and len(self._routes) >= MAX_ROUTES:
+            live = {id(c) for link in self._links for c in link.channels.values()}
+            self._routes = {r: c for r, c in self._routes.items() if r in live}
         self._routes[src.route] = ch
         if self.camera is not None and getattr(msg, "target_component", 0) == CAMERA_COMPONENT_ID:
             if getattr(msg, "target_system", 0) in (0, self.options.system_id):
