@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from gcs import PX4_MISSION, Gcs, serve
+from gcs import PX4_MISSION, SAFETY_S, Gcs, serve
 from pymavlink import mavutil
 
 from air_sitl.mission.items import MavCmd, MissionItem
@@ -27,7 +27,7 @@ def test_start_refused_with_px4_statustext() -> None:
         assert gcs.upload(items) == M.MAV_MISSION_ACCEPTED  # PX4 accepts the upload
         assert gcs.command(M.MAV_CMD_DO_SET_MODE, *PX4_MISSION) == M.MAV_RESULT_DENIED
         # STATUSTEXT carries 50 characters: a longer text comes in chunks (QGC joins them).
-        deadline = time.monotonic() + 60.0  # safety only: the ack came before the text ends
+        deadline = time.monotonic() + SAFETY_S  # safety only: a busy machine never reaches it
         while "takeoff not first" not in "".join(gcs.texts) and time.monotonic() < deadline:
             gcs.recv(["STATUSTEXT", "HEARTBEAT"], 1.0)
         assert "Mission rejected: takeoff not first waypoint item" in "".join(gcs.texts)
