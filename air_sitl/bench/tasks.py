@@ -22,14 +22,10 @@ from air_sitl.localize.external import (
     ExternalLocalizer,
     adopt_estimates,
     fly_in_lockstep,
-    localizer_argv,
     same_flight,
 )
 
 Notify = Callable[[EntryResult], None]
-
-# localizer_argv: sweep/run.py still imports it from here
-__all__ = ["MethodsTask", "Notify", "localizer_argv", "run_external", "run_methods"]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

@@ -12,9 +12,9 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
+from air_sitl.closeable import Closeable
 from air_sitl.files import write_all
 from air_sitl.sweep.errors import SweepError
 
@@ -61,7 +61,7 @@ def latest_rows(path: Path) -> dict[str, dict[str, Any]]:
     return {row["id"]: row for row in read_rows(path)}
 
 
-class ResultsFile:
+class ResultsFile(Closeable):
     """The append side of ``results.jsonl``: opened once, a torn last line trimmed first."""
 
     def __init__(self, path: Path) -> None:
@@ -101,17 +101,6 @@ class ResultsFile:
 
     def close(self) -> None:
         os.close(self._fd)
-
-    def __enter__(self) -> ResultsFile:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def comparable(row: dict[str, Any]) -> dict[str, Any]:

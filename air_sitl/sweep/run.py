@@ -20,8 +20,6 @@ import math
 import os
 import shutil
 import socket
-import subprocess
-import sys
 import tempfile
 import time
 from collections import OrderedDict
@@ -29,13 +27,18 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from air_sitl.bench.config import ExternalLocalizer
 from air_sitl.errors import AirSitlError
+from air_sitl.localize.external import (
+    ExternalLocalizer,
+    adopt_estimates,
+    fly_in_lockstep,
+    free_port,
+    same_flight,
+)
 
 WALL_CLOCK_SUMMARY_KEYS = ("wall_time_s", "realtime_factor")
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
 MAPS_KEPT = 4  # procedural maps a worker keeps open (each caches up to 256 MB of tiles)
-SHUTDOWN_GRACE_S = 10.0
 
 _MAPS: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
 
@@ -109,17 +112,11 @@ def _cached_map(setup: Any) -> Any:
     return source
 
 
-def _free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def _with_free_port(argv: list[str]) -> list[str]:
     """A bus on a free loopback port unless the SPEC gave one (runs side by side never
     share 7447)."""
     if "--zenoh" in argv and not any(a.startswith("--zenoh-listen") for a in argv):
-        return [*argv, f"--zenoh-listen=tcp/127.0.0.1:{_free_port()}"]
+        return [*argv, f"--zenoh-listen=tcp/127.0.0.1:{free_port()}"]
     return argv
 
 
@@ -189,65 +186,21 @@ def _localize(task: RunTask, out: Path) -> tuple[dict[str, Any], str | None]:
     return {name: reports.get(name) for name in order}, error
 
 
-def _stop(proc: subprocess.Popen[bytes]) -> None:
-    import signal
-
-    if proc.poll() is not None:
-        return
-    proc.send_signal(signal.SIGINT)
-    try:
-        proc.wait(SHUTDOWN_GRACE_S)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-
-
 def _run_external(task: RunTask, out: Path, localizer: ExternalLocalizer) -> str | None:
     """Fly the run again in lockstep with the localizer program on a free loopback port;
     its ``estimates/NAME.csv`` into the run's archive. None, or why it failed."""
-    from air_sitl.bench.tasks import localizer_argv
-    from air_sitl.dataset.air_schema import ESTIMATES_DIR, TRAJECTORY_CSV
-    from air_sitl.dataset.manifest import refresh_manifest, sha256_bytes
-    from air_sitl.files import write_bytes_atomic
-
-    endpoint = f"tcp/127.0.0.1:{_free_port()}"
     with tempfile.TemporaryDirectory(prefix=f"sweep-{task.id}-") as tmp:
         plan = Path(tmp) / task.plan_name
         plan.write_bytes(task.plan_text)
         flight = Path(tmp) / "flight"
         argv = [a for a in task.argv if not a.startswith("--zenoh")]
-        cmd = [
-            sys.executable, "-m", "air_sitl", "fly", str(plan), *argv, "--out", str(flight),
-            "--quiet", "--zenoh", f"--zenoh-listen={endpoint}", f"--wait-for={localizer.name}",
-        ]  # fmt: skip
         log_path = out / f"{localizer.name}.log"
-        env = {**os.environ, "AIR_SITL_ZENOH_ENDPOINT": endpoint}
-        fly = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        with log_path.open("wb") as log:
-            try:
-                user = subprocess.Popen(
-                    localizer_argv(localizer, endpoint), stdout=log, stderr=log, env=env
-                )
-            except OSError as err:
-                _stop(fly)
-                return f"cannot start {localizer.argv[0]}: {err.strerror or err}"
-            try:
-                _, fly_err = fly.communicate()
-            finally:
-                _stop(fly)
-                _stop(user)
-        if fly.returncode != 0:
-            lines = fly_err.decode("utf-8", "replace").strip().splitlines()
-            return (lines[-1] if lines else f"fly exited with {fly.returncode}") + (
-                f" (log: {log_path.name})"
-            )
-        if (flight / TRAJECTORY_CSV).read_bytes() != (out / TRAJECTORY_CSV).read_bytes():
+        why = fly_in_lockstep(plan, argv, flight, localizer, log_path)
+        if why is not None:
+            return f"{why} (log: {log_path.name})"
+        if not same_flight(flight, out):
             return "the lockstep flight differs from the run's (trajectory.csv)"
-        relative = f"{ESTIMATES_DIR}/{localizer.name}.csv"
-        data = (flight / relative).read_bytes()
-    (out / ESTIMATES_DIR).mkdir(exist_ok=True)
-    write_bytes_atomic(out / relative, data)
-    refresh_manifest(out, {relative: sha256_bytes(data)})
+        adopt_estimates(flight, out, localizer.name)
     return None
 
 

@@ -30,8 +30,9 @@ from typing import Any, NoReturn
 
 import yaml
 
-from air_sitl.bench.config import ExternalLocalizer, parse_localizer
+from air_sitl.bench.config import method_problem, parse_localizer
 from air_sitl.errors import AirSitlError
+from air_sitl.localize.external import ExternalLocalizer
 from air_sitl.sweep.errors import SweepError
 
 PLAN_KEYS = ("plan", "scenario")  # where a run's plan comes from (fly's positional PLAN)
@@ -276,12 +277,9 @@ def _methods(value: Any, where: str) -> tuple[str, ...]:
     if not isinstance(value, list) or not all(isinstance(m, str) for m in value):
         msg = f"{where}: methods: expected a list of method names, got {value!r}"
         raise SweepError(msg)
-    for i, name in enumerate(value):
-        if name not in METHODS:
-            msg = f"{where}: methods[{i}]: unknown method {name!r} (known: {', '.join(METHODS)})"
-            raise SweepError(msg)
-    if len(set(value)) != len(value):
-        msg = f"{where}: methods: a method is named twice"
+    problem = method_problem(value, tuple(METHODS))
+    if problem is not None:
+        msg = f"{where}: methods[{problem[0]}]: {problem[1]}"
         raise SweepError(msg)
     return tuple(value)
 
