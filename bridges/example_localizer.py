@@ -20,7 +20,6 @@ import argparse
 import contextlib
 import sys
 import threading
-import time
 from collections import deque
 
 from air_sitl.bus import codec
@@ -30,7 +29,7 @@ from air_sitl.bus.session import Bus, Message, open_bus
 from air_sitl.bus.signals import wait_until_signalled
 from air_sitl.errors import AirSitlError, BusError
 from air_sitl.localize.base import GnssFix, LocalizerContext, Observation
-from air_sitl.localize.online import camera_from_info, gnss_fix_of
+from air_sitl.localize.online import ask, camera_from_info, gnss_fix_of
 from air_sitl.localize.vo import VisualOdometry
 from air_sitl.state import GeoPoint, Quat
 
@@ -48,8 +47,8 @@ class Localizer:
         self.last_frame = -1
         bus.subscribe(keys.imu, self._on_imu)
         bus.subscribe(keys.gps, self._on_gps)
-        info = codec.decode_camera_info(self._ask(keys.info, wait_s).payload)
-        status = codec.loads(self._ask(keys.mission_status, wait_s).payload, keys.mission_status)
+        info = codec.decode_camera_info(ask(bus, keys.info, wait_s).payload)
+        status = codec.loads(ask(bus, keys.mission_status, wait_s).payload, keys.mission_status)
         h = status.get("home")
         if not isinstance(h, dict):
             msg = f"{keys.mission_status}: no home in the status"
@@ -62,17 +61,6 @@ class Localizer:
                 handler(Message(key, bus.query(key, timeout_s=2.0).payload, None))
         self._out = bus.publisher(self.key_out, encoding=codec.JSON_ENCODING, block=True)
         bus.subscribe(keys.image, self._on_image)
-
-    def _ask(self, key: str, wait_s: float) -> Message:
-        """Query ``key`` until the simulator answers (it may start after us)."""
-        deadline = time.monotonic() + wait_s
-        while True:
-            try:
-                return self.bus.query(key, timeout_s=1.0)
-            except BusError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.1)
 
     def _on_imu(self, message: Message) -> None:
         imu = codec.decode_imu(message.payload)

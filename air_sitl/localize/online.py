@@ -78,6 +78,19 @@ def camera_from_info(info: codec.CameraInfo) -> CameraModel:
     )
 
 
+def ask(bus: Bus, key: str, wait_s: float) -> Message:
+    """Query ``key`` until the simulator answers (it may start after us); BusError after
+    ``wait_s`` without an answer."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            return bus.query(key, timeout_s=1.0)
+        except BusError:
+            if time.monotonic() > deadline:
+                raise
+            time.sleep(0.1)  # the simulator is not up yet: ask again
+
+
 def gnss_fix_of(message: Message) -> GnssFix | None:
     """The 3D fix a ``gps`` message holds, None without one; BusError naming the key when bad."""
     m = codec.loads(message.payload, message.key)
@@ -135,8 +148,8 @@ class BusLocalizer:
         bus.subscribe(keys.imu, self._on_imu)
         bus.subscribe(keys.gps, self._on_gps)
         bus.subscribe(keys.mission_status, self._on_status)
-        info = codec.decode_camera_info(self._ask(keys.info).payload)
-        status = self._ask(keys.mission_status)
+        info = codec.decode_camera_info(ask(bus, keys.info, wait_s).payload)
+        status = ask(bus, keys.mission_status, wait_s)
         self._on_status(status)
         home = codec.loads(status.payload, keys.mission_status).get("home")
         if not isinstance(home, dict):
@@ -161,17 +174,6 @@ class BusLocalizer:
                 handler(Message(key, bus.query(key, timeout_s=2.0).payload, None))
         self._out = bus.publisher(self.key_out, encoding=codec.JSON_ENCODING, block=True)
         bus.subscribe(keys.image, self._on_image)
-
-    def _ask(self, key: str) -> Message:
-        """Query ``key`` until the simulator answers (it may start after us)."""
-        deadline = time.monotonic() + self.wait_s
-        while True:
-            try:
-                return self.bus.query(key, timeout_s=1.0)
-            except BusError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.1)  # the simulator is not up yet: ask again
 
     # -- zenoh threads: decode and queue, nothing else ------------------------------------
 
