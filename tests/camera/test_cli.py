@@ -32,7 +32,7 @@ def test_render_writes_a_jpeg(tmp_path: Path) -> None:
     )
     assert r.returncode == 0, r.stderr
     img = cv2.imdecode(np.frombuffer(out.read_bytes(), np.uint8), cv2.IMREAD_COLOR)
-    assert img.shape == (480, 640, 3)
+    assert img is not None and img.shape == (480, 640, 3)
     assert "centre at map px" in r.stdout
 
 
@@ -50,7 +50,8 @@ def test_map_make_then_render_it(tmp_path: Path) -> None:
         *("--alt-agl", "200", "--out", str(out), "--noise-sigma", "0"),
     )
     assert r.returncode == 0, r.stderr
-    assert cv2.imread(str(out)).shape == (480, 640, 3)
+    img = cv2.imread(str(out))
+    assert img is not None and img.shape == (480, 640, 3)
 
 
 # Every case renders at one place into {d}/x.jpg unless it says otherwise ({d}: tmp_path).
