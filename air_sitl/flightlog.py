@@ -12,6 +12,7 @@ from typing import IO, Any
 
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S
 from air_sitl.errors import DatasetError
+from air_sitl.nav.columns import NAV_COLUMNS, nav_fields
 from air_sitl.sinks import FlightResult, NullSink
 from air_sitl.state import BatteryState, FlightMode, SimSample
 
@@ -239,3 +240,23 @@ class FlightStats:
             "voltage_v": round(b.voltage_v, 3),
             "min_voltage_v": _rounded(self.min_battery_v),
         }
+
+
+class NavTrajectoryWriter(TrajectoryWriter):
+    """TrajectoryWriter whose rows carry the onboard estimate too."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        # The base wrote the truth header: replace it (nothing else written yet).
+        self._file.seek(0)
+        self._file.truncate()
+        self._file.write(",".join(TRAJECTORY_COLUMNS + NAV_COLUMNS) + "\n")
+
+    def on_sample(self, sample: SimSample) -> None:
+        t = sample.state.sim_time_ns
+        if t % CAMERA_PERIOD_NS:
+            return
+        self._file.write(f"{_row(sample)[:-1]},{nav_fields(sample.nav)}\n")
+        if t - self._last_flush_ns >= NS_PER_S:
+            self._file.flush()
+            self._last_flush_ns = t

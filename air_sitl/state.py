@@ -9,10 +9,6 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from air_sitl.nav.types import NavEstimate
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -125,6 +121,41 @@ class BatteryState:
     consumed_mah: float
     consumed_wh: float
     remaining: float  # 1.0 full .. 0.0 empty (of the capacity)
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class NavFlags:
+    """Which parts of the estimate are valid, and which sources feed it (ESTIMATOR_STATUS)."""
+
+    attitude: bool
+    velocity_horiz: bool
+    velocity_vert: bool
+    pos_horiz_rel: bool
+    pos_horiz_abs: bool
+    pos_vert_abs: bool
+    gnss_fusing: bool
+    aid_fusing: bool
+    dead_reckoning: bool  # no absolute horizontal position source fusing
+    wind_estimated: bool
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class NavEstimate:
+    """The onboard estimate at the current time (output predictor, not the delayed state)."""
+
+    sim_time_ns: int
+    pos_ned_m: Vec3  # relative to home
+    vel_ned_m_s: Vec3
+    q_body_to_ned_wxyz: Quat
+    lat_deg: float
+    lon_deg: float
+    alt_amsl_m: float
+    std_h_m: float  # sqrt of the larger eigenvalue of the horizontal position covariance
+    std_v_m: float
+    wind_ned_m_s: tuple[float, float]  # horizontal wind (where the air moves to), north, east
+    gyro_bias_rad_s: Vec3
+    accel_bias_m_s2: Vec3
+    flags: NavFlags
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

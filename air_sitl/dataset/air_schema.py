@@ -17,13 +17,10 @@ Files of an archive folder (all names relative to the folder):
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 from air_sitl.frames import quat2euler, quat_multiply
+from air_sitl.nav.columns import NAV_COLUMNS, nav_fields
 from air_sitl.state import CameraFrame, GpsFix, ImuSample, Quat, SimSample, Vec3
-
-if TYPE_CHECKING:
-    from air_sitl.nav.types import NavEstimate
 
 AIR_COLUMNS: tuple[str, ...] = (
     "Filename",
@@ -97,17 +94,6 @@ FRAMES_COLUMNS: tuple[str, ...] = (
     "mode",
 )
 FRAMES_HEADER = ",".join(FRAMES_COLUMNS) + "\n"
-# The onboard estimate (``--nav ekf``), appended to frames.csv and trajectory.csv; with
-# ``--nav truth`` the files keep their columns of before (byte-identical archives).
-NAV_COLUMNS: tuple[str, ...] = (
-    "nav_east_m",
-    "nav_north_m",
-    "nav_up_m",
-    "nav_lat_deg",
-    "nav_lon_deg",
-    "nav_alt_amsl_m",
-    "nav_std_h_m",
-)
 FRAMES_NAV_COLUMNS = FRAMES_COLUMNS + NAV_COLUMNS
 FRAMES_NAV_HEADER = ",".join(FRAMES_NAV_COLUMNS) + "\n"
 
@@ -253,17 +239,6 @@ def frames_row(
         f"{_gps_text(last_gps, s.sim_time_ns)},"
         f"{int(frame.map_xy_px[0])},{int(frame.map_xy_px[1])},{a.current_seq},{a.mode.value}"
         + ("\n" if not nav else f",{nav_fields(sample.nav)}\n")
-    )
-
-
-def nav_fields(est: NavEstimate | None) -> str:
-    """The NAV_COLUMNS of one row (empty fields before the filter has a position)."""
-    if est is None:
-        return ",,,,,,"
-    n, e, d = est.pos_ned_m
-    return (
-        f"{e:.4f},{n:.4f},{-d:.4f},{est.lat_deg:.9f},{est.lon_deg:.9f},{est.alt_amsl_m:.4f},"
-        f"{est.std_h_m:.4f}"
     )
 
 

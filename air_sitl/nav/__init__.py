@@ -35,10 +35,9 @@ from air_sitl.nav.types import (
     AirspeedSample,
     BaroSample,
     HeadingSample,
-    NavEstimate,
-    NavFlags,
 )
 from air_sitl.nav.vehicle import estimated_state
+from air_sitl.state import NavEstimate, NavFlags  # the filter's output, a core value type
 
 __all__ = [
     "AidFrame",

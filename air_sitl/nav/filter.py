@@ -27,10 +27,8 @@ from air_sitl.nav.types import (
     AirspeedSample,
     BaroSample,
     HeadingSample,
-    NavEstimate,
-    NavFlags,
 )
-from air_sitl.state import GeoPoint, GpsFix, ImuSample
+from air_sitl.state import GeoPoint, GpsFix, ImuSample, NavEstimate, NavFlags
 
 MAX_AIDS = 16
 REPLAY_PERIOD_NS = 1_000_000_000

@@ -39,13 +39,14 @@ from air_sitl.nav.sensors_extra import (
     MagNoise,
 )
 from air_sitl.nav.status import NavStatus
-from air_sitl.nav.types import AidMeasurement, AidResult, NavEstimate
+from air_sitl.nav.types import AidMeasurement, AidResult
 from air_sitl.state import (
     AutopilotStatus,
     FlightMode,
     GeoPoint,
     GpsFix,
     ImuSample,
+    NavEstimate,
     Vec3,
     VehicleState,
 )

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 from typing import Any
 
-from air_sitl.nav.types import NavFlags
+from air_sitl.state import NavFlags
 
 
 @dataclass(slots=True)

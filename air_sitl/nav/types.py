@@ -10,8 +10,6 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from air_sitl.state import Quat, Vec3
-
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class BaroSample:
@@ -75,38 +73,3 @@ class AidResult(enum.Enum):
     REJECTED_STALE = "stale"  # stamped behind the fusion horizon
     REJECTED_RATE = "rate"  # closer in time than the minimum interval to the previous one
     REJECTED_ORDER = "order"  # older than the previous accepted one of the same aid
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class NavFlags:
-    """Which parts of the estimate are valid, and which sources feed it (ESTIMATOR_STATUS)."""
-
-    attitude: bool
-    velocity_horiz: bool
-    velocity_vert: bool
-    pos_horiz_rel: bool
-    pos_horiz_abs: bool
-    pos_vert_abs: bool
-    gnss_fusing: bool
-    aid_fusing: bool
-    dead_reckoning: bool  # no absolute horizontal position source fusing
-    wind_estimated: bool
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class NavEstimate:
-    """The onboard estimate at the current time (output predictor, not the delayed state)."""
-
-    sim_time_ns: int
-    pos_ned_m: Vec3  # relative to home
-    vel_ned_m_s: Vec3
-    q_body_to_ned_wxyz: Quat
-    lat_deg: float
-    lon_deg: float
-    alt_amsl_m: float
-    std_h_m: float  # sqrt of the larger eigenvalue of the horizontal position covariance
-    std_v_m: float
-    wind_ned_m_s: tuple[float, float]  # horizontal wind (where the air moves to), north, east
-    gyro_bias_rad_s: Vec3
-    accel_bias_m_s2: Vec3
-    flags: NavFlags

@@ -9,8 +9,7 @@ specific force from the IMU minus the estimated biases, airspeed from the airspe
 from __future__ import annotations
 
 from air_sitl.frames import quat2euler
-from air_sitl.nav.types import NavEstimate
-from air_sitl.state import ImuSample, VehicleState
+from air_sitl.state import ImuSample, NavEstimate, VehicleState
 
 
 def estimated_state(

@@ -34,9 +34,8 @@ from air_sitl.dataset.manifest import read_manifest, refresh_manifest, sha256_fi
 from air_sitl.dataset.writer import DatasetWriter, read_run_key, recover_partial
 from air_sitl.errors import DatasetError, OptionError
 from air_sitl.files import write_json_atomic
-from air_sitl.flightlog import TrajectoryWriter
+from air_sitl.flightlog import NavTrajectoryWriter, TrajectoryWriter
 from air_sitl.mission.items import Mission
-from air_sitl.nav.log import NavTrajectoryWriter
 from air_sitl.recording.inputs import GPS_DENIAL_JSON, archive_info_for, gps_denial_record
 from air_sitl.runner import Flight
 from air_sitl.sinks import FrameSource, Sink
