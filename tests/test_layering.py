@@ -1,0 +1,53 @@
+"""The one-way flow of README's "How it fits together", checked on the imports of air_sitl.
+
+Each rule is a package that must not import another; a violation names the file and the line.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "air_sitl"
+IMPORT = re.compile(r"^\s*(?:from|import)\s+air_sitl\.(\w+)", re.MULTILINE)
+
+# (package, packages it must not import): README's table, the rules a change must keep.
+RULES: list[tuple[str, set[str]]] = [
+    ("state", {p.stem for p in PACKAGE.iterdir() if p.stem not in {"state", "__init__"}}),
+    ("fdm", {"autopilot", "nav", "flightlog", "dataset", "recording", "mavlink", "bus", "camera"}),
+    ("sensors", {"autopilot", "flightlog", "dataset", "recording", "mavlink", "bus", "camera"}),
+    ("nav", {"flightlog", "dataset", "recording", "mavlink", "bus", "camera"}),
+    ("mission", {"autopilot", "nav", "flightlog", "dataset", "mavlink", "bus", "fdm"}),
+    ("autopilot", {"nav", "flightlog", "dataset", "recording", "mavlink", "bus", "fdm"}),
+    ("camera", {"dataset", "bus", "mavlink", "recording"}),
+    ("maps", {"camera", "dataset", "bus", "mavlink", "recording"}),
+    ("flightlog", {"dataset", "bus", "mavlink", "recording"}),
+    ("dataset", {"flightlog", "bus", "mavlink", "recording"}),
+    ("mavlink", {"dataset", "bus", "flightlog", "recording"}),
+    ("bus", {"dataset", "mavlink", "flightlog", "recording"}),
+    ("localize", {"runner", "autopilot", "recording"}),
+    ("eval", {"localize", "runner", "recording"}),
+]
+
+
+def _imports(package: str) -> list[tuple[Path, int, str]]:
+    root = PACKAGE / package
+    files = sorted(root.rglob("*.py")) if root.is_dir() else [PACKAGE / f"{package}.py"]
+    found = []
+    for path in files:
+        text = path.read_text(encoding="utf-8")
+        for m in IMPORT.finditer(text):
+            found.append((path, text.count("\n", 0, m.start()) + 1, m.group(1)))
+    return found
+
+
+@pytest.mark.parametrize(("package", "forbidden"), RULES, ids=[r[0] for r in RULES])
+def test_package_keeps_the_one_way_flow(package: str, forbidden: set[str]) -> None:
+    bad = [
+        f"{path.relative_to(PACKAGE.parent)}:{line}: imports air_sitl.{name}"
+        for path, line, name in _imports(package)
+        if name in forbidden
+    ]
+    assert not bad, "\n".join(bad)
