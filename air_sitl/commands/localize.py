@@ -10,20 +10,26 @@ window ends or SIGINT/SIGTERM. The same method objects run in both (:mod:`air_si
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import threading
 import time
-from typing import IO, TYPE_CHECKING
+from pathlib import Path
+from types import FrameType
+from typing import IO
 
-if TYPE_CHECKING:
-    from air_sitl.localize.archive import LocalizeRun
+from air_sitl.bus.args import add_connection_arguments, bus_config_from_args
+from air_sitl.bus.keys import KeySpace, check_chunk
+from air_sitl.bus.session import open_bus
+from air_sitl.errors import OptionError
+from air_sitl.localize.archive import make_method, run_archive
+from air_sitl.localize.online import BusLocalizer
 
 HELP = "run a baseline localizer (deadreckon, vo, ...) over an archive or on the zenoh bus"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``localize``."""
-    from air_sitl.bus.args import add_connection_arguments
 
     parser.add_argument(
         "archive", nargs="?", metavar="ARCHIVE", help="archive folder (offline; not with --bus)"
@@ -101,7 +107,6 @@ class _Progress:
 
 def run(args: argparse.Namespace) -> int:
     """Offline over ``ARCHIVE`` or online with ``--bus``; exit 0 when done."""
-    from air_sitl.errors import OptionError
 
     if args.bus:
         if args.archive is not None:
@@ -119,7 +124,6 @@ EVERY_METHODS = ("mapmatch", "fused")  # the methods with an ``every`` option
 
 def _method_options(args: argparse.Namespace) -> dict[str, int]:
     """The method's own options from the command line (``--every``)."""
-    from air_sitl.errors import OptionError
 
     if args.every == 1:
         return {}
@@ -130,27 +134,22 @@ def _method_options(args: argparse.Namespace) -> dict[str, int]:
 
 
 def _run_offline(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from air_sitl.localize.archive import run_archive
 
     name = args.name or args.method
     options = _method_options(args)
     progress = None if args.quiet or not sys.stderr.isatty() else _Progress(name, sys.stderr)
     try:
-        if options:
-            result = _run_offline_with(args, options, progress)
-        else:
-            result = run_archive(
-                Path(args.archive),
-                args.method,
-                name=args.name,
-                reference_map=args.reference_map,
-                reference_date=args.reference_date,
-                seed=args.seed,
-                bus_inputs=args.bus_inputs,
-                progress=progress,
-            )
+        result = run_archive(
+            Path(args.archive),
+            args.method,
+            name=args.name,
+            reference_map=args.reference_map,
+            reference_date=args.reference_date,
+            seed=args.seed,
+            bus_inputs=args.bus_inputs,
+            progress=progress,
+            options=options,
+        )
     finally:
         if progress is not None:
             progress.finish()
@@ -163,58 +162,7 @@ def _run_offline(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_offline_with(
-    args: argparse.Namespace, options: dict[str, int], progress: _Progress | None
-) -> LocalizeRun:
-    """``run_archive`` with method options (it builds its method without any)."""
-    from pathlib import Path
-
-    from air_sitl.bus.keys import check_chunk
-    from air_sitl.dataset.reader import open_archive
-    from air_sitl.localize.archive import (
-        LocalizeRun,
-        check_writable,
-        context_of,
-        make_method,
-        observations,
-        run_method,
-    )
-    from air_sitl.localize.output import write_estimates
-
-    archive = Path(args.archive)
-    name = check_chunk("--name", args.name or args.method)
-    check_writable(archive)
-    loc = make_method(args.method, **options)
-    with open_archive(archive) as arch:
-        context = context_of(
-            arch, reference_map=args.reference_map, reference_date=args.reference_date,
-            seed=args.seed,
-        )  # fmt: skip
-        start = time.perf_counter()
-        source = observations(
-            arch, needs_image=loc.needs_image, seed=args.seed, bus_inputs=args.bus_inputs
-        )
-        estimates = run_method(loc, context, source, total=len(arch), progress=progress)
-        wall = time.perf_counter() - start
-    return LocalizeRun(
-        path=write_estimates(archive, name, estimates, context.home),
-        method=args.method,
-        name=name,
-        frames=len(estimates),
-        estimated_frames=sum(1 for e in estimates if e.enu_m is not None),
-        wall_s=wall,
-    )
-
-
 def _run_bus(args: argparse.Namespace) -> int:
-    import signal
-    from types import FrameType
-
-    from air_sitl.bus.args import bus_config_from_args
-    from air_sitl.bus.keys import KeySpace, check_chunk
-    from air_sitl.bus.session import open_bus
-    from air_sitl.localize.archive import make_method
-    from air_sitl.localize.online import BusLocalizer
 
     name = check_chunk("--name", args.name or args.method)
     keys = KeySpace(args.vehicle)

@@ -21,7 +21,7 @@ import csv
 import io
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -321,13 +321,15 @@ def run_archive(
     seed: int = 0,
     bus_inputs: bool = False,
     progress: ProgressFn | None = None,
+    options: Mapping[str, Any] | None = None,
 ) -> LocalizeRun:
-    """Localize every capture frame of ``archive`` with ``method``; write the estimates file."""
+    """Localize every capture frame of ``archive`` with ``method`` (built with ``options``, e.g.
+    ``{"every": 4}``); write the estimates file."""
     from air_sitl.bus.keys import check_chunk
 
     name = check_chunk("--name", name or method)
     check_writable(archive)
-    loc = make_method(method)
+    loc = make_method(method, **(options or {}))
     with open_archive(archive) as arch:
         context = context_of(
             arch, reference_map=reference_map, reference_date=reference_date, seed=seed
