@@ -8,7 +8,14 @@ run into a gate: exit 1 with one line per failed requirement.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+from pathlib import Path
+
+from air_sitl.errors import OptionError
+from air_sitl.eval import score_sources
+from air_sitl.eval.report import table
+from air_sitl.eval.require import failures, parse
 
 HELP = "score position estimates against an archive's truth (report, JSON, plots, CI gate)"
 
@@ -45,13 +52,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Score, print, write; 0 when every requirement holds, 1 otherwise."""
-    import json
-    from pathlib import Path
-
-    from air_sitl.errors import OptionError
-    from air_sitl.eval import score_sources
-    from air_sitl.eval.report import table
-    from air_sitl.eval.require import failures, parse
 
     requirements = [parse(text) for text in args.require]
     scored = score_sources(Path(args.archive), args.estimate, args.align)
@@ -68,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
             msg = f"{args.json}: cannot write: {err.strerror}"
             raise OptionError(msg) from None
     if args.plots is not None:
+        # matplotlib (about 0.5 s to import) only when figures are asked for
         from air_sitl.eval.plots import write_plots
 
         for path in write_plots(scored, Path(args.plots)):

@@ -13,8 +13,11 @@ import argparse
 import sys
 from pathlib import Path
 
+from air_sitl.dataset.scenarios import missions_dir
 from air_sitl.errors import OptionError
 from air_sitl.options import int_in_range
+from air_sitl.sweep import PoolExecutor, RayExecutor, load_spec, print_outcome, run_sweep
+from air_sitl.sweep.report import write_report
 
 HELP = "many runs from one SPEC (axes x seeds): fly, localize, eval; on a process pool or Ray"
 
@@ -65,12 +68,9 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         msg = "sweep: --out DIR is required (where results.jsonl and the runs go)"
         raise OptionError(msg)
-    from air_sitl.sweep import PoolExecutor, RayExecutor, load_spec, print_outcome, run_sweep
 
     missions = None
     if args.missions is not None:
-        from air_sitl.dataset.scenarios import missions_dir
-
         missions = missions_dir(args.missions)
     spec = load_spec(Path(args.spec), missions=missions)
     jobs = int_in_range("-j", args.jobs, 1, 256)
@@ -95,7 +95,6 @@ def _report(args: argparse.Namespace) -> int:
     if args.dir is None:
         msg = "sweep report: give the sweep folder: air-sitl sweep report DIR"
         raise OptionError(msg)
-    from air_sitl.sweep.report import write_report
 
     written = write_report(Path(args.dir))
     if not args.quiet:

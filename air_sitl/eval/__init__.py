@@ -17,17 +17,17 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from air_sitl.dataset.reader import open_archive
 from air_sitl.eval.align import ALIGNMENTS
 from air_sitl.eval.errors import EvalError
 from air_sitl.eval.report import Scored, score
+from air_sitl.eval.sources import load_estimate, load_truth
 
 __all__ = ["ALIGNMENTS", "EvalError", "Scored", "evaluate", "evaluate_many", "score_sources"]
 
 
 def score_sources(archive: Path | str, sources: Sequence[str], align: str = "none") -> list[Scored]:
     """Every source scored against one archive, its truth read once (reports and arrays)."""
-    from air_sitl.dataset.reader import open_archive
-    from air_sitl.eval.sources import load_estimate, load_truth
 
     if align not in ALIGNMENTS:
         msg = f"--align {align!r}: expected one of {', '.join(ALIGNMENTS)}"

@@ -27,7 +27,13 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from air_sitl.builder import load_setup
+from air_sitl.bus.hookup import bus_sinks_from_args
+from air_sitl.camera.options import camera_from_args, map_choice_from_args, open_chosen_map
+from air_sitl.dataset.air_schema import ESTIMATES_DIR, SUMMARY_JSON
 from air_sitl.errors import AirSitlError
+from air_sitl.eval import evaluate_many
+from air_sitl.localize.archive import run_archive
 from air_sitl.localize.external import (
     ExternalLocalizer,
     adopt_estimates,
@@ -35,6 +41,11 @@ from air_sitl.localize.external import (
     free_port,
     same_flight,
 )
+from air_sitl.maps.open import default_map_for_plan
+from air_sitl.maps.procedural import KINDS
+from air_sitl.options import flight_options_from_args, int_in_range
+from air_sitl.recording import RecordingRequest, record_flight
+from air_sitl.sweep.spec import fly_parser
 
 WALL_CLOCK_SUMMARY_KEYS = ("wall_time_s", "realtime_factor")
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS")
@@ -93,9 +104,6 @@ def _one_line(err: BaseException) -> str:
 def _cached_map(setup: Any) -> Any:
     """The procedural map of ``setup``, opened once per worker; None for GeoTIFF maps (a
     flight closes its map's files when it ends)."""
-    from air_sitl.camera.options import open_chosen_map
-    from air_sitl.maps.open import default_map_for_plan
-    from air_sitl.maps.procedural import KINDS
 
     spec = setup.map.spec or default_map_for_plan(setup.name)
     if spec.strip() not in KINDS:
@@ -122,13 +130,6 @@ def _with_free_port(argv: list[str]) -> list[str]:
 
 def _fly(task: RunTask, plan: Path, out: Path) -> dict[str, Any]:
     """Fly the run into ``out``, as ``air-sitl fly`` would; its summary.json."""
-    from air_sitl.builder import load_setup
-    from air_sitl.bus.hookup import bus_sinks_from_args
-    from air_sitl.camera.options import camera_from_args, map_choice_from_args
-    from air_sitl.dataset.air_schema import SUMMARY_JSON
-    from air_sitl.options import flight_options_from_args, int_in_range
-    from air_sitl.recording import RecordingRequest, record_flight
-    from air_sitl.sweep.spec import fly_parser
 
     args = fly_parser().parse_args([str(plan), *_with_free_port(list(task.argv))])
     setup = load_setup(
@@ -155,8 +156,6 @@ def _row_summary(summary: dict[str, Any], plan_label: str) -> dict[str, Any]:
 
 def _localize(task: RunTask, out: Path) -> tuple[dict[str, Any], str | None]:
     """Each method over the archive, then every estimate scored; (reports, first error)."""
-    from air_sitl.eval import evaluate_many
-    from air_sitl.localize.archive import run_archive
 
     scored: list[str] = []
     reports: dict[str, Any] = {}
@@ -209,7 +208,6 @@ def _keep(out: Path, keep: str) -> None:
     estimates and summaries only."""
     if keep == "all" or not out.is_dir():
         return
-    from air_sitl.dataset.air_schema import ESTIMATES_DIR, SUMMARY_JSON
 
     for path in out.iterdir():
         if path.name in (ESTIMATES_DIR, SUMMARY_JSON):
