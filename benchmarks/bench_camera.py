@@ -229,8 +229,8 @@ def _marched_rays(renderer: Renderer, state: VehicleState) -> float:
     from air_sitl.camera import relief as relief_mod
 
     g = renderer.geometry(state)
-    r, jac, cx, cy = renderer._relief_setup(state, g.level)
-    window = renderer._relief_window(state, g, r, jac, cx, cy)
+    r, jac, cx, cy = renderer._remap.relief_setup(state, g.level)
+    window = renderer._remap.relief_window(state, g, r, jac, cx, cy)
     cam = renderer.camera
     _maps, stats = relief_mod.ground_maps(
         window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px

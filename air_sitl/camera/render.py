@@ -9,6 +9,8 @@ and free of aliasing. One level per frame: at extreme attitudes (horizon in view
 ground aliases. Rays that miss the ground, or meet it beyond MAX_MOSAIC_HALF_PX level pixels
 from the image centre, get the fill colour (black), as does ground outside a bounded map.
 A frame is a pure function of (map, camera, state, frame index, seed).
+Relief and camera effects are rendered by ``remap`` (a part the Renderer owns); the 3x3
+homography arithmetic and FrameGeometry are in ``homography``.
 """
 
 from __future__ import annotations
@@ -16,44 +18,48 @@ from __future__ import annotations
 import math
 import sys
 import threading
-from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
-from air_sitl.camera import effects as fx_mod
-from air_sitl.camera import relief
+from air_sitl.camera.homography import (
+    MAX_MOSAIC_HALF_PX,
+    MIN_DOWN,
+    FrameGeometry,
+    Mat9,
+    border_points,
+    max_step,
+    mul3,
+    quat_rows,
+    to_level,
+    to_mat,
+    tuple9,
+)
 from air_sitl.camera.model import CameraModel
-from air_sitl.frames import euler2quat, ned2geodetic, quat_multiply, quat_normalize
+from air_sitl.camera.remap import RemapPaths
+from air_sitl.frames import euler2quat, ned2geodetic
 from air_sitl.maps.base import FILL_BGRX, TILE_PX, MapSource
 from air_sitl.maps.procedural.noise import key_of
 from air_sitl.maps.surface import SurfaceModel
 from air_sitl.state import CameraFrame, SimSample, VehicleState
 
-Mat3 = npt.NDArray[np.float64]
-Mat9 = tuple[float, float, float, float, float, float, float, float, float]
+__all__ = [
+    "FILL_BGR",
+    "MAX_MOSAIC_HALF_PX",
+    "FrameGeometry",
+    "Renderer",
+    "pose_state",
+    "render_camera_frame",
+]
+
 Image = npt.NDArray[np.uint8]
-Jac4 = tuple[float, float, float, float]
 
 FILL_BGR: tuple[int, int, int] = FILL_BGRX[:3]
-MAX_MOSAIC_HALF_PX = 2048  # limit of the map area read for one frame, per side, at its level
-_MIN_DOWN = 1e-6  # rays flatter than this (horizon) count as missing the ground
 _COARSE_MAP = 0.5  # warn when a map pixel spans more than 2 image pixels
 _NOISE_BANK_FACTOR = 2
 _STRIP_BYTES = 320 * 1024  # 4-channel warp output per strip: well inside a core's L2 cache
 _STRIP_SOURCE_BYTES = 640 * 1024  # largest map window copied for one strip (see _strip_source)
-
-
-@dataclass(frozen=True, slots=True)
-class FrameGeometry:
-    """How one frame maps to the map: homography image -> level-0 map px, level, centre."""
-
-    h_img_to_map0: Mat3
-    level: int
-    center_map_px: tuple[float, float] | None  # image-centre ground point (None: no ground)
-    sees_horizon: bool
-    height_m: float
 
 
 class Renderer:
@@ -73,7 +79,7 @@ class Renderer:
         self.surface = surface  # None: the flat ground plane of the map (frames as before)
         self._warned_gsd = False
         c2b_kinv = camera.r_cam_to_body() @ np.linalg.inv(camera.intrinsics())
-        self._c2b_kinv = _tuple9(c2b_kinv)  # image (u, v, 1) -> body-frame ray
+        self._c2b_kinv = tuple9(c2b_kinv)  # image (u, v, 1) -> body-frame ray
         # Noise: a pre-drawn bank split into its positive and negative parts (uint8), so a
         # frame costs two saturating adds (clip(img + n) exactly, as only one part is non-zero
         # per element). A frame takes a contiguous slice at an offset drawn from
@@ -82,24 +88,13 @@ class Renderer:
         self._noise_neg: Image | None = None
         self._local = threading.local()
         self._jacobians: dict[tuple[float, float], tuple[float, float, float, float]] = {}
-        self._border = _border_points(camera.width_px, camera.height_px)
+        self._border = border_points(camera.width_px, camera.height_px)
         w1, h1 = camera.width_px - 1.0, camera.height_px - 1.0
         self._corners = ((0.0, 0.0), (w1, 0.0), (0.0, h1), (w1, h1))
         strips = max(1, math.ceil(camera.width_px * camera.height_px * 4 / _STRIP_BYTES))
         self._strip_rows = math.ceil(camera.height_px / strips)
-        self._pinhole: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
-        self._vignette: npt.NDArray[np.float32] | None = None
-        if camera.has_effects:
-            assert camera.effects is not None
-            k = camera.intrinsics()
-            self._pinhole = fx_mod.undistorted_grid(
-                camera.width_px, camera.height_px, k, camera.effects.distortion
-            )
-            if camera.effects.on("vignette"):
-                self._vignette = fx_mod.vignette_gain(
-                    camera.width_px, camera.height_px, k, *self._pinhole,
-                    camera.effects.vignette_power,
-                )[:, :, None]  # fmt: skip
+        # Relief and camera effects: per-pixel maps, in their own part (None: flat, plain).
+        self._remap = RemapPaths(self) if surface is not None or camera.has_effects else None
         if camera.noise_sigma > 0:
             rng = np.random.default_rng(key_of(seed, 0x4E01))
             n = camera.height_px * camera.width_px * 3 * _NOISE_BANK_FACTOR
@@ -144,39 +139,39 @@ class Renderer:
             height = state.alt_amsl_m - self.map.ground_elevation_m
         else:  # the plane through the surface under the aircraft (level, footprint, centre)
             height = state.alt_amsl_m - self.surface.height_at(state.lat_deg, state.lon_deg)
-        r = _mul3(_quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)  # (u, v, 1) -> NED ray
+        r = mul3(quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)  # (u, v, 1) -> NED ray
         x0, y0 = self.map.latlon_to_map_px(state.lat_deg, state.lon_deg)
         j = self._jacobian(round(state.lat_deg, 3), round(state.lon_deg, 3))
         ground = (j[0], j[1], x0, j[2], j[3], y0, 0.0, 0.0, 1.0)  # (north, east, 1) -> map px
         to_ground = (r[0] * height, r[1] * height, r[2] * height,
                      r[3] * height, r[4] * height, r[5] * height,
                      r[6], r[7], r[8])  # fmt: skip
-        h = _mul3(ground, to_ground)
+        h = mul3(ground, to_ground)
         corners = self._corners
         downs = [r[6] * u + r[7] * v + r[8] for u, v in corners]
-        sees_horizon = height <= 0 or min(downs) <= _MIN_DOWN
+        sees_horizon = height <= 0 or min(downs) <= MIN_DOWN
         cx, cy = cam.cx_px, cam.cy_px
         centre_px: tuple[float, float] | None = None
         level = 0
-        if height > 0 and r[6] * cx + r[7] * cy + r[8] > _MIN_DOWN:
+        if height > 0 and r[6] * cx + r[7] * cy + r[8] > MIN_DOWN:
             cw = h[6] * cx + h[7] * cy + h[8]
             centre_px = ((h[0] * cx + h[1] * cy + h[2]) / cw, (h[3] * cx + h[4] * cy + h[5]) / cw)
-            centre_step = _step(h, cx, cy)
+            centre_step = max_step(h, cx, cy)
             widest = max(
                 [centre_step]
                 + [
-                    _step(h, u, v)
+                    max_step(h, u, v)
                     for (u, v), d in zip(corners, downs, strict=True)
-                    if d > _MIN_DOWN
+                    if d > MIN_DOWN
                 ]
             )
             effective = math.sqrt(centre_step * widest)
             level = self.map.level_for_gsd(effective * self.map.georef.gsd_m)
             if effective < _COARSE_MAP and not self._warned_gsd:
                 self._warn_coarse(effective, height)
-        g = FrameGeometry(_mat(h), level, centre_px, sees_horizon, height)
-        if self.surface is not None and centre_px is not None:
-            g = self._relief_centre(state, g)
+        g = FrameGeometry(to_mat(h), level, centre_px, sees_horizon, height)
+        if self._remap is not None and self.surface is not None and centre_px is not None:
+            g = self._remap.relief_centre(state, g)
         return g
 
     def map_xy_px(self, state: VehicleState) -> tuple[float, float] | None:
@@ -219,11 +214,9 @@ class Renderer:
         if g.height_m <= 0:
             out[:] = FILL_BGR
             return out if noise is None else self._noised(out, noise, 0, cam.height_px)
-        if self._pinhole is not None:
-            return self._render_effects(state, g, out, noise, noise_index)
-        if self.surface is not None:
-            return self._render_relief(state, g, out, noise)
-        h_lvl = _to_level(_tuple9(g.h_img_to_map0), g.level)
+        if self._remap is not None:
+            return self._remap.render(state, g, out, noise, noise_index)
+        h_lvl = to_level(tuple9(g.h_img_to_map0), g.level)
         x0, y0, x1, y1 = self._footprint(h_lvl, g)
         mosaic, x0, y0 = self._mosaic(g.level, x0, y0, x1, y1)
         a0, a1, a2, a3, a4, a5, a6, a7, a8 = h_lvl
@@ -246,7 +239,7 @@ class Renderer:
                        a6, a7, b8)  # fmt: skip
             warped = cv2.warpPerspective(
                 source,
-                _mat(strip_h),
+                to_mat(strip_h),
                 (cam.width_px, v1 - v0),
                 dst=scratch[: v1 - v0],
                 flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
@@ -260,302 +253,6 @@ class Renderer:
             if noise is not None:
                 self._noised(part, noise, v0, v1)
         return out
-
-    # -- relief ------------------------------------------------------------------------------
-    def _relief_setup(
-        self, state: VehicleState, level: int
-    ) -> tuple[Mat9, tuple[float, float, float, float], float, float]:
-        """(image -> NED ray, d map px / d(north, east), camera level pixel x, y)."""
-        r = _mul3(_quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)
-        jac = self._jacobian(round(state.lat_deg, 3), round(state.lon_deg, 3))
-        x0, y0 = self.map.latlon_to_map_px(state.lat_deg, state.lon_deg)
-        s = 1 << level
-        off = (s - 1) / 2.0
-        return r, jac, (x0 - off) / s, (y0 - off) / s
-
-    def _relief_window(
-        self,
-        state: VehicleState,
-        g: FrameGeometry,
-        r: Mat9,
-        jac: Jac4,
-        cx: float,
-        cy: float,
-        size: tuple[int, int] | None = None,
-    ) -> relief.HeightWindow:
-        """Heights covering every ray's path between the highest and lowest surface seen.
-
-        The footprint is taken at the lowest and the highest height of the window read so
-        far until the window holds both (a ray's path between them is a straight segment,
-        so the corner (or border) rays bound it); at most MAX_MOSAIC_HALF_PX level pixels
-        around the nadir per side.
-        """
-        assert self.surface is not None
-        if size is None:  # the image; else a larger grid (distortion's margin)
-            corners = self._corners
-            border = self._border
-        else:
-            w1, h1 = size[0] - 1.0, size[1] - 1.0
-            corners = ((0.0, 0.0), (w1, 0.0), (0.0, h1), (w1, h1))
-            border = _border_points(size[0], size[1])
-        pts = border if g.sees_horizon else np.array([(u, v, 1.0) for u, v in corners])
-        rays = relief.ray_slopes(
-            r, jac, g.level, pts[:, 0].astype(np.float32), pts[:, 1].astype(np.float32)
-        )
-        ax, ay = rays.ax[rays.down], rays.ay[rays.down]
-        z_ref = state.alt_amsl_m - g.height_m
-        z_lo = z_hi = z_ref
-        lim = MAX_MOSAIC_HALF_PX
-        window = None
-        for _ in range(4):
-            xs, ys = [cx], [cy]
-            for z in (z_lo, z_hi):
-                d = max(state.alt_amsl_m - z, 0.0)
-                xs.extend((cx + d * ax).tolist())
-                ys.extend((cy + d * ay).tolist())
-            x0 = math.floor(max(min(xs), cx - lim)) - 2
-            x1 = math.ceil(min(max(xs), cx + lim)) + 2
-            y0 = math.floor(max(min(ys), cy - lim)) - 2
-            y1 = math.ceil(min(max(ys), cy + lim)) + 2
-            t = TILE_PX  # snapped to whole tiles: the window depends on this frame alone
-            key = (g.level, (x0 // t) * t, (y0 // t) * t, -(-(x1 + 1) // t) * t,
-                   -(-(y1 + 1) // t) * t)  # fmt: skip
-            last = getattr(self._local, "heights", None)
-            if last is not None and last[0] == key:
-                window = last[1]
-            else:
-                window = relief.read_window(self.surface, g.level, x0, y0, x1, y1)
-                self._local.heights = (key, window)
-            if window.h_min >= z_lo and window.h_max <= z_hi:
-                break
-            z_lo, z_hi = min(z_lo, window.h_min), max(z_hi, window.h_max)
-        assert isinstance(window, relief.HeightWindow)
-        return window
-
-    def _relief_centre(self, state: VehicleState, g: FrameGeometry) -> FrameGeometry:
-        """The geometry with the image-centre ray's first surface point as the centre."""
-        r, jac, cx, cy = self._relief_setup(state, g.level)
-        window = self._relief_window(state, g, r, jac, cx, cy)
-        cam = self.camera
-        rays = relief.ray_slopes(
-            r, jac, 0, np.array([cam.cx_px], np.float32), np.array([cam.cy_px], np.float32)
-        )
-        x0, y0 = self.map.latlon_to_map_px(state.lat_deg, state.lon_deg)
-        # Level 0 slopes against a level-L window: the march needs level-L slopes.
-        s = float(1 << g.level)
-        top = np.array([min(window.h_max, state.alt_amsl_m)], np.float32)
-        bot = np.array([window.h_min], np.float32)
-        z_hit, _ok = relief.march(
-            window, cx, cy, state.alt_amsl_m, rays.ax / s, rays.ay / s, top, bot
-        )
-        d = state.alt_amsl_m - float(z_hit[0])
-        centre = (x0 + d * float(rays.ax[0]), y0 + d * float(rays.ay[0]))
-        return FrameGeometry(g.h_img_to_map0, g.level, centre, g.sees_horizon, g.height_m)
-
-    def _render_relief(
-        self,
-        state: VehicleState,
-        g: FrameGeometry,
-        out: Image,
-        noise: tuple[Image, Image] | None,
-    ) -> Image:
-        """Pixels over relief: ray-marched ground points, one remap from the map window."""
-        cam = self.camera
-        r, jac, cx, cy = self._relief_setup(state, g.level)
-        window = self._relief_window(state, g, r, jac, cx, cy)
-        maps, _stats = relief.ground_maps(
-            window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px
-        )
-        wh, ww = window.values.shape
-        mosaic, mx, my = self._mosaic(g.level, window.x0, window.y0, window.x0 + ww - 1,
-                                      window.y0 + wh - 1)  # fmt: skip
-        if (mx, my) != (window.x0, window.y0):
-            maps = maps + np.array([window.x0 - mx, window.y0 - my], dtype=np.float32)
-        warped = cv2.remap(
-            mosaic, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,  # type: ignore[call-overload]
-            borderValue=FILL_BGRX,
-        )  # fmt: skip
-        cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR, dst=out)
-        if g.sees_horizon:
-            out[self._sky(state)] = FILL_BGR
-        if noise is not None:
-            self._noised(out, noise, 0, cam.height_px)
-        return out
-
-    # -- camera effects ------------------------------------------------------------------------
-    def _pose_maps(
-        self, state: VehicleState, level: int, pu: npt.NDArray[np.float64],
-        pv: npt.NDArray[np.float64],
-    ) -> npt.NDArray[np.float32]:  # fmt: skip
-        """Absolute level-pixel map coordinates seen at pinhole points (pu, pv) from a pose.
-
-        Rays missing the ground get a coordinate far off the map (the fill colour).
-        """
-        cam = self.camera
-        if self.surface is None:
-            g = self.geometry(state)
-            h = _to_level(_tuple9(g.h_img_to_map0), level)
-            w = h[6] * pu + h[7] * pv + h[8]
-            ok = w > 1e-9
-            w = np.where(ok, w, 1.0)
-            mx = np.where(ok, (h[0] * pu + h[1] * pv + h[2]) / w, -1e7)
-            my = np.where(ok, (h[3] * pu + h[4] * pv + h[5]) / w, -1e7)
-            return np.dstack([mx, my]).astype(np.float32)
-        # Relief: march a grid covering the pinhole points, then sample it at them.
-        g = self.geometry(state)
-        m = math.ceil(max(0.0, -float(pu.min()), -float(pv.min()),
-                              float(pu.max()) - cam.width_px + 1,
-                              float(pv.max()) - cam.height_px + 1)) + 2  # fmt: skip
-        r, jac, cx, cy = self._relief_setup(state, level)
-        r = (r[0], r[1], r[2] - m * (r[0] + r[1]), r[3], r[4], r[5] - m * (r[3] + r[4]),
-             r[6], r[7], r[8] - m * (r[6] + r[7]))  # fmt: skip
-        g = FrameGeometry(g.h_img_to_map0, level, g.center_map_px, g.sees_horizon, g.height_m)
-        size = (cam.width_px + 2 * m, cam.height_px + 2 * m)
-        window = self._relief_window(state, g, r, jac, cx, cy, size)
-        maps, _ = relief.ground_maps(
-            window, r, jac, level, cx, cy, state.alt_amsl_m, cam.width_px + 2 * m,
-            cam.height_px + 2 * m,
-        )  # fmt: skip
-        maps += np.array([window.x0, window.y0], dtype=np.float32)
-        if g.sees_horizon:  # rays that never descend: far off the map (the fill colour)
-            down = r[6] * (pu + m) + r[7] * (pv + m) + r[8] > _MIN_DOWN
-        if m == 2 and pu.shape == (cam.height_px, cam.width_px) and _is_grid(pu, pv):
-            grid = np.ascontiguousarray(maps[m:-m, m:-m])
-            if g.sees_horizon:
-                grid[~down] = -1e7
-            return grid
-        out: npt.NDArray[np.float32] = cv2.remap(  # type: ignore[assignment]
-            maps, (pu + m).astype(np.float32), (pv + m).astype(np.float32), cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_REPLICATE,
-        )  # fmt: skip
-        if g.sees_horizon:
-            out[~down] = -1e7
-        return out
-
-    def _at_time(self, state: VehicleState, dt_s: float) -> VehicleState:
-        """The pose ``dt_s`` later, moving at the state's velocity and body rates."""
-        if dt_s == 0.0:
-            return state
-        vn, ve, vd = state.vel_ned_m_s
-        lat, lon, alt = ned2geodetic(
-            vn * dt_s, ve * dt_s, vd * dt_s, state.lat_deg, state.lon_deg, state.alt_amsl_m
-        )
-        p, q, r = state.rate_frd_rad_s
-        ang = math.sqrt(p * p + q * q + r * r) * dt_s  # negative before the frame's time
-        if ang != 0.0:
-            k = math.sin(ang / 2.0) / (ang / dt_s)
-            dq = (math.cos(ang / 2.0), p * k, q * k, r * k)
-            quat = quat_normalize(quat_multiply(state.q_body_to_ned_wxyz, dq))
-        else:
-            quat = state.q_body_to_ned_wxyz
-        return replace(state, lat_deg=lat, lon_deg=lon, alt_amsl_m=alt, q_body_to_ned_wxyz=quat)
-
-    def _blur_samples(self, state: VehicleState, g: FrameGeometry, exposure_s: float) -> int:
-        """Sub-exposures so that no image point moves more than half a pixel between two."""
-        cam = self.camera
-        rate = math.sqrt(sum(w * w for w in state.rate_frd_rad_s))
-        speed = math.sqrt(sum(v * v for v in state.vel_ned_m_s))
-        corner = math.hypot(cam.width_px, cam.height_px) / 2.0
-        # Rotation moves points up to f * rate (more toward the corners); translation
-        # f * speed / range, the range at least the height over the ground.
-        px_s = rate * (cam.fx_px + corner * corner / cam.fx_px) + cam.fx_px * speed / max(
-            g.height_m, 1.0
-        )
-        return int(min(16, max(1, math.ceil(2.0 * px_s * exposure_s))))
-
-    def _render_effects(
-        self,
-        state: VehicleState,
-        g: FrameGeometry,
-        out: Image,
-        noise: tuple[Image, Image] | None,
-        noise_index: int | None,
-    ) -> Image:
-        """A frame with the camera's effects (geometry, then light, then the sensor noise)."""
-        cam = self.camera
-        fx = cam.effects
-        assert fx is not None and self._pinhole is not None
-        pu, pv = self._pinhole
-        exposure = fx.exposure_time_s if fx.on("blur") else 0.0
-        count = self._blur_samples(state, g, exposure) if exposure > 0 else 1
-        rs = fx.on("rolling-shutter") and fx.line_delay_s > 0
-        half = (cam.height_px - 1) / 2.0
-        rows = (np.arange(cam.height_px, dtype=np.float32) - np.float32(half))[:, None, None]
-        acc = np.zeros((cam.height_px, cam.width_px, 3), dtype=np.float32)
-        for k in range(count):
-            t = exposure * ((k + 0.5) / count - 0.5)
-            if rs:
-                # Rows at their own times: the first, middle and last rows' poses, and a
-                # quadratic through them per row (Lagrange, in units of half the readout).
-                d = fx.line_delay_s * half
-                m0, m1, m2 = (self._pose_maps(self._at_time(state, t + s * d), g.level, pu, pv)
-                              for s in (-1.0, 0.0, 1.0))  # fmt: skip
-                a = rows / np.float32(max(half, 1.0))
-                maps = (
-                    m1
-                    + a * (m2 - m0) * np.float32(0.5)
-                    + a * a * ((m0 + m2) * np.float32(0.5) - m1)
-                )
-            else:
-                maps = self._pose_maps(self._at_time(state, t), g.level, pu, pv)
-            acc += self._sample_maps(g.level, maps)
-        img = acc * np.float32(1.0 / count)
-        if fx.on("haze"):
-            img = self._haze(state, g, img, fx)
-        if self._vignette is not None:
-            img *= self._vignette
-        if fx.on("exposure"):
-            lum = float(img.mean())
-            gain = min(fx.exposure_gain_max, max(fx.exposure_gain_min, fx.exposure_target_dn
-                                                 / max(lum, 1e-3)))  # fmt: skip
-            if noise_index is not None and fx.gain_noise > 0:
-                rng = np.random.default_rng(key_of(self.seed, 0x4E03, noise_index))
-                gain *= max(0.0, 1.0 + fx.gain_noise * float(rng.standard_normal()))
-            img *= np.float32(gain)
-        np.clip(np.rint(img), 0, 255, out=img)
-        out[:] = img.astype(np.uint8)
-        if noise is not None:
-            self._noised(out, noise, 0, cam.height_px)
-        return out
-
-    def _sample_maps(self, level: int, maps: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
-        """Colours (float BGR) at absolute level-pixel coordinates, from one mosaic."""
-        ok = maps[:, :, 0] > -1e6
-        if not ok.any():
-            return np.zeros((*maps.shape[:2], 3), dtype=np.float32)
-        xs, ys = maps[:, :, 0][ok], maps[:, :, 1][ok]
-        cx, cy = float(np.median(xs)), float(np.median(ys))
-        lim = MAX_MOSAIC_HALF_PX
-        x0 = math.floor(max(float(xs.min()), cx - lim)) - 1
-        x1 = math.ceil(min(float(xs.max()), cx + lim)) + 1
-        y0 = math.floor(max(float(ys.min()), cy - lim)) - 1
-        y1 = math.ceil(min(float(ys.max()), cy + lim)) + 1
-        mosaic, mx, my = self._mosaic(level, x0, y0, x1, y1)
-        rel = maps - np.array([mx, my], dtype=np.float32)
-        warped = cv2.remap(mosaic, rel, None, cv2.INTER_LINEAR,  # type: ignore[call-overload]
-                           borderMode=cv2.BORDER_CONSTANT, borderValue=FILL_BGRX)  # fmt: skip
-        colour: npt.NDArray[np.float32] = warped[:, :, :3].astype(np.float32)
-        return colour
-
-    def _haze(
-        self, state: VehicleState, g: FrameGeometry, img: npt.NDArray[np.float32],
-        fx: fx_mod.CameraEffects,
-    ) -> npt.NDArray[np.float32]:  # fmt: skip
-        """Koschmieder: exp(-beta * range) of the radiance, the rest airlight."""
-        assert self._pinhole is not None
-        pu, pv = self._pinhole
-        r = _mul3(_quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)
-        dn = r[0] * pu + r[1] * pv + r[2]
-        de = r[3] * pu + r[4] * pv + r[5]
-        dd = r[6] * pu + r[7] * pv + r[8]
-        # Range to the plane under the aircraft (relief: its reference plane); beyond the
-        # horizon, a long way.
-        ok = dd > _MIN_DOWN
-        rng = np.where(ok, max(g.height_m, 0.0) * np.sqrt(dn * dn + de * de + dd * dd)
-                       / np.where(ok, dd, 1.0), 1e6)  # fmt: skip
-        keep = np.exp(-(3.912 / fx.visibility_m) * rng).astype(np.float32)[:, :, None]
-        air = np.array(fx.airlight_bgr, dtype=np.float32)
-        return img * keep + air * (np.float32(1.0) - keep)
 
     def _strip_source(
         self, h_strip: Mat9, rows: int, mosaic: Image, mx: int, my: int
@@ -592,10 +289,10 @@ class Renderer:
     def _sky(self, state: VehicleState) -> npt.NDArray[np.bool_]:
         """Image pixels whose ray misses the ground (at or above the horizon)."""
         cam = self.camera
-        r = _mul3(_quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)
+        r = mul3(quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)
         u = np.arange(cam.width_px, dtype=np.float64)[None, :]
         v = np.arange(cam.height_px, dtype=np.float64)[:, None]
-        sky: npt.NDArray[np.bool_] = r[6] * u + r[7] * v + r[8] <= _MIN_DOWN
+        sky: npt.NDArray[np.bool_] = r[6] * u + r[7] * v + r[8] <= MIN_DOWN
         return sky
 
     def _mosaic(self, level: int, x0: int, y0: int, x1: int, y1: int) -> tuple[Image, int, int]:
@@ -624,7 +321,7 @@ class Renderer:
         points along the edges that meet the ground are used.
         """
         if g.sees_horizon:
-            p = self._border @ _mat(h_lvl).T
+            p = self._border @ to_mat(h_lvl).T
             ok = p[:, 2] > 1e-12
             xs = (p[ok, 0] / p[ok, 2]).tolist()
             ys = (p[ok, 1] / p[ok, 2]).tolist()
@@ -711,85 +408,6 @@ def render_camera_frame(renderer: Renderer, sample: SimSample, index: int) -> Ca
         sample=sample,
         map_xy_px=xy,
     )
-
-
-def _is_grid(pu: npt.NDArray[np.float64], pv: npt.NDArray[np.float64]) -> bool:
-    """Whether (pu, pv) are the plain pixel grid (no distortion)."""
-    return bool(pu[0, 1] - pu[0, 0] == 1.0 and pu[0, 0] == 0.0 and pv[0, 0] == 0.0
-                and pv[1, 0] == 1.0 and np.array_equal(pu[-1], np.arange(pu.shape[1])))  # fmt: skip
-
-
-def _border_points(width_px: int, height_px: int, n: int = 9) -> npt.NDArray[np.float64]:
-    """Homogeneous image points along the four edges (n per edge)."""
-    us = np.linspace(0, width_px - 1, n)
-    vs = np.linspace(0, height_px - 1, n)
-    return np.concatenate(
-        [
-            np.stack([us, np.zeros(n), np.ones(n)], 1),
-            np.stack([us, np.full(n, height_px - 1.0), np.ones(n)], 1),
-            np.stack([np.zeros(n), vs, np.ones(n)], 1),
-            np.stack([np.full(n, width_px - 1.0), vs, np.ones(n)], 1),
-        ]
-    )
-
-
-def _quat_rows(q: tuple[float, float, float, float]) -> Mat9:
-    """Rotation matrix (row-major 9-tuple) of a unit quaternion (w, x, y, z), normalised."""
-    w, x, y, z = q
-    n = math.sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w / n, x / n, y / n, z / n
-    return (
-        1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-        2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-        2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
-    )  # fmt: skip
-
-
-def _mul3(a: Mat9, b: Mat9) -> Mat9:
-    """Product of two 3x3 matrices given as row-major 9-tuples."""
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = a
-    b0, b1, b2, b3, b4, b5, b6, b7, b8 = b
-    return (
-        a0 * b0 + a1 * b3 + a2 * b6, a0 * b1 + a1 * b4 + a2 * b7, a0 * b2 + a1 * b5 + a2 * b8,
-        a3 * b0 + a4 * b3 + a5 * b6, a3 * b1 + a4 * b4 + a5 * b7, a3 * b2 + a4 * b5 + a5 * b8,
-        a6 * b0 + a7 * b3 + a8 * b6, a6 * b1 + a7 * b4 + a8 * b7, a6 * b2 + a7 * b5 + a8 * b8,
-    )  # fmt: skip
-
-
-def _tuple9(m: Mat3) -> Mat9:
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = (float(x) for x in m.ravel())
-    return (a0, a1, a2, a3, a4, a5, a6, a7, a8)
-
-
-def _mat(m: Mat9) -> Mat3:
-    return np.array(m, dtype=np.float64).reshape(3, 3)
-
-
-def _to_level(h0: Mat9, level: int) -> Mat9:
-    """Homography to level-0 map px -> to level-``level`` px (x_L = (x0 - (s - 1) / 2) / s)."""
-    s = float(1 << level)
-    off = (s - 1.0) / 2.0
-    a0, a1, a2, a3, a4, a5, a6, a7, a8 = h0
-    return ((a0 - off * a6) / s, (a1 - off * a7) / s, (a2 - off * a8) / s,
-            (a3 - off * a6) / s, (a4 - off * a7) / s, (a5 - off * a8) / s,
-            a6, a7, a8)  # fmt: skip
-
-
-def _step(h: Mat9, u: float, v: float) -> float:
-    """Largest map-pixel step per image pixel of homography ``h`` at image point (u, v).
-
-    The largest singular value of the 2x2 Jacobian d(map x, map y)/d(u, v).
-    """
-    qx = h[0] * u + h[1] * v + h[2]
-    qy = h[3] * u + h[4] * v + h[5]
-    w = h[6] * u + h[7] * v + h[8]
-    w2 = w * w
-    xu, yu = (h[0] * w - qx * h[6]) / w2, (h[3] * w - qy * h[6]) / w2
-    xv, yv = (h[1] * w - qx * h[7]) / w2, (h[4] * w - qy * h[7]) / w2
-    ssum = xu * xu + yu * yu + xv * xv + yv * yv
-    det = xu * yv - yu * xv
-    disc = math.sqrt(max(ssum * ssum - 4.0 * det * det, 0.0))
-    return math.sqrt((ssum + disc) / 2.0)
 
 
 def pose_state(
