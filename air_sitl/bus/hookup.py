@@ -108,6 +108,7 @@ class BusHookup(Closeable):
                 subscriber_present=lambda: publisher.image_matched,
             )
             source = self._lockstep
+            publisher.gate = self._lockstep.wait_for_consumer
         return sinks, source
 
     def after_flight(self) -> dict[str, Any]:

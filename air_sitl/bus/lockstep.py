@@ -90,9 +90,15 @@ class LockstepFrameSource:
     def _publish_one(self, frame: CameraFrame) -> None:
         if self._ledger.published(frame.index):
             return
+        self.wait_for_consumer()
+        self._publish(frame)
+
+    def wait_for_consumer(self) -> None:
+        """Block until the estimator listens (once). Called before the flight's first sample is
+        published too: a sample published before its subscription is live is lost, and the
+        estimator would miss the IMU and GNSS of frame 0 (the first frame of an air start)."""
         if not self._consumer_seen:
             self._wait_for_subscriber()
-        self._publish(frame)
 
     def _publish_through(self, target: int) -> None:
         """Make sure frame ``target`` went out (render it now if the camera is behind)."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from air_sitl.bus import codec
@@ -113,6 +114,9 @@ class BusPublisher(NullSink):
         self._last_status: tuple[object, ...] | None = None
         self._last_status_ns = -NS_PER_S
         self.frames_published = 0
+        # Lockstep: called once before the first IMU/GNSS sample goes out (after the first
+        # status, which the estimator asks for before it subscribes to the frames).
+        self.gate: Callable[[], None] | None = None
 
     @property
     def image_matched(self) -> bool:
@@ -140,15 +144,10 @@ class BusPublisher(NullSink):
             self._latest[key] = payload
 
     def on_sample(self, sample: SimSample) -> None:
-        """Clock and IMU every step (IMU decimated), GNSS when fresh, status on change, truth."""
+        """Status on change, then clock and IMU every step (IMU decimated), GNSS when fresh,
+        truth."""
         k = self.options.keys
         t = sample.state.sim_time_ns
-        self._put(self._clock, k.clock, codec.encode_clock(t))
-        if self._step % self._imu_every == 0:
-            self._put(self._imu, k.imu, codec.encode_imu(sample.imu))
-        self._step += 1
-        if sample.gps is not None:
-            self._put(self._gps, k.gps, codec.encode_gps(sample.gps))
         status = sample.autopilot
         key = _status_key(status)
         if key != self._last_status or t - self._last_status_ns >= NS_PER_S:
@@ -157,6 +156,15 @@ class BusPublisher(NullSink):
             )
             self._last_status = key
             self._last_status_ns = t
+        if self.gate is not None:
+            gate, self.gate = self.gate, None
+            gate()
+        self._put(self._clock, k.clock, codec.encode_clock(t))
+        if self._step % self._imu_every == 0:
+            self._put(self._imu, k.imu, codec.encode_imu(sample.imu))
+        self._step += 1
+        if sample.gps is not None:
+            self._put(self._gps, k.gps, codec.encode_gps(sample.gps))
         frame: int | None = None
         if status.capturing and t % CAMERA_PERIOD_NS == 0:
             # Same rule as the runner's capture index: every camera tick inside the window.

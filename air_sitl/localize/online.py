@@ -54,6 +54,7 @@ from air_sitl.state import GeoPoint, Quat
 
 QUIET_S = 1.0  # after the capture window: no frame for this long ends the run
 IMU_WAIT_S = 0.5  # how long a frame waits for the IMU sample of its exposure
+GNSS_WAIT_S = 2.0  # how long a frame waits for a first fix (once; GNSS may be denied)
 _HALF = math.sqrt(0.5)
 _Q_DEFAULT_CAM_TO_BODY: Quat = (_HALF, 0.0, 0.0, _HALF)  # the default mounting: 90 deg yaw
 
@@ -192,6 +193,7 @@ class BusLocalizer:
         with self._cond:
             if not self._fixes or self._fixes[-1].sim_time_ns < fix.sim_time_ns:
                 self._fixes.append(fix)
+                self._cond.notify_all()
 
     def _on_status(self, message: Message) -> None:
         m = codec.loads(message.payload, message.key)
@@ -244,6 +246,12 @@ class BusLocalizer:
             self._cond.wait_for(
                 lambda: bool(self._imu) and self._imu[-1].sim_time_ns >= t, IMU_WAIT_S
             )
+            if self._last_fix_t_ns is None:
+                # No fix given yet: the fix of this exposure travels on its own key and may come
+                # after the frame (the first frame of an air start is at t = 0, like a fix).
+                self._cond.wait_for(
+                    lambda: any(f.sim_time_ns <= t for f in self._fixes), GNSS_WAIT_S
+                )
             prev = self._last_t_ns
             readings = tuple(
                 s
@@ -258,7 +266,8 @@ class BusLocalizer:
             readings = readings[-1:]  # the first frame: only the sample of its exposure
         fix = fixes[-1] if fixes else None
         if fix is not None and (
-            (self.frames > 1 and self.gnss_mode == "first")
+            # "first": one fix, the first there is (at the first frame unless it came late)
+            (self.gnss_mode == "first" and self._last_fix_t_ns is not None)
             or (self._last_fix_t_ns is not None and fix.sim_time_ns <= self._last_fix_t_ns)
         ):
             fix = None
