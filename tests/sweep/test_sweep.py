@@ -147,7 +147,14 @@ def test_ctrl_c_stops_cleanly_with_whole_rows(spec: Path, tmp_path: Path) -> Non
     many.write_text(yaml.safe_dump(content, sort_keys=False), encoding="utf-8")
     out = tmp_path / "s"
     cmd = [sys.executable, "-m", "air_sitl", "sweep", str(many), "--out", str(out), "-j", "1"]
-    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    # A shell's background job starts with SIGINT ignored and Python keeps it so: give the
+    # sweep the default, as a terminal's Ctrl-C would find it.
+    proc = subprocess.Popen(
+        cmd,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # noqa: PLW1509
+    )
     assert proc.stderr is not None
     for line in proc.stderr:
         if line.startswith("sweep ["):
