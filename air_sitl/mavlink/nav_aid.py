@@ -105,7 +105,8 @@ class NavLink:
         self.received = 0
         self.ignored = 0  # EV messages while EKF2_EV_CTRL bit 0 is off
         self._next_event_ns = 0
-        self._sample_cache: tuple[int, SimSample] | None = None
+        # (the sample, its estimated twin): the sample is held, so its identity is not reused
+        self._sample_cache: tuple[SimSample, SimSample] | None = None
 
     def attach(self, nav: OnboardNav, params: ParamStore) -> None:
         """Connect to the flight's filter and parameters; register handlers and streams."""
@@ -152,7 +153,7 @@ class NavLink:
         if est is None:
             return sample
         cache = self._sample_cache
-        if cache is not None and cache[0] == id(sample):
+        if cache is not None and cache[0] is sample:
             return cache[1]
         state = estimated_state(
             est,
@@ -162,7 +163,7 @@ class NavLink:
             home_alt_amsl_m=self.ep.home.alt_amsl_m,
         )
         out = replace(sample, state=state)
-        self._sample_cache = (id(sample), out)
+        self._sample_cache = (sample, out)
         return out
 
     def _gps_raw_int(self, sample: SimSample | None, fix: GpsFix | None) -> Message | None:

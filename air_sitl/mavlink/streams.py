@@ -15,8 +15,10 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from air_sitl import battery
@@ -40,6 +42,15 @@ if TYPE_CHECKING:
 EVENT_PERIOD_NS = 50_000_000  # autopilot events polled every 50 ms of simulated time
 FENCE_PERIOD_NS = 200_000_000
 WALL_BURST_S = 0.1  # the wall-clock cap lets a stream catch up this much after a stall
+
+
+@dataclass(slots=True)
+class _Batch:
+    """Stream messages due on one link, not yet sent: their ids (ordered) and the state."""
+
+    ids: dict[int, None]
+    sample: SimSample
+    fix: GpsFix | None
 
 # Builds one message from the latest sample and GNSS fix; None when it cannot be built yet.
 Builder = Callable[[SimSample | None, GpsFix | None], Message | None]
@@ -223,6 +234,8 @@ class TelemetrySink:
         self._ep = endpoint
         self._next_due: dict[tuple[int, int], int] = {}
         self._tokens: dict[tuple[int, int], tuple[float, float]] = {}
+        self._batches: dict[Link, _Batch] = {}
+        self._batch_lock = threading.Lock()
         self._next_any_due_ns = 0
         self._next_event_ns = 0
         self._next_fence_ns = 0
@@ -300,9 +313,29 @@ class TelemetrySink:
                     self._next_due[key] = when
                 next_any = min(next_any, when)
             if due:
-                fix = self.last_fix
-                ep.to_io(functools.partial(ep.streams.send_on, link, due, sample, fix))
+                self._queue_batch(link, due, sample)
         self._next_any_due_ns = next_any
+
+    def _queue_batch(self, link: Link, due: list[int], sample: SimSample) -> None:
+        """Hand the due messages to the I/O thread; while it has not sent the last batch of this
+        link, add them to that one (which keeps its state, so nothing overtakes the events
+        queued after it). When the simulation is CPU-bound the
+        I/O thread gets the GIL rarely: a queue of every batch would grow without bound and
+        command ACKs and heartbeats behind it would wait for tens of seconds; a busy link
+        delivers lower rates instead, as a saturated radio does."""
+        with self._batch_lock:
+            batch = self._batches.get(link)
+            if batch is not None:
+                batch.ids.update(dict.fromkeys(due))
+                return
+            self._batches[link] = _Batch(dict.fromkeys(due), sample, self.last_fix)
+        self._ep.to_io(functools.partial(self._send_batch, link))
+
+    def _send_batch(self, link: Link) -> None:
+        with self._batch_lock:
+            batch = self._batches.pop(link, None)
+        if batch is not None:
+            self._ep.streams.send_on(link, list(batch.ids), batch.sample, batch.fix)
 
     def _wall_token(self, key: tuple[int, int], now: float, rate_hz: float) -> bool:
         """Token bucket in wall time: at most ``rate_hz`` on average, jitter tolerated."""

@@ -14,19 +14,25 @@ from air_sitl.mission.items import Mission
 from air_sitl.options import FlightOptions
 from air_sitl.runner import Flight, InboxItem, assemble_flight
 from air_sitl.sinks import NullSink
-from air_sitl.state import GeoPoint, SimSample, VehicleState
+from air_sitl.state import FlightMode, GeoPoint, SimSample, VehicleState
 
 
 class TruthSink(NullSink):
-    """Every truth state by simulated millisecond."""
+    """Every truth state by simulated millisecond, and every flight mode the autopilot was in
+    (in order, however briefly: the wall-clock heartbeat can miss a mode that lasts less than a
+    second of wall time)."""
 
     def __init__(self) -> None:
         self.by_ms: dict[int, VehicleState] = {}
         self.states: list[VehicleState] = []
+        self.modes: list[FlightMode] = []
 
     def on_sample(self, sample: SimSample) -> None:
         self.by_ms[sample.state.sim_time_ns // 1_000_000] = sample.state
         self.states.append(sample.state)
+        mode = sample.autopilot.mode
+        if not self.modes or self.modes[-1] is not mode:
+            self.modes.append(mode)
 
 
 @dataclass

@@ -40,16 +40,19 @@ def test_throttle_battery_and_the_low_battery_failsafe() -> None:
         pack = gcs.recv(["BATTERY_STATUS"])
         assert pack.current_battery > 0 and pack.current_consumed >= 0
         assert pack.voltages[0] < 4100 and pack.voltages[4] == 65535  # 4 cells, mV
-        # The pack runs down: critical -> RTL, emergency -> land.
-        modes = []
-        while custom_mode(FlightMode.LAND) not in modes:
+        # The pack runs down: critical -> RTL, emergency -> land; the GCS is told of each.
+        critical = gcs.wait_text("Critical battery level")
+        emergency = gcs.wait_text("Emergency battery level")
+        assert critical.endswith(": RTL") and emergency.endswith(": landing")
+        assert gcs.texts.index(critical) < gcs.texts.index(emergency)
+        hb = gcs.recv(["HEARTBEAT"])
+        while hb.get_srcComponent() != 1:
             hb = gcs.recv(["HEARTBEAT"])
-            if hb.get_srcComponent() == 1 and (not modes or modes[-1] != hb.custom_mode):
-                modes.append(hb.custom_mode)
-        assert custom_mode(FlightMode.RTL) in modes
-        assert modes.index(custom_mode(FlightMode.RTL)) < modes.index(custom_mode(FlightMode.LAND))
-        gcs.wait_text("Critical battery level")
-        gcs.wait_text("Emergency battery level")
+        assert hb.custom_mode == custom_mode(FlightMode.LAND)
+        # Every mode flown, in simulated time (RTL may last less than a wall-clock heartbeat).
+        modes = vehicle.truth.modes
+        assert FlightMode.RTL in modes and FlightMode.LAND in modes
+        assert modes.index(FlightMode.RTL) < modes.index(FlightMode.LAND)
         status = gcs.recv(["SYS_STATUS"])
         assert status.battery_remaining <= 5 and status.current_battery > 0
         gcs.close()
