@@ -18,7 +18,6 @@ import math
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from air_sitl import battery
@@ -42,15 +41,8 @@ if TYPE_CHECKING:
 EVENT_PERIOD_NS = 50_000_000  # autopilot events polled every 50 ms of simulated time
 FENCE_PERIOD_NS = 200_000_000
 WALL_BURST_S = 0.1  # the wall-clock cap lets a stream catch up this much after a stall
-
-
-@dataclass(slots=True)
-class _Batch:
-    """Stream messages due on one link, not yet sent: their ids (ordered) and the state."""
-
-    ids: dict[int, None]
-    sample: SimSample
-    fix: GpsFix | None
+MAX_PENDING_JOBS = 64  # telemetry jobs queued for the I/O thread before the simulation waits
+BACKPRESSURE_POLL_S = 0.1  # how often a waiting simulation checks that the I/O thread still runs
 
 # Builds one message from the latest sample and GNSS fix; None when it cannot be built yet.
 Builder = Callable[[SimSample | None, GpsFix | None], Message | None]
@@ -234,8 +226,9 @@ class TelemetrySink:
         self._ep = endpoint
         self._next_due: dict[tuple[int, int], int] = {}
         self._tokens: dict[tuple[int, int], tuple[float, float]] = {}
-        self._batches: dict[Link, _Batch] = {}
-        self._batch_lock = threading.Lock()
+        self._outbox: list[Callable[[], None]] = []  # for the I/O thread, oldest first
+        self._unsent = 0  # jobs queued or being sent
+        self._outbox_cond = threading.Condition()
         self._next_any_due_ns = 0
         self._next_event_ns = 0
         self._next_fence_ns = 0
@@ -259,21 +252,21 @@ class TelemetrySink:
         t = sample.state.sim_time_ns
         if ap.reached_seq >= 0:
             seq = self._last_reached = ap.reached_seq
-            ep.to_io(lambda: ep.broadcast(mav.MAVLink_mission_item_reached_message(seq)))
+            self._send(lambda: ep.broadcast(mav.MAVLink_mission_item_reached_message(seq)))
         key = (ap.mode, ap.armed)
         if key != self._last_key:
             self._last_key = key
-            ep.to_io(ep.send_heartbeat)
+            self._send(ep.send_heartbeat)
         if ap.current_seq != self._last_seq or ap.mission_completed != self._last_completed:
             if ap.mission_completed and not self._last_completed:
                 # MAVSDK counts a mission done when the last item is reached, DO items included.
                 last = len(ep.protocol.items(MissionType.MISSION)) - 1
                 if last >= 0 and self._last_reached != last:
                     self._last_reached = last
-                    ep.to_io(lambda: ep.broadcast(mav.MAVLink_mission_item_reached_message(last)))
+                    self._send(lambda: ep.broadcast(mav.MAVLink_mission_item_reached_message(last)))
             self._last_seq, self._last_completed = ap.current_seq, ap.mission_completed
             ids = [mav.MAVLINK_MSG_ID_MISSION_CURRENT]
-            ep.to_io(lambda: ep.streams.send(ids, sample, None))
+            self._send(lambda: ep.streams.send(ids, sample, None))
         if t >= self._next_event_ns:
             self._next_event_ns = t + EVENT_PERIOD_NS
             self._poll_events()
@@ -291,7 +284,7 @@ class TelemetrySink:
         if ap is None:
             return
         for text in ap.pop_events():
-            self._ep.text(SEVERITY_INFO, text)
+            self._text(SEVERITY_INFO, text)
 
     def _streams(self, sample: SimSample, t: int) -> None:
         ep = self._ep
@@ -313,29 +306,39 @@ class TelemetrySink:
                     self._next_due[key] = when
                 next_any = min(next_any, when)
             if due:
-                self._queue_batch(link, due, sample)
+                self._send(functools.partial(ep.streams.send_on, link, due, sample, self.last_fix))
         self._next_any_due_ns = next_any
 
-    def _queue_batch(self, link: Link, due: list[int], sample: SimSample) -> None:
-        """Hand the due messages to the I/O thread; while it has not sent the last batch of this
-        link, add them to that one (which keeps its state, so nothing overtakes the events
-        queued after it). When the simulation is CPU-bound the
-        I/O thread gets the GIL rarely: a queue of every batch would grow without bound and
-        command ACKs and heartbeats behind it would wait for tens of seconds; a busy link
-        delivers lower rates instead, as a saturated radio does."""
-        with self._batch_lock:
-            batch = self._batches.get(link)
-            if batch is not None:
-                batch.ids.update(dict.fromkeys(due))
-                return
-            self._batches[link] = _Batch(dict.fromkeys(due), sample, self.last_fix)
-        self._ep.to_io(functools.partial(self._send_batch, link))
+    def _send(self, job: Callable[[], None]) -> None:
+        """Hand ``job`` (stream messages or an event) to the I/O thread, in order, with
+        backpressure: jobs wait in one outbox that the I/O thread sends in one go; while
+        MAX_PENDING_JOBS are unsent the simulation waits (as a lockstep PX4 SITL waits for its
+        links), which releases the GIL. A CPU-bound simulation otherwise leaves the I/O thread
+        the GIL so rarely that an unbounded queue grows and command ACKs behind it wait for tens
+        of seconds. Every stream is still delivered in full, and in the order it happened."""
+        with self._outbox_cond:
+            while self._unsent >= MAX_PENDING_JOBS and self._ep.io_running:
+                self._outbox_cond.wait(BACKPRESSURE_POLL_S)
+            self._outbox.append(job)
+            self._unsent += 1
+            if len(self._outbox) > 1:
+                return  # a flush is already queued
+        self._ep.to_io(self._flush_outbox)
 
-    def _send_batch(self, link: Link) -> None:
-        with self._batch_lock:
-            batch = self._batches.pop(link, None)
-        if batch is not None:
-            self._ep.streams.send_on(link, list(batch.ids), batch.sample, batch.fix)
+    def _text(self, severity: int, text: str) -> None:
+        """A STATUSTEXT, in order with the telemetry."""
+        self._send(lambda: self._ep.broadcast_text(severity, text))
+
+    def _flush_outbox(self) -> None:
+        with self._outbox_cond:
+            jobs, self._outbox = self._outbox, []
+        try:
+            for job in jobs:
+                self._ep.guard(job)
+        finally:
+            with self._outbox_cond:
+                self._unsent -= len(jobs)
+                self._outbox_cond.notify_all()
 
     def _wall_token(self, key: tuple[int, int], now: float, rate_hz: float) -> bool:
         """Token bucket in wall time: at most ``rate_hz`` on average, jitter tolerated."""
@@ -362,7 +365,7 @@ class TelemetrySink:
         autopilot = self._ep.autopilot
         if autopilot is not None:
             autopilot.return_to_launch()
-        self._ep.text(SEVERITY_CRITICAL, f"Geofence breached ({why}): RTL")
+        self._text(SEVERITY_CRITICAL, f"Geofence breached ({why}): RTL")
 
     def _check_battery(self, sample: SimSample) -> None:
         """PX4's low-battery warnings and failsafe (COM_LOW_BAT_ACT), once per level."""
@@ -386,18 +389,18 @@ class TelemetrySink:
         ap, autopilot = sample.autopilot, ep.autopilot
         flying = ap.armed and not sample.state.on_ground
         if action == battery.ACTION_NONE or not flying or autopilot is None:
-            ep.text(SEVERITY_WARNING, f"{name} battery level: {percent:.0f}% remaining")
+            self._text(SEVERITY_WARNING, f"{name} battery level: {percent:.0f}% remaining")
             return
         if action == battery.ACTION_RETURN and ap.mode not in (FlightMode.RTL, FlightMode.LAND):
             autopilot.return_to_launch()
-            ep.text(SEVERITY_CRITICAL, f"{name} battery level ({percent:.0f}%): RTL")
+            self._text(SEVERITY_CRITICAL, f"{name} battery level ({percent:.0f}%): RTL")
         elif action == battery.ACTION_LAND and ap.mode is not FlightMode.LAND:
             autopilot.set_mode(FlightMode.LAND)
-            ep.text(SEVERITY_CRITICAL, f"{name} battery level ({percent:.0f}%): landing")
+            self._text(SEVERITY_CRITICAL, f"{name} battery level ({percent:.0f}%): landing")
 
     def on_frame(self, frame: CameraFrame) -> None:
         """Frames are not sent over MAVLink."""
 
     def close(self, result: FlightResult) -> None:
         """The flight ended: say so to the clients."""
-        self._ep.text(SEVERITY_INFO, "Simulation stopped")
+        self._text(SEVERITY_INFO, "Simulation stopped")

@@ -83,6 +83,7 @@ class EndpointOptions:
     signing_key: bytes | None = None
     wall_cap_hz: float | None = WALL_CAP_HZ  # None: rates in simulated time, uncapped
     camera: tm.CameraInfo | None = None  # None: no camera component (component id 100)
+    terrain: bool = False  # a terrain model (--dem): uploads may use terrain-relative frames
 
 
 class VehicleEndpoint:
@@ -106,7 +107,9 @@ class VehicleEndpoint:
         )
         m = mission or Mission(items=())
         self._mission_meta = m
-        self.protocol = MissionProtocol(mission=m.items, fence=m.fence, rally=m.rally)
+        self.protocol = MissionProtocol(
+            mission=m.items, fence=m.fence, rally=m.rally, terrain=self.options.terrain
+        )
         self.counters = ParseCounters()
         self.streams = Streams(self)
         self.sink = TelemetrySink(self)
@@ -177,6 +180,12 @@ class VehicleEndpoint:
         self._links = []
         self._wake_r.close()
         self._wake_w.close()
+
+    @property
+    def io_running(self) -> bool:
+        """The I/O thread runs (started and not stopping)."""
+        thread = self._thread
+        return thread is not None and thread.is_alive() and not self._stop.is_set()
 
     @property
     def links(self) -> tuple[Link, ...]:
@@ -259,7 +268,7 @@ class VehicleEndpoint:
                         pass
                     continue
                 link = key.data if isinstance(key.data, Link) else key.data[0]
-                self._guard(functools.partial(link.on_ready, sel, key, mask))
+                self.guard(functools.partial(link.on_ready, sel, key, mask))
             self._drain()
             now = time.monotonic()
             if now >= self._next_heartbeat:
@@ -275,9 +284,9 @@ class VehicleEndpoint:
                 fn = self._queue.get_nowait()
             except queue.Empty:
                 return
-            self._guard(fn)
+            self.guard(fn)
 
-    def _guard(self, fn: Callable[[], None]) -> None:
+    def guard(self, fn: Callable[[], None]) -> None:
         """Run ``fn``; a bug in one handler must not kill the link thread."""
         try:
             fn()
@@ -308,7 +317,7 @@ class VehicleEndpoint:
     def _receive(self, ch: Channel, data: bytes, datagram: bool) -> None:
         parser: Parser = ch.parser  # type: ignore[assignment]
         for msg in parser.feed(data, datagram=datagram):
-            self._guard(functools.partial(self._dispatch, ch, msg))
+            self.guard(functools.partial(self._dispatch, ch, msg))
 
     def _for_us(self, msg: Message) -> bool:
         ts = getattr(msg, "target_system", 0)
