@@ -9,6 +9,7 @@ mavlink.io's Mission Protocol: an item request is re-sent after 250 ms, at most 
 
 from __future__ import annotations
 
+import functools
 import math
 import struct
 import zlib
@@ -91,8 +92,10 @@ def opaque_id_of(items: Sequence[MissionItem]) -> int:
     return crc or 1
 
 
-def _list_check(items: Sequence[MissionItem], mission_type: MissionType) -> ItemProblem | None:
-    return check_mission(items, mission_type, allow_empty=True)
+def _list_check(
+    items: Sequence[MissionItem], mission_type: MissionType, *, terrain: bool = False
+) -> ItemProblem | None:
+    return check_mission(items, mission_type, allow_empty=True, terrain=terrain)
 
 
 def _result_of(problem: ItemProblem) -> MissionResult:
@@ -137,7 +140,11 @@ class MissionProtocol:
         list_check: ListCheck = _list_check,
         item_timeout_ns: int = ITEM_TIMEOUT_NS,
         max_retries: int = MAX_RETRIES,
+        terrain: bool = False,
     ) -> None:
+        if terrain:  # a terrain model (--dem): terrain-relative frames are accepted
+            item_check = functools.partial(check_item, terrain=True)
+            list_check = functools.partial(_list_check, terrain=True)
         self._stores: dict[MissionType, tuple[MissionItem, ...]] = {
             MissionType.MISSION: tuple(mission),
             MissionType.FENCE: tuple(fence),

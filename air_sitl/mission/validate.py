@@ -110,8 +110,13 @@ def _is_whole(x: float) -> bool:
     return math.isfinite(x) and x == int(x)
 
 
-def check_item(item: MissionItem, index: int, mission_type: MissionType) -> ItemProblem | None:
-    """The first problem of one item of a ``mission_type`` list, or None when it can be flown."""
+def check_item(
+    item: MissionItem, index: int, mission_type: MissionType, *, terrain: bool = False
+) -> ItemProblem | None:
+    """The first problem of one item of a ``mission_type`` list, or None when it can be flown.
+
+    ``terrain``: a terrain model is loaded (``--dem``), so terrain-relative frames fly.
+    """
 
     def problem(result: str, message: str) -> ItemProblem:
         return _problem(index, result, message)
@@ -129,14 +134,14 @@ def check_item(item: MissionItem, index: int, mission_type: MissionType) -> Item
     cmd = MavCmd(item.command)
 
     # Frame.
-    if item.frame in TERRAIN_FRAMES:
+    if item.frame in TERRAIN_FRAMES and not terrain:
         return problem(
             "UNSUPPORTED_FRAME",
-            "terrain-relative frame is not supported (no terrain model), expected GLOBAL or "
-            f"GLOBAL_RELATIVE_ALT ({frame_name(item.frame)})",
+            "terrain-relative frame is not supported (no terrain model: fly with --dem), "
+            f"expected GLOBAL or GLOBAL_RELATIVE_ALT ({frame_name(item.frame)})",
         )
     if cmd in POSITION_COMMANDS:
-        frames: frozenset[MavFrame] = GLOBAL_FRAMES
+        frames: frozenset[MavFrame] = GLOBAL_FRAMES | (TERRAIN_FRAMES if terrain else frozenset())
         expected = "GLOBAL, GLOBAL_RELATIVE_ALT or their _INT variants"
     else:  # DO_* items and RTL carry no position
         frames = DO_FRAMES
@@ -255,7 +260,11 @@ def _check_params(cmd: MavCmd, item: MissionItem, index: int) -> ItemProblem | N
 
 
 def check_mission(
-    items: Sequence[MissionItem], mission_type: MissionType, *, allow_empty: bool = False
+    items: Sequence[MissionItem],
+    mission_type: MissionType,
+    *,
+    allow_empty: bool = False,
+    terrain: bool = False,
 ) -> ItemProblem | None:
     """The first problem of a whole list: every item, then cross-item rules; None when valid.
 
@@ -264,7 +273,7 @@ def check_mission(
     runs of exactly ``param1`` vertices with the same command and count.
     """
     for index, item in enumerate(items):
-        found = check_item(item, index, mission_type)
+        found = check_item(item, index, mission_type, terrain=terrain)
         if found is not None:
             return found
     if mission_type is MissionType.MISSION:
