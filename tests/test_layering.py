@@ -51,3 +51,17 @@ def test_package_keeps_the_one_way_flow(package: str, forbidden: set[str]) -> No
         if name in forbidden
     ]
     assert not bad, "\n".join(bad)
+
+
+# Missions are validated once, where they come in: a plan file, a MAVLink upload. What flies
+# them (autopilot, runner) trusts the Mission it is handed.
+VALIDATION_EDGES = {"mission/plan_file.py", "mavlink/mission_protocol.py"}
+
+
+def test_missions_are_validated_only_at_the_edges() -> None:
+    callers = {
+        path.relative_to(PACKAGE).as_posix()
+        for path in PACKAGE.rglob("*.py")
+        if re.search(r"\bcheck_(?:mission|item)\b", path.read_text(encoding="utf-8"))
+    }
+    assert callers - {"mission/validate.py"} == VALIDATION_EDGES

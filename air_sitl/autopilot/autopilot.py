@@ -11,14 +11,12 @@ import dataclasses
 import math
 from typing import Protocol
 
-from air_sitl.autopilot.executor import MissionExecutor
+from air_sitl.autopilot.executor import MissionExecutor, air_start_item
 from air_sitl.autopilot.params import GuidanceParams, ParamStore
 from air_sitl.autopilot.target import ControlPhase, ControlTarget
-from air_sitl.errors import PlanError
 from air_sitl.frames import ned2geodetic
-from air_sitl.mission.geometry import first_flown_item, item_point, loiter_geometry, next_nav_index
+from air_sitl.mission.geometry import item_point, loiter_geometry, next_nav_index
 from air_sitl.mission.items import LOITER_COMMANDS, WAYPOINT_COMMANDS, MavCmd, Mission
-from air_sitl.mission.validate import require_flyable
 from air_sitl.state import ActuatorCommand, AutopilotStatus, FlightMode, GeoPoint, VehicleState
 
 GUIDANCE_PERIOD_NS = 20_000_000  # 50 Hz
@@ -37,7 +35,8 @@ class Autopilot:
 
     ``auto_start`` (the ``fly`` command): arm and start the mission at the first update.
     ``air_start``: begin in the air at the first flown waypoint, armed, in MISSION mode, take-off
-    done; place the flight model with :func:`air_start_pose`.
+    done; place the flight model with :func:`air_start_pose`. Missions come validated from their
+    edge (a plan file, a MAVLink upload) and are flown as they are.
     """
 
     def __init__(
@@ -54,9 +53,8 @@ class Autopilot:
         self._controller = controller
         self._air_start_pending = air_start
         self._auto_start_pending = auto_start and not air_start
-        if air_start and first_flown_item(mission) < 0:
-            msg = f"{mission.source}: mission: no waypoint or loiter to start in the air at"
-            raise PlanError(msg)
+        if air_start:
+            air_start_item(mission)
         self._next_nav_ns = -1
         self._target = ControlTarget(phase=ControlPhase.IDLE)
         self._status = AutopilotStatus(
@@ -202,8 +200,9 @@ class Autopilot:
         return self._exec.start_mission()
 
     def set_mission(self, mission: Mission, current_seq: int | None = None) -> None:
-        """Replace the mission; raises PlanError when it cannot be flown. ``current_seq``:
-        see :meth:`MissionSequencer.set_mission` (-1 keeps the current index, as PX4)."""
+        """Replace the mission (validated at its edge: a plan file, a MAVLink upload).
+        ``current_seq``: see :meth:`MissionSequencer.set_mission` (-1 keeps the current index,
+        as PX4)."""
         self._after_command()
         self._exec.set_mission(mission, current_seq)
 
@@ -252,13 +251,9 @@ def air_start_pose(
     the next positioned item; tangent to a loiter circle that passes through the point), at the
     mission speed (DO_CHANGE_SPEED before that point, else the plan's cruise speed).
     """
-    require_flyable(mission)
     params = params or ParamStore()
     items = mission.items
-    first = first_flown_item(mission)
-    if first < 0:
-        msg = f"{mission.source}: mission: no waypoint or loiter to start in the air at"
-        raise PlanError(msg)
+    first = air_start_item(mission)
     speed = mission.cruise_speed_m_s
     if not (math.isfinite(speed) and speed > 0.0):
         speed = params.in_range("FW_AIRSPD_TRIM")

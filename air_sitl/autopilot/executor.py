@@ -13,12 +13,22 @@ from air_sitl.autopilot.sequencer import MissionSequencer
 from air_sitl.autopilot.tasks import IdleTask, TakeoffTask
 from air_sitl.errors import PlanError
 from air_sitl.frames import geodetic2ned
-from air_sitl.mission.items import WAYPOINT_COMMANDS, MavCmd
+from air_sitl.mission.geometry import first_flown_item
+from air_sitl.mission.items import WAYPOINT_COMMANDS, MavCmd, Mission
 from air_sitl.mission.validate import takeoff_order_problem
 from air_sitl.state import FlightMode, VehicleState
 
 # Mission start refused when its first positioned item is farther than this from home.
 MAX_FIRST_WAYPOINT_DISTANCE_M = 100_000.0
+
+
+def air_start_item(mission: Mission) -> int:
+    """The item an air start begins at; PlanError when the mission has none."""
+    first = first_flown_item(mission)
+    if first < 0:
+        msg = f"{mission.source}: mission: no waypoint or loiter to start in the air at"
+        raise PlanError(msg)
+    return first
 
 
 class MissionExecutor(MissionSequencer):
@@ -97,7 +107,7 @@ class MissionExecutor(MissionSequencer):
             return False, far
         if self.mission_completed or not (0 <= self.current_seq < len(self._items)):
             self.current_seq = 0
-            self._jump_counts = {}
+            self._do.jump_counts = {}
             self.mission_completed = False
         self._set_mode(FlightMode.MISSION)
         if self.on_ground:
@@ -190,8 +200,7 @@ class MissionExecutor(MissionSequencer):
         """New airspeed target (clamped to FW_AIRSPD_MIN..MAX); <= 0 restores the default."""
         if not math.isfinite(speed_m_s):
             return False, f"speed must be a number ({speed_m_s})"
-        self._speed_override = speed_m_s if speed_m_s > 0 else None
-        self._ground_speed_mode = False
+        self._do.set_speed(speed_m_s if speed_m_s > 0 else None)
         return True, ""
 
     def start_capture(self) -> tuple[bool, str]:
@@ -207,10 +216,7 @@ class MissionExecutor(MissionSequencer):
     def air_start(self, state: VehicleState) -> None:
         """Begin in the air at the first flown item, armed, in MISSION mode, take-off done."""
         self._state = state
-        first = self._first_flown
-        if first < 0:
-            msg = f"{self.mission.source}: mission: no waypoint or loiter to start in the air at"
-            raise PlanError(msg)
+        first = air_start_item(self.mission)
         self.armed = True
         self._set_mode(FlightMode.MISSION)
         self._in_mission = True
@@ -219,7 +225,7 @@ class MissionExecutor(MissionSequencer):
             if item.is_nav:
                 self._mark_reached(seq)  # the take-off counts as flown
             elif item.command != MavCmd.DO_JUMP:
-                self._run_do_item(seq)
+                self._do.run(self._items, seq, capturing=self.capturing)
         self._emit("Air start")
         if self._items[first].command in WAYPOINT_COMMANDS:
             self.current_seq = first

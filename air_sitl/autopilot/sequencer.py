@@ -3,9 +3,12 @@
 :class:`MissionSequencer` turns a :class:`~air_sitl.mission.items.Mission` and the vehicle state
 into a :class:`~air_sitl.autopilot.target.ControlTarget`. It runs one navigation *task* at a
 time (:mod:`air_sitl.autopilot.tasks`: take-off, leg, loiter, landing, idle on the ground).
-Sequencing follows PX4: DO_* items run when reached, DO_JUMP's counter is on the jump item
-(taken while ``count < repeat``), the aircraft loiters at the last waypoint when a mission ends,
-RTL climbs (never descends) to RTL_RETURN_ALT and loiters at home.
+Sequencing follows PX4: DO_* items run when reached (:mod:`air_sitl.autopilot.do_items`), the
+aircraft loiters at the last waypoint when a mission ends, RTL climbs (never descends) to
+RTL_RETURN_ALT and loiters at home.
+
+The mission comes validated from its edge (:func:`~air_sitl.mission.plan_file.load_mission`,
+a MAVLink upload through :mod:`air_sitl.mavlink.mission_protocol`); nothing here checks it again.
 
 - ``mission_completed``: the last navigation item is done (a final RTL or LOITER_UNLIM once the
   aircraft is established on its circle; a final NAV_LAND once stopped on the ground).
@@ -23,6 +26,7 @@ import math
 from collections import deque
 from collections.abc import Callable
 
+from air_sitl.autopilot.do_items import DoItems
 from air_sitl.autopilot.params import GuidanceParams, ParamStore
 from air_sitl.autopilot.tasks import (
     IdleTask,
@@ -51,10 +55,9 @@ from air_sitl.mission.items import (
     MavCmd,
     Mission,
 )
-from air_sitl.mission.validate import item_warnings, require_flyable
+from air_sitl.mission.validate import item_warnings
 from air_sitl.state import FlightMode, GeoPoint, VehicleState
 
-WIND_FILTER_GAIN = 0.02  # per 50 Hz guidance update: about a 1 s time constant
 MAX_PENDING = 1000  # events and reached items kept for a reader that does not come
 
 
@@ -82,9 +85,7 @@ class MissionSequencer:
         self._reached: list[int] = []
         # Reached items not yet shown in an AutopilotStatus (the facade shows one per step).
         self.reached_queue: deque[int] = deque()
-        self._speed_override: float | None = None
-        self._ground_speed_mode = False  # DO_CHANGE_SPEED asked for a ground speed
-        self._wind_ne = (0.0, 0.0)  # wind estimate (ground minus air velocity), low-passed
+        self._do = DoItems(self._emit, self._set_capture)
         self._after_takeoff_seq = -1  # mission item to enter after an implicit take-off
         self._in_mission = False  # flying mission items (as opposed to waiting on the ground)
         self._deferred: Callable[[], None] | None = None  # a command that needs a state first
@@ -92,11 +93,10 @@ class MissionSequencer:
 
     # ----------------------------------------------------------------------------- mission
     def _set_mission_fields(self, mission: Mission) -> None:
-        require_flyable(mission)
         self.mission = mission
         self._items = mission.items
         self._points = [item_point(item, self.home) for item in mission.items]
-        self._jump_counts: dict[int, int] = {}
+        self._do.new_mission()
         self._prev_point: Point | None = None
         self._has_capture_items = any(item.command in CAPTURE_COMMANDS for item in mission.items)
         # PX4's mission landing: RTL flies the landing sequence from its DO_LAND_START.
@@ -104,7 +104,6 @@ class MissionSequencer:
             (i for i, item in enumerate(mission.items) if item.command == MavCmd.DO_LAND_START),
             -1,
         )
-        self._single_frame = False  # DO_DIGICAM_CONTROL shot: the window closes after a frame
         self._first_flown = first_flown_item(mission)
         self._default_capture_pending = False
         self._default_capture_done = False
@@ -126,8 +125,7 @@ class MissionSequencer:
         """
         keep = self.current_seq
         self._set_mission_fields(mission)
-        self._speed_override = None  # the new plan's speeds apply
-        self._ground_speed_mode = False
+        self._do.set_speed(None)  # the new plan's speeds apply
         self._emit(f"Mission replaced: {len(mission.items)} items")
         seq = 0
         if current_seq is not None and mission.items:
@@ -172,32 +170,13 @@ class MissionSequencer:
         return self._guidance_params
 
     def _speed(self, p: GuidanceParams, course_rad: float = 0.0) -> float:
-        if self._speed_override is not None:
-            if not self._ground_speed_mode:
-                return p.clamp_speed(self._speed_override)
-            # Airspeed that makes the ground speed along the current course the one asked for.
-            wn, we = self._wind_ne
-            c, s = math.cos(course_rad), math.sin(course_rad)
-            along = wn * c + we * s
-            across = we * c - wn * s
-            return p.clamp_speed(math.hypot(self._speed_override - along, across))
+        asked = self._do.airspeed(p, course_rad)
+        if asked is not None:
+            return asked
         plan = self.mission.cruise_speed_m_s
         if self.mode is FlightMode.MISSION and math.isfinite(plan) and plan > 0.0:
             return p.clamp_speed(plan)
         return p.clamp_speed(p.trim_m_s)
-
-    def _estimate_wind(self, state: VehicleState) -> None:
-        """Wind = ground velocity - air velocity (truth airspeed along the heading), low-passed."""
-        if state.on_ground:
-            return
-        v_air = state.airspeed_m_s * math.cos(state.pitch_rad)
-        wn = state.vel_ned_m_s[0] - v_air * math.cos(state.yaw_rad)
-        we = state.vel_ned_m_s[1] - v_air * math.sin(state.yaw_rad)
-        k = WIND_FILTER_GAIN
-        self._wind_ne = (
-            self._wind_ne[0] + k * (wn - self._wind_ne[0]),
-            self._wind_ne[1] + k * (we - self._wind_ne[1]),
-        )
 
     def update(self, state: VehicleState) -> NavOutput:
         """Advance the state machine and return guidance for ``state``."""
@@ -206,11 +185,7 @@ class MissionSequencer:
         if self._deferred is not None:
             deferred, self._deferred = self._deferred, None
             deferred()
-        if self._ground_speed_mode:
-            self._estimate_wind(state)
-        if self._single_frame:
-            self._single_frame = False
-            self._set_capture(False)
+        self._do.update(state)
         tick = self._tick = self._tick_now()
         out = self._task.update(tick)
         # Tasks may finish several in a row (a waypoint, then DO items): bounded by the items.
@@ -256,40 +231,8 @@ class MissionSequencer:
                 self._emit("Mission: DO_JUMP loop without navigation items")
                 break
             self.current_seq = seq
-            seq = self._run_do_item(seq)
+            seq = self._do.run(items, seq, capturing=self.capturing)
         self._finish_mission()
-
-    def _run_do_item(self, seq: int) -> int:
-        """Execute one DO item; return the index to continue with."""
-        item = self._items[seq]
-        cmd = item.command
-        if cmd == MavCmd.DO_JUMP:
-            count = self._jump_counts.get(seq, 0)
-            if count < item.param2:
-                self._jump_counts[seq] = count + 1
-                target = int(item.param1)
-                self._emit(f"Jump to item {target} ({count + 1}/{int(item.param2)})")
-                return target
-            return seq + 1
-        if cmd == MavCmd.DO_CHANGE_SPEED:
-            if item.param1 in (0.0, 1.0) and item.param2 > 0.0:
-                self._speed_override = item.param2
-                self._ground_speed_mode = item.param1 == 1.0
-                kind = "ground" if self._ground_speed_mode else "air"
-                self._emit(f"Speed set to {item.param2:g} m/s ({kind})")
-        elif cmd == MavCmd.IMAGE_START_CAPTURE:
-            self._set_capture(True)
-        elif cmd == MavCmd.IMAGE_STOP_CAPTURE:
-            self._set_capture(False)
-        elif cmd == MavCmd.DO_SET_CAM_TRIGG_DIST:
-            # Frames come at the camera rate: a distance opens the window, 0 closes it.
-            self._single_frame = False
-            self._set_capture(item.param1 > 0.0)
-        elif cmd == MavCmd.DO_DIGICAM_CONTROL and item.lat_deg == 1.0 and not self.capturing:
-            # param5 = 1: one shot; the window stays open for one camera frame.
-            self._single_frame = True
-            self._set_capture(True)
-        return seq + 1
 
     def _start_nav_item(self, seq: int) -> None:
         item = self._items[seq]
@@ -368,7 +311,7 @@ class MissionSequencer:
 
     def _runway_course(self, seq: int, t: Tick) -> float:
         """Take-off course: toward the next positioned item if it is away from here."""
-        nxt = next_nav_index(self._items, seq + 1, dict(self._jump_counts))
+        nxt = next_nav_index(self._items, seq + 1, dict(self._do.jump_counts))
         if nxt >= 0:
             n, e, _ = self._points[nxt]
             if not math.isnan(n) and math.hypot(n - t.pn, e - t.pe) > 50.0:
@@ -377,7 +320,7 @@ class MissionSequencer:
 
     def _course_out(self, seq: int, point: Point) -> float | None:
         """Course of the leg after waypoint ``seq`` (for turn anticipation), if a leg follows."""
-        nxt = next_nav_index(self._items, seq + 1, dict(self._jump_counts))
+        nxt = next_nav_index(self._items, seq + 1, dict(self._do.jump_counts))
         if nxt < 0 or self._items[nxt].command not in (*WAYPOINT_COMMANDS, MavCmd.NAV_LAND):
             return None
         n, e, _ = self._points[nxt]
@@ -442,7 +385,7 @@ class MissionSequencer:
             self._complete_item(seq)
         elif cmd == MavCmd.NAV_LOITER_UNLIM:
             # Never ends; when nothing but DO items follow, the mission is complete.
-            if next_nav_index(self._items, seq + 1, dict(self._jump_counts)) < 0:
+            if next_nav_index(self._items, seq + 1, dict(self._do.jump_counts)) < 0:
                 self._complete_item(seq)
             else:
                 self._mark_reached(seq)

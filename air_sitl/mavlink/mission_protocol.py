@@ -5,15 +5,17 @@ sockets, no threads, no MAVLink library. Mission, fence and rally lists are stor
 An upload replaces a list only once every item arrived and the whole list validated; any error,
 cancel or timeout leaves the stored list untouched (atomic replacement). Timeouts follow
 mavlink.io's Mission Protocol: an item request is re-sent after 250 ms, at most 5 times.
+
+This is the edge where uploaded lists are validated (:mod:`air_sitl.mission.validate`), as
+``load_mission`` is for plan files: what flies a replaced list trusts it.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 import struct
 import zlib
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from air_sitl.mavlink.messages import (
@@ -38,9 +40,6 @@ MAX_ITEMS: dict[MissionType, int] = {
     MissionType.FENCE: 500,
     MissionType.RALLY: 50,
 }
-
-ItemCheck = Callable[[MissionItem, int, MissionType], ItemProblem | None]
-ListCheck = Callable[[Sequence[MissionItem], MissionType], ItemProblem | None]
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,12 +91,6 @@ def opaque_id_of(items: Sequence[MissionItem]) -> int:
     return crc or 1
 
 
-def _list_check(
-    items: Sequence[MissionItem], mission_type: MissionType, *, terrain: bool = False
-) -> ItemProblem | None:
-    return check_mission(items, mission_type, allow_empty=True, terrain=terrain)
-
-
 def _result_of(problem: ItemProblem) -> MissionResult:
     try:
         return problem.result_code
@@ -136,23 +129,17 @@ class MissionProtocol:
         mission: Sequence[MissionItem] = (),
         fence: Sequence[MissionItem] = (),
         rally: Sequence[MissionItem] = (),
-        item_check: ItemCheck = check_item,
-        list_check: ListCheck = _list_check,
         item_timeout_ns: int = ITEM_TIMEOUT_NS,
         max_retries: int = MAX_RETRIES,
         terrain: bool = False,
     ) -> None:
-        if terrain:  # a terrain model (--dem): terrain-relative frames are accepted
-            item_check = functools.partial(check_item, terrain=True)
-            list_check = functools.partial(_list_check, terrain=True)
+        self._terrain = terrain  # a terrain model (--dem): terrain-relative frames are accepted
         self._stores: dict[MissionType, tuple[MissionItem, ...]] = {
             MissionType.MISSION: tuple(mission),
             MissionType.FENCE: tuple(fence),
             MissionType.RALLY: tuple(rally),
         }
         self._opaque = {t: opaque_id_of(items) for t, items in self._stores.items()}
-        self._item_check = item_check
-        self._list_check = list_check
         self._item_timeout_ns = item_timeout_ns
         self._max_retries = max_retries
         self._upload: _Upload | None = None
@@ -273,7 +260,7 @@ class MissionProtocol:
             return []  # a duplicate of an item we already have
         if msg.seq > expected:
             return [self._request_next(up, now_ns)]  # out of order: ask again for ours
-        problem = self._item_check(msg.item, msg.seq, up.mission_type)
+        problem = check_item(msg.item, msg.seq, up.mission_type, terrain=self._terrain)
         if problem is not None:
             self._upload = None
             result = _result_of(problem)
@@ -299,7 +286,7 @@ class MissionProtocol:
         current_seq: int = -1,
     ) -> list[Output]:
         candidate = tuple(items)
-        problem = self._list_check(candidate, mission_type)
+        problem = check_mission(candidate, mission_type, allow_empty=True, terrain=self._terrain)
         if problem is not None:
             result = _result_of(problem)
             ack = MissionAck(result=result, mission_type=mission_type)

@@ -389,12 +389,3 @@ def item_warnings(items: Sequence[MissionItem]) -> list[str]:
 def mission_warnings(mission: Mission) -> list[str]:
     """What reading the plan found (mission notes), then the per-item warnings."""
     return [*mission.notes, *item_warnings(mission.items)]
-
-
-def require_flyable(mission: Mission) -> None:
-    """Raise :class:`PlanError` when the executor cannot fly ``mission`` (empty is allowed)."""
-    problem = check_mission(mission.items, MissionType.MISSION, allow_empty=True)
-    if problem is not None:
-        where = "mission" if problem.index < 0 else f"item {problem.index}"
-        msg = f"{mission.source}: {where}: {problem.message}"
-        raise PlanError(msg)

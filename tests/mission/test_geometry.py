@@ -6,7 +6,6 @@ import math
 
 import pytest
 
-from air_sitl.errors import PlanError
 from air_sitl.mission.geometry import (
     MAX_DO_STEPS,
     first_flown_item,
@@ -16,7 +15,6 @@ from air_sitl.mission.geometry import (
     next_nav_index,
 )
 from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
-from air_sitl.mission.validate import require_flyable
 from air_sitl.state import GeoPoint
 
 HOME = GeoPoint(lat_deg=54.68, lon_deg=25.28, alt_amsl_m=120.0)
@@ -103,13 +101,6 @@ def test_next_nav_index_counts_jumps_on_the_jump_item() -> None:
 def test_next_nav_index_ends_a_loop_without_navigation_items() -> None:
     items = (_item(MavCmd.NAV_WAYPOINT), _jump(2, MAX_DO_STEPS * 2), _jump(1, MAX_DO_STEPS * 2))
     assert next_nav_index(items, 1, {}) == -1
-
-
-def test_require_flyable_names_the_mission_and_item() -> None:
-    require_flyable(Mission(items=(), source="empty.plan"))  # an empty mission is allowed
-    bad = Mission(items=(_item(MavCmd.NAV_WAYPOINT), _jump(0, 1), _jump(5, 1)), source="x.plan")
-    with pytest.raises(PlanError, match=r"^x\.plan: item 2: jump target"):
-        require_flyable(bad)
 
 
 def test_params_are_what_from_params_takes() -> None:
