@@ -68,8 +68,7 @@ def run(args: argparse.Namespace) -> int:
             msg = f"{args.json}: cannot write: {err.strerror}"
             raise OptionError(msg) from None
     if args.plots is not None:
-        # matplotlib (about 0.5 s to import) only when figures are asked for
-        from air_sitl.eval.plots import write_plots
+        from air_sitl.eval.plots import write_plots  # matplotlib (0.5 s) only for figures
 
         for path in write_plots(scored, Path(args.plots)):
             sys.stdout.write(f"{path}\n")

@@ -22,7 +22,8 @@ from air_sitl.bus.args import add_connection_arguments, bus_config_from_args
 from air_sitl.bus.keys import KeySpace, check_chunk
 from air_sitl.bus.session import open_bus
 from air_sitl.errors import OptionError
-from air_sitl.localize.archive import make_method, run_archive
+from air_sitl.localize.archive import run_archive
+from air_sitl.localize.methods import make_method
 from air_sitl.localize.online import BusLocalizer
 
 HELP = "run a baseline localizer (deadreckon, vo, ...) over an archive or on the zenoh bus"

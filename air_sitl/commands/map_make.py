@@ -18,6 +18,7 @@ from pathlib import Path
 from air_sitl.errors import OptionError
 from air_sitl.maps.geotiff import write_geotiff
 from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
+from air_sitl.maps.stac import fetch, parse_bbox, parse_datetime
 from air_sitl.state import GeoPoint
 
 HELP = "make map files (map make {urban,forest} --out FILE.tif)"
@@ -153,8 +154,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _fetch(args: argparse.Namespace) -> int:
     """``map fetch``: STAC items over a box to one COG per date."""
-    from air_sitl.maps.stac import fetch, parse_bbox, parse_datetime
-
     record = fetch(
         str(args.stac),
         str(args.collection),

@@ -61,7 +61,7 @@ def posyaw(est_m: F64, truth_m: F64) -> Alignment:
 
 def umeyama(est_m: F64, truth_m: F64, *, with_scale: bool) -> Alignment | None:
     """evo's Umeyama alignment; None when it is not possible (too few or collinear points)."""
-    from evo.core.geometry import GeometryException, umeyama_alignment
+    from evo.core.geometry import GeometryException, umeyama_alignment  # evo: slow import
 
     if est_m.shape[0] < 3:
         return None

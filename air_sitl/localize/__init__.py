@@ -11,19 +11,18 @@ frame or outside recorded denial windows, seeded barometer and airspeed models f
 ``estimates/<name>.csv`` in one format (:mod:`~air_sitl.localize.output`). Command:
 ``air-sitl localize``. Speed and accuracy: ``benchmarks/bench_localize.py``.
 
-Methods are registered in :data:`METHODS`: name -> factory. The drivers call the factory with
-no arguments (``METHODS[name]()``) and give everything a flight provides (home, camera, map,
-reference map and date, seed, manifest) through :class:`LocalizerContext` in ``reset``; keyword
-options are for callers tuning a method. Adding a method is one line: a factory (import its
-module inside, so ``air-sitl --help`` stays fast) and its entry in :data:`METHODS`.
+Methods are registered in :data:`METHODS` (:mod:`~air_sitl.localize.methods`): name -> factory.
+The drivers call the factory with no arguments (``METHODS[name]()``) and give everything a flight
+provides (home, camera, map, reference map and date, seed, manifest) through
+:class:`LocalizerContext` in ``reset``; keyword options are for callers tuning a method.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from air_sitl.localize.archive import run_archive
 from air_sitl.localize.base import (
     Estimate,
     GnssFix,
@@ -32,49 +31,15 @@ from air_sitl.localize.base import (
     LocalizerContext,
     Observation,
 )
-
-
-def _deadreckon(**options: Any) -> Localizer:
-    from air_sitl.localize.deadreckon import DeadReckoning
-
-    return DeadReckoning(**options)
-
-
-def _mapmatch(**options: Any) -> Localizer:
-    from air_sitl.localize.mapmatch import MapMatchLocalizer
-
-    return MapMatchLocalizer(**options)
-
-
-def _fused(**options: Any) -> Localizer:
-    from air_sitl.localize.fused import FusedLocalizer
-
-    return FusedLocalizer(**options)
-
-
-def _vo(**options: Any) -> Localizer:
-    from air_sitl.localize.vo import VisualOdometry
-
-    return VisualOdometry(**options)
-
-
-# method name -> factory(**options) -> Localizer
-METHODS: dict[str, Callable[..., Localizer]] = {
-    "deadreckon": _deadreckon,
-    "vo": _vo,
-    "mapmatch": _mapmatch,
-    "fused": _fused,
-}
+from air_sitl.localize.methods import METHODS
 
 
 def localize_archive(archive: Path, method: str, **options: Any) -> Path:
     """Run ``method`` over an archive folder; write and return ``ARCHIVE/estimates/NAME.csv``.
 
     ``options`` are those of :func:`~air_sitl.localize.archive.run_archive` (``name``,
-    ``reference_map``, ``reference_date``, ``seed`` ...), imported only when called.
+    ``reference_map``, ``reference_date``, ``seed`` ...).
     """
-    from air_sitl.localize.archive import run_archive
-
     return run_archive(Path(archive), method, **options).path
 
 

@@ -26,14 +26,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import numpy.typing as npt
 
+from air_sitl.bus.keys import check_chunk
 from air_sitl.camera.model import CameraModel
 from air_sitl.dataset.air_schema import FRAMES_CSV, IMU_COLUMNS, IMU_CSV, MANIFEST_JSON
 from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive, open_archive
-from air_sitl.errors import DatasetError, OptionError
+from air_sitl.errors import DatasetError
 from air_sitl.localize.base import (
     Estimate,
     GnssFix,
@@ -43,6 +45,7 @@ from air_sitl.localize.base import (
     Observation,
 )
 from air_sitl.localize.inputs import AirspeedModel, BaroModel
+from air_sitl.localize.methods import make_method
 from air_sitl.localize.output import write_estimates
 from air_sitl.state import Quat
 
@@ -197,8 +200,6 @@ def observations(
     windows = denial_windows(archive.manifest)
     last_fix_t: int | None = None
     prev_t: int | None = None
-    import cv2
-
     for k in range(n):
         r = rows[k]
         t = int(times[k])
@@ -300,17 +301,6 @@ def run_method(
     return out
 
 
-def make_method(method: str, **options: Any) -> Localizer:
-    """The registered method ``method`` (OptionError listing the known ones)."""
-    from air_sitl.localize import METHODS
-
-    factory = METHODS.get(method)
-    if factory is None:
-        msg = f"--method {method}: unknown; expected one of {', '.join(sorted(METHODS))}"
-        raise OptionError(msg)
-    return factory(**options)
-
-
 def run_archive(
     archive: Path,
     method: str,
@@ -325,8 +315,6 @@ def run_archive(
 ) -> LocalizeRun:
     """Localize every capture frame of ``archive`` with ``method`` (built with ``options``, e.g.
     ``{"every": 4}``); write the estimates file."""
-    from air_sitl.bus.keys import check_chunk
-
     name = check_chunk("--name", name or method)
     check_writable(archive)
     loc = make_method(method, **(options or {}))

@@ -33,6 +33,7 @@ from air_sitl.localize.mapmatch_filter import (
     PositionFilter,
     air_velocity_en,
 )
+from air_sitl.maps import open_map
 from air_sitl.maps.base import MapSource
 from air_sitl.state import GeoPoint, Quat
 
@@ -48,8 +49,6 @@ VAR_UP_GNSS_M2 = 9.0
 
 def open_reference(context: LocalizerContext) -> MapSource:
     """The reference map a matching method uses for a flight (see the module docstring)."""
-    from air_sitl.maps import open_map
-
     manifest = context.manifest or {}
     info = manifest.get("map") if isinstance(manifest.get("map"), dict) else {}
     assert isinstance(info, dict)

@@ -384,7 +384,7 @@ def mosaic_cog(hrefs: list[str], bbox_wgs84: tuple[float, float, float, float], 
     untouched; others are reprojected onto it (bilinear). Later sources fill only what the
     earlier ones left empty (nodata or outside them).
     """
-    from rasterio.warp import Resampling, reproject, transform_bounds
+    from rasterio.warp import Resampling, reproject, transform_bounds  # only for mosaics
 
     try:
         srcs = [rasterio.open(h) for h in hrefs]

@@ -13,6 +13,7 @@ from pathlib import Path
 from air_sitl.errors import MapError
 from air_sitl.maps.base import MapSource
 from air_sitl.maps.procedural import KINDS, ProceduralMap
+from air_sitl.maps.procedural.surface import ProceduralSurface
 from air_sitl.maps.surface import SurfaceModel
 from air_sitl.state import GeoPoint
 
@@ -98,9 +99,7 @@ def open_surface(dem: str | None, map_source: MapSource) -> SurfaceModel | None:
         if not isinstance(map_source, ProceduralMap):
             msg = f"--dem builtin: only the procedural maps ({', '.join(KINDS)}) have one"
             raise MapError(msg)
-        from air_sitl.maps.procedural.surface import ProceduralSurface
-
         return ProceduralSurface(map_source)
-    from air_sitl.maps.geotiff import GeoTiffDem
+    from air_sitl.maps.geotiff import GeoTiffDem  # rasterio: see _open_geotiff
 
     return GeoTiffDem(Path(text), map_source)

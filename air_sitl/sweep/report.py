@@ -204,10 +204,10 @@ def plot(
     title: str,
 ) -> None:
     """One panel per (metric, axis): the median per value and method, bars over 25-75 %."""
-    import matplotlib
+    import matplotlib  # about 0.5 s to import: only when a figure is drawn
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # after the backend is chosen
 
     ncols = max(1, len(axes))
     fig, grid = plt.subplots(

@@ -27,6 +27,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import cv2
+
 from air_sitl.builder import load_setup
 from air_sitl.bus.hookup import bus_sinks_from_args
 from air_sitl.camera.options import camera_from_args, map_choice_from_args, open_chosen_map
@@ -77,8 +79,6 @@ def pin_threads() -> None:
     """One thread for BLAS (environment, for libraries not loaded yet) and OpenCV."""
     for name in THREAD_ENV:
         os.environ[name] = "1"
-    import cv2
-
     cv2.setNumThreads(1)
 
 

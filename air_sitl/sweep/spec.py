@@ -31,8 +31,18 @@ from typing import Any, NoReturn
 import yaml
 
 from air_sitl.bench.config import method_problem, parse_localizer
+from air_sitl.builder import shift_altitudes
+from air_sitl.bus.args import bus_options_from_args
+from air_sitl.camera.options import camera_from_args, map_choice_from_args
+from air_sitl.commands.fly import add_arguments
+from air_sitl.dataset.scenarios import missions_dir
 from air_sitl.errors import AirSitlError
+from air_sitl.eval.align import ALIGNMENTS
+from air_sitl.localize import METHODS
 from air_sitl.localize.external import ExternalLocalizer
+from air_sitl.mission.plan_file import load_mission
+from air_sitl.options import flight_options_from_args, int_in_range
+from air_sitl.runner import home_of
 from air_sitl.sweep.errors import SweepError
 
 PLAN_KEYS = ("plan", "scenario")  # where a run's plan comes from (fly's positional PLAN)
@@ -79,8 +89,6 @@ class _RaisingParser(argparse.ArgumentParser):
 
 def fly_parser() -> argparse.ArgumentParser:
     """``air-sitl fly``'s own argument parser (what every run's options go through)."""
-    from air_sitl.commands.fly import add_arguments
-
     parser = _RaisingParser(prog="air-sitl fly", add_help=False)
     add_arguments(parser)
     return parser
@@ -128,8 +136,6 @@ def parse_spec(data: Mapping[str, Any], path: Path, *, missions: Path | None = N
     methods = _methods(data.get("methods"), where)
     localizers = _localizers(data.get("localizers"), where)
     align = data.get("align", "none")
-    from air_sitl.eval.align import ALIGNMENTS
-
     if align not in ALIGNMENTS:
         msg = f"{where}: align: {align!r} is not one of {', '.join(ALIGNMENTS)}"
         raise SweepError(msg)
@@ -272,8 +278,6 @@ def _explicit_runs(
 def _methods(value: Any, where: str) -> tuple[str, ...]:
     if value is None:
         return ()
-    from air_sitl.localize import METHODS
-
     if not isinstance(value, list) or not all(isinstance(m, str) for m in value):
         msg = f"{where}: methods: expected a list of method names, got {value!r}"
         raise SweepError(msg)
@@ -326,8 +330,6 @@ def _plan_path(
         label = str(options["plan"])
         return label, (spec.parent / label).resolve()
     if "scenario" in options:
-        from air_sitl.dataset.scenarios import missions_dir
-
         label = str(options["scenario"]).strip()
         folder = missions if missions is not None else missions_dir(None)
         path = folder / f"{label}.plan"
@@ -391,13 +393,6 @@ def _resolve(
 
 def _validate(args: argparse.Namespace, plan: Path, plans: dict[Path, Any]) -> int:
     """fly's validators over parsed options (nothing opened: no map, no bus session)."""
-    from air_sitl.builder import shift_altitudes
-    from air_sitl.bus.args import bus_options_from_args
-    from air_sitl.camera.options import camera_from_args, map_choice_from_args
-    from air_sitl.mission.plan_file import load_mission
-    from air_sitl.options import flight_options_from_args, int_in_range
-    from air_sitl.runner import home_of
-
     options = flight_options_from_args(args)
     if not args.no_camera:
         camera_from_args(args)

@@ -1,0 +1,35 @@
+"""The registered localization methods: name -> factory(**options) -> Localizer.
+
+The drivers call a factory with no arguments (``METHODS[name]()``) and give everything a flight
+provides through :class:`~air_sitl.localize.base.LocalizerContext` in ``reset``; keyword options
+are for callers tuning a method. Adding a method is one line here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from air_sitl.errors import OptionError
+from air_sitl.localize.base import Localizer
+from air_sitl.localize.deadreckon import DeadReckoning
+from air_sitl.localize.fused import FusedLocalizer
+from air_sitl.localize.mapmatch import MapMatchLocalizer
+from air_sitl.localize.vo import VisualOdometry
+
+# method name -> factory(**options) -> Localizer
+METHODS: dict[str, Callable[..., Localizer]] = {
+    "deadreckon": DeadReckoning,
+    "vo": VisualOdometry,
+    "mapmatch": MapMatchLocalizer,
+    "fused": FusedLocalizer,
+}
+
+
+def make_method(method: str, **options: Any) -> Localizer:
+    """The registered method ``method`` (OptionError listing the known ones)."""
+    factory = METHODS.get(method)
+    if factory is None:
+        msg = f"--method {method}: unknown; expected one of {', '.join(sorted(METHODS))}"
+        raise OptionError(msg)
+    return factory(**options)
