@@ -1,9 +1,10 @@
-"""Constructed truth states for tests: one airborne VehicleState whose attitude fields agree."""
+"""Constructed truth states for tests: VehicleStates whose attitude fields agree."""
 
 from __future__ import annotations
 
+from air_sitl.camera.render import pose_state
 from air_sitl.frames import euler2quat
-from air_sitl.state import Vec3, VehicleState
+from air_sitl.state import GeoPoint, Vec3, VehicleState
 
 
 def airborne_state(
@@ -38,4 +39,24 @@ def airborne_state(
         specific_force_frd_m_s2=specific_force_frd_m_s2,
         airspeed_m_s=airspeed_m_s,
         on_ground=False,
+    )
+
+
+def above(
+    home: GeoPoint,
+    alt_agl_m: float,
+    *,
+    roll_rad: float = 0.0,
+    pitch_rad: float = 0.0,
+    yaw_rad: float = 0.0,
+) -> VehicleState:
+    """A still pose ``alt_agl_m`` straight above ``home`` (camera and map tests)."""
+    return pose_state(
+        home.lat_deg,
+        home.lon_deg,
+        home.alt_amsl_m + alt_agl_m,
+        alt_agl_m=alt_agl_m,
+        roll_rad=roll_rad,
+        pitch_rad=pitch_rad,
+        yaw_rad=yaw_rad,
     )

@@ -38,8 +38,8 @@ from air_sitl.camera.homography import (
 )
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.remap import RemapPaths
-from air_sitl.frames import euler2quat, ned2geodetic
-from air_sitl.maps.base import FILL_BGRX, TILE_PX, MapSource
+from air_sitl.frames import euler2quat
+from air_sitl.maps.base import FILL_BGRX, TILE_PX, MapSource, map_px_jacobian
 from air_sitl.maps.procedural.noise import key_of
 from air_sitl.maps.surface import SurfaceModel
 from air_sitl.state import CameraFrame, SimSample, VehicleState
@@ -113,15 +113,7 @@ class Renderer:
         cached = self._jacobians.get(key)
         if cached is not None:
             return cached
-        d = 50.0
-        cols = []
-        for dn, de in ((d, 0.0), (0.0, d)):
-            la_p, lo_p, _ = ned2geodetic(dn, de, 0.0, lat_deg, lon_deg, 0.0)
-            la_m, lo_m, _ = ned2geodetic(-dn, -de, 0.0, lat_deg, lon_deg, 0.0)
-            xp, yp = self.map.latlon_to_map_px(la_p, lo_p)
-            xm, ym = self.map.latlon_to_map_px(la_m, lo_m)
-            cols.append(((xp - xm) / (2 * d), (yp - ym) / (2 * d)))
-        jac = (cols[0][0], cols[1][0], cols[0][1], cols[1][1])
+        jac = map_px_jacobian(self.map, lat_deg, lon_deg)
         if len(self._jacobians) > 4096:  # bounded: a long flight crosses many cells
             self._jacobians.clear()
         self._jacobians[key] = jac

@@ -27,8 +27,8 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.camera.model import CameraModel
-from air_sitl.frames import ned2geodetic
-from air_sitl.maps.base import MapSource
+from air_sitl.frames import ned2geodetic, quat2matrix
+from air_sitl.maps.base import MapSource, map_px_jacobian
 from air_sitl.state import GeoPoint, Quat
 
 Image = npt.NDArray[np.uint8]
@@ -164,19 +164,9 @@ class MapMatcher:
         self._c2b_kinv = camera.r_cam_to_body() @ np.linalg.inv(camera.intrinsics())
         # d(level-0 map px)/d(north, east) at home: UTM scale and grid convergence change by
         # about 1e-5 over a flight's few kilometres, far below a pixel over a footprint.
-        self._jac = self._jacobian(home.lat_deg, home.lon_deg)
+        a, b, c, d = map_px_jacobian(self.map, home.lat_deg, home.lon_deg)
+        self._jac = np.array([[a, b], [c, d]])
         self._jac_inv = np.linalg.inv(self._jac)
-
-    def _jacobian(self, lat_deg: float, lon_deg: float) -> npt.NDArray[np.float64]:
-        d = 50.0
-        cols = []
-        for dn, de in ((d, 0.0), (0.0, d)):
-            la_p, lo_p, _ = ned2geodetic(dn, de, 0.0, lat_deg, lon_deg, 0.0)
-            la_m, lo_m, _ = ned2geodetic(-dn, -de, 0.0, lat_deg, lon_deg, 0.0)
-            xp, yp = self.map.latlon_to_map_px(la_p, lo_p)
-            xm, ym = self.map.latlon_to_map_px(la_m, lo_m)
-            cols.append(((xp - xm) / (2 * d), (yp - ym) / (2 * d)))
-        return np.array([[cols[0][0], cols[1][0]], [cols[0][1], cols[1][1]]])
 
     def map_px_of(self, east_m: float, north_m: float) -> tuple[float, float]:
         """Level-0 map pixel of a ground point given in ENU metres from home."""
@@ -198,8 +188,6 @@ class MapMatcher:
         self, q_body_to_ned_wxyz: Quat, height_m: float, east_m: float, north_m: float
     ) -> Mat3:
         """Full-resolution image pixel -> level-0 map pixel, camera at (east, north, height)."""
-        from air_sitl.frames import quat2matrix
-
         r = np.array(quat2matrix(q_body_to_ned_wxyz), dtype=np.float64) @ self._c2b_kinv
         to_ground = np.vstack([r[0] * height_m, r[1] * height_m, r[2]])  # -> (n, e, 1)
         x0, y0 = self.map_px_of(east_m, north_m)
@@ -355,6 +343,4 @@ class MapMatcher:
         )
 
     def _ray_rows(self, q: Quat) -> Mat3:
-        from air_sitl.frames import quat2matrix
-
         return np.array(quat2matrix(q), dtype=np.float64) @ self._c2b_kinv

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
@@ -23,6 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.errors import MapError
+from air_sitl.frames import ned2geodetic
 
 TILE_PX = 256
 FILL_BGRX: tuple[int, int, int, int] = (0, 0, 0, 0)
@@ -247,17 +249,7 @@ class TiledMap:
             msg = f"map {self.name}: pyramid level {level} outside 0..{self.num_levels - 1}"
             raise MapError(msg)
         out = np.empty((height, width, 4), dtype=np.uint8)
-        tx0, ty0 = x0 // TILE_PX, y0 // TILE_PX
-        tx1, ty1 = (x0 + width - 1) // TILE_PX, (y0 + height - 1) // TILE_PX
-        for ty in range(ty0, ty1 + 1):
-            for tx in range(tx0, tx1 + 1):
-                tile = self.tile(level, tx, ty)
-                ox, oy = tx * TILE_PX, ty * TILE_PX
-                ax0, ay0 = max(x0, ox), max(y0, oy)
-                ax1, ay1 = min(x0 + width, ox + TILE_PX), min(y0 + height, oy + TILE_PX)
-                out[ay0 - y0 : ay1 - y0, ax0 - x0 : ax1 - x0] = tile[
-                    ay0 - oy : ay1 - oy, ax0 - ox : ax1 - ox
-                ]
+        paste_tiles(out, lambda tx, ty: self.tile(level, tx, ty), x0, y0)
         w, h = self.level_size(level)
         _fill_outside(out, x0, y0, w, h)
         return out
@@ -285,6 +277,43 @@ class TiledMap:
     def cache_bytes(self) -> int:
         """Bytes of tiles held in the cache now."""
         return self._cache.nbytes
+
+
+def paste_tiles(
+    out: npt.NDArray[Any], tile: Callable[[int, int], npt.NDArray[Any]], x0: int, y0: int
+) -> None:
+    """Fill ``out`` (one level's pixels from column ``x0``, row ``y0``) from ``tile(tx, ty)``,
+    the TILE_PX-square tiles that cover it."""
+    height, width = out.shape[:2]
+    tx0, ty0 = x0 // TILE_PX, y0 // TILE_PX
+    tx1, ty1 = (x0 + width - 1) // TILE_PX, (y0 + height - 1) // TILE_PX
+    for ty in range(ty0, ty1 + 1):
+        for tx in range(tx0, tx1 + 1):
+            block = tile(tx, ty)
+            ox, oy = tx * TILE_PX, ty * TILE_PX
+            ax0, ay0 = max(x0, ox), max(y0, oy)
+            ax1, ay1 = min(x0 + width, ox + TILE_PX), min(y0 + height, oy + TILE_PX)
+            out[ay0 - y0 : ay1 - y0, ax0 - x0 : ax1 - x0] = block[
+                ay0 - oy : ay1 - oy, ax0 - ox : ax1 - ox
+            ]
+
+
+def map_px_jacobian(
+    source: MapSource, lat_deg: float, lon_deg: float
+) -> tuple[float, float, float, float]:
+    """d(level-0 map px)/d(north_m, east_m) at a point, row-major: (dx/dn, dx/de, dy/dn, dy/de).
+
+    Central differences over 50 m each way: the map's scale and grid convergence at the point.
+    """
+    d = 50.0
+    cols = []
+    for dn, de in ((d, 0.0), (0.0, d)):
+        la_p, lo_p, _ = ned2geodetic(dn, de, 0.0, lat_deg, lon_deg, 0.0)
+        la_m, lo_m, _ = ned2geodetic(-dn, -de, 0.0, lat_deg, lon_deg, 0.0)
+        xp, yp = source.latlon_to_map_px(la_p, lo_p)
+        xm, ym = source.latlon_to_map_px(la_m, lo_m)
+        cols.append(((xp - xm) / (2 * d), (yp - ym) / (2 * d)))
+    return cols[0][0], cols[1][0], cols[0][1], cols[1][1]
 
 
 def _fill_tile() -> Image:

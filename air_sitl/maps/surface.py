@@ -17,7 +17,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 import numpy.typing as npt
 
-from air_sitl.maps.base import TILE_PX, MapSource, TileCache
+from air_sitl.maps.base import TILE_PX, MapSource, TileCache, paste_tiles
 
 Heights = npt.NDArray[np.float32]
 SURFACE_CACHE_BYTES = 96 * 1024 * 1024
@@ -84,17 +84,7 @@ class TiledSurface:
     def heights(self, level: int, x0: int, y0: int, width: int, height: int) -> Heights:
         """Heights at level-``level`` pixel centres [y0, y0+height) x [x0, x0+width)."""
         out = np.empty((height, width), dtype=np.float32)
-        tx0, ty0 = x0 // TILE_PX, y0 // TILE_PX
-        tx1, ty1 = (x0 + width - 1) // TILE_PX, (y0 + height - 1) // TILE_PX
-        for ty in range(ty0, ty1 + 1):
-            for tx in range(tx0, tx1 + 1):
-                tile = self.tile(level, tx, ty)
-                ox, oy = tx * TILE_PX, ty * TILE_PX
-                ax0, ay0 = max(x0, ox), max(y0, oy)
-                ax1, ay1 = min(x0 + width, ox + TILE_PX), min(y0 + height, oy + TILE_PX)
-                out[ay0 - y0 : ay1 - y0, ax0 - x0 : ax1 - x0] = tile[
-                    ay0 - oy : ay1 - oy, ax0 - ox : ax1 - ox
-                ]
+        paste_tiles(out, lambda tx, ty: self.tile(level, tx, ty), x0, y0)
         return out
 
     def height_at_map_px(self, x_px: float, y_px: float) -> float:

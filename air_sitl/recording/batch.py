@@ -8,11 +8,8 @@ A job's error comes back as one line in its outcome: the other jobs fly on.
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import ctypes.util
 import multiprocessing
 import queue
-import signal
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -26,6 +23,7 @@ from air_sitl.files import zip_folder
 from air_sitl.recording.archive import RecordingRequest, record_flight
 from air_sitl.runner import Flight
 from air_sitl.state import SimSample
+from air_sitl.workers import die_with_parent
 
 ReportFn = Callable[[str, int, float], None]  # (job name, capture frames, simulated s)
 
@@ -59,18 +57,7 @@ class Outcome:
 def _init_worker(progress: Any) -> None:
     global _PROGRESS  # noqa: PLW0603  (one queue per worker process)
     _PROGRESS = progress
-    _die_with_parent()
-
-
-def _die_with_parent() -> None:
-    """Linux: a worker gets SIGKILL when the parent dies (a killed ``dataset`` leaves no
-    orphan still writing into a folder that ``--resume`` is about to continue)."""
-    pr_set_pdeathsig = 1
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
-        libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
-    except (OSError, AttributeError):
-        pass
+    die_with_parent()
 
 
 def _report_to_parent(name: str, frames: int, sim_s: float) -> None:

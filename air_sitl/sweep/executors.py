@@ -17,11 +17,11 @@ Both take :class:`~air_sitl.sweep.run.RunTask` objects and hand each finished ro
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import ctypes.util
 import multiprocessing
 import os
 import signal
+import socket
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -29,25 +29,16 @@ from typing import Any
 
 from air_sitl.sweep.errors import SweepError
 from air_sitl.sweep.run import THREAD_ENV, RunTask, execute, pin_threads
+from air_sitl.workers import die_with_parent
 
 OnRow = Callable[[dict[str, Any]], None]
 CRASHES_ALLOWED = 1  # a run whose worker died this many times is tried once more, then failed
 
 
-def _die_with_parent() -> None:
-    """Linux: the worker gets SIGKILL when the driver dies."""
-    pr_set_pdeathsig = 1
-    try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
-        libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
-    except (OSError, AttributeError):
-        pass
-
-
 def _init_worker() -> None:
     # Ctrl-C reaches the whole process group: the driver alone decides, workers are stopped
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _die_with_parent()
+    die_with_parent()
     pin_threads()
 
 
@@ -135,8 +126,6 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
 def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
     """Refuse at once a ``HOST:PORT`` (or ``ray://HOST:PORT``) nothing listens on: Ray itself
     retries for minutes before giving up."""
-    import socket
-
     host, sep, port = address.removeprefix("ray://").rpartition(":")
     if not sep or not port.isdigit() or not host:
         return  # "auto" and other forms: Ray's own lookup
@@ -168,12 +157,10 @@ class RayExecutor:
     def run(self, tasks: Sequence[RunTask], on_row: OnRow) -> None:
         """Run every task on Ray; ``on_row`` gets each row as it finishes."""
         try:
-            import ray
+            import ray  # the optional extra air-sitl[ray]
         except ImportError:
             msg = "--ray: ray is not installed (pip install 'air-sitl[ray]')"
             raise SweepError(msg) from None
-        import time
-
         start = time.perf_counter()
         started_here = not ray.is_initialized()
         if started_here:

@@ -24,12 +24,18 @@ CRUISE_ALT_M = HOME.alt_amsl_m + 200.0
 TargetFn = Callable[[VehicleState], ControlTarget]
 
 
-def _air_start(model: JSBSimModel, wind: Wind | None = None) -> tuple[VehicleState, Controller]:
+def _air_start(
+    model: JSBSimModel,
+    wind: Wind | None = None,
+    *,
+    alt_amsl_m: float = CRUISE_ALT_M,
+    heading_rad: float = 0.3,
+) -> tuple[VehicleState, Controller]:
     ic = InitialCondition(
         lat_deg=HOME.lat_deg,
         lon_deg=HOME.lon_deg,
-        alt_amsl_m=CRUISE_ALT_M,
-        heading_rad=0.3,
+        alt_amsl_m=alt_amsl_m,
+        heading_rad=heading_rad,
         airspeed_m_s=15.0,
         on_ground=False,
     )
@@ -145,16 +151,7 @@ def test_take_off_from_rest_reaches_100_m_agl_wings_level_on_heading() -> None:
 
 def test_land_glides_flares_touches_down_gently_and_stops() -> None:
     model = JSBSimModel()
-    ic = InitialCondition(
-        lat_deg=HOME.lat_deg,
-        lon_deg=HOME.lon_deg,
-        alt_amsl_m=HOME.alt_amsl_m + 40.0,
-        heading_rad=0.0,
-        airspeed_m_s=15.0,
-        on_ground=False,
-    )
-    state = model.reset(HOME, ic, Wind())
-    controller = Controller(trim=model.trim_command)
+    state, controller = _air_start(model, alt_amsl_m=HOME.alt_amsl_m + 40.0, heading_rad=0.0)
     target = ControlTarget(
         phase=ControlPhase.LAND,
         airspeed_m_s=13.0,
@@ -215,16 +212,7 @@ def test_cruise_in_moderate_turbulence_stays_near_altitude_and_speed() -> None:
 def test_glide_slope_then_flare_touches_down_near_the_aim_point() -> None:
     """As guidance lands: CRUISE down a 5 degree slope, the LAND law below 8 m."""
     model = JSBSimModel()
-    ic = InitialCondition(
-        lat_deg=HOME.lat_deg,
-        lon_deg=HOME.lon_deg,
-        alt_amsl_m=HOME.alt_amsl_m + 40.0,
-        heading_rad=0.0,
-        airspeed_m_s=15.0,
-        on_ground=False,
-    )
-    state = model.reset(HOME, ic, Wind())
-    controller = Controller(trim=model.trim_command)
+    state, controller = _air_start(model, alt_amsl_m=HOME.alt_amsl_m + 40.0, heading_rad=0.0)
     slope = math.radians(5.0)
     aim_north_m = 40.0 / math.tan(slope)
     errors = []

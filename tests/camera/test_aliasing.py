@@ -8,9 +8,10 @@ import cv2
 import numpy as np
 import pytest
 from georef_helpers import HOME, utm_grid
+from vehicle_states import above
 
 from air_sitl.camera.model import CameraModel
-from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.camera.render import Renderer
 from air_sitl.maps.array import ArrayMap
 
 ALT_M = 3000.0
@@ -49,14 +50,7 @@ def _texture_map(levels: int | None = None) -> ArrayMap:
 
 
 def _state(roll_deg: float = 0.0):  # type: ignore[no-untyped-def]
-    return pose_state(
-        HOME.lat_deg,
-        HOME.lon_deg,
-        HOME.alt_amsl_m + ALT_M,
-        alt_agl_m=ALT_M,
-        roll_rad=math.radians(roll_deg),
-        yaw_rad=0.4,
-    )
+    return above(HOME, ALT_M, roll_rad=math.radians(roll_deg), yaw_rad=0.4)
 
 
 @pytest.mark.parametrize("roll_deg", [0.0, 20.0])

@@ -7,9 +7,10 @@ import hashlib
 import math
 
 import pytest
+from vehicle_states import above
 
 from air_sitl.camera.model import CameraModel
-from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.camera.render import Renderer
 from air_sitl.maps.open import open_map
 from air_sitl.state import GeoPoint
 
@@ -32,14 +33,6 @@ def test_flat_frames_keep_their_bytes(kind: str) -> None:
     for (k, alt, roll), digest in RECORDED.items():
         if k != kind:
             continue
-        state = pose_state(
-            HOME.lat_deg,
-            HOME.lon_deg,
-            HOME.alt_amsl_m + alt,
-            alt_agl_m=alt,
-            roll_rad=math.radians(roll),
-            pitch_rad=0.03,
-            yaw_rad=0.4,
-        )
+        state = above(HOME, alt, roll_rad=math.radians(roll), pitch_rad=0.03, yaw_rad=0.4)
         got = hashlib.sha256(renderer.render(state, noise_index=3).tobytes()).hexdigest()
         assert got[:16] == digest, (kind, alt, roll)

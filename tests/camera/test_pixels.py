@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 from georef_helpers import HOME, utm_grid
+from vehicle_states import above
 
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import FILL_BGR, Renderer, pose_state
@@ -27,11 +28,9 @@ def flat_map() -> ArrayMap:
 
 
 def _pose(alt_agl_m: float, roll_deg: float = 0.0, pitch_deg: float = 0.0) -> VehicleState:
-    return pose_state(
-        HOME.lat_deg,
-        HOME.lon_deg,
-        HOME.alt_amsl_m + alt_agl_m,
-        alt_agl_m=alt_agl_m,
+    return above(
+        HOME,
+        alt_agl_m,
         roll_rad=math.radians(roll_deg),
         pitch_rad=math.radians(pitch_deg),
         yaw_rad=0.3,
@@ -108,15 +107,7 @@ def test_strips_join_into_one_warp_of_the_whole_frame(height_px: int) -> None:
     image = np.repeat(np.clip(texture, 0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
     m = ArrayMap(image, crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m)
     camera = CameraModel(noise_sigma=0.0, height_px=height_px)
-    state = pose_state(
-        HOME.lat_deg,
-        HOME.lon_deg,
-        HOME.alt_amsl_m + 200.0,
-        alt_agl_m=200.0,
-        roll_rad=0.2,
-        pitch_rad=-0.1,
-        yaw_rad=0.4,
-    )
+    state = above(HOME, 200.0, roll_rad=0.2, pitch_rad=-0.1, yaw_rad=0.4)
     renderer = Renderer(m, camera)
     g = renderer.geometry(state)
     assert g.level == 0  # 0.34 m image pixels over a 1 m map

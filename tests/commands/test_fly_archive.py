@@ -79,39 +79,22 @@ def clean(plan: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 # -- an independent minimal reader, written from SPEC section 1 only ---------------------------
 
-SPEC_HEADER = [
-    "Filename",
-    "Latitude",
-    "Longitude",
-    "RelativeAltitude",
-    "ImuX",
-    "ImuY",
-    "ImuZ",
-    "ImuW",
-    "PoseX",
-    "PoseY",
-    "PoseZ",
-    "OrientationX",
-    "OrientationY",
-    "OrientationZ",
-    "OrientationW",
-    "MapX",
-    "MapY",
-    "SvoX",
-    "SvoY",
-    "SvoZ",
-]
+SPEC_HEADER = (  # the header line exactly as SPEC section 1 gives it
+    "Filename,Latitude,Longitude,RelativeAltitude,ImuX,ImuY,ImuZ,ImuW,PoseX,PoseY,PoseZ,"
+    "OrientationX,OrientationY,OrientationZ,OrientationW,MapX,MapY,SvoX,SvoY,SvoZ"
+)
 
 
 def minimal_read(folder: Path) -> list[dict[str, Any]]:
     """csv module, quotes stripped around Filename, MapX/MapY as int, everything else float."""
     with (folder / "metadata.csv").open(newline="") as f:
         rows = list(csv.reader(f))
-    assert rows[0] == SPEC_HEADER
+    columns = SPEC_HEADER.split(",")
+    assert rows[0] == columns
     out: list[dict[str, Any]] = []
     for fields in rows[1:]:
         row: dict[str, Any] = {}
-        for name, value in zip(SPEC_HEADER, fields, strict=True):
+        for name, value in zip(columns, fields, strict=True):
             if name == "Filename":
                 row[name] = value.strip('"')
             elif name in ("MapX", "MapY"):

@@ -11,9 +11,10 @@ import pytest
 import rasterio
 from georef_helpers import HOME, utm_grid, write_tif
 from rasterio.transform import Affine
+from vehicle_states import above
 
 from air_sitl.camera.model import CameraModel
-from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.camera.render import Renderer
 from air_sitl.errors import MapError
 from air_sitl.frames import ned2geodetic
 from air_sitl.maps.array import ArrayMap
@@ -45,15 +46,7 @@ def test_geotiff_renders_exactly_like_the_same_pixels_in_memory(
     path, img, crs, transform = texture_tif
     tif = open_map(str(path), HOME)
     mem = ArrayMap(img, crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m)
-    state = pose_state(
-        HOME.lat_deg,
-        HOME.lon_deg,
-        HOME.alt_amsl_m + alt,
-        alt_agl_m=alt,
-        roll_rad=math.radians(roll),
-        pitch_rad=0.05,
-        yaw_rad=1.0,
-    )
+    state = above(HOME, alt, roll_rad=math.radians(roll), pitch_rad=0.05, yaw_rad=1.0)
     cam = CameraModel()
     a = Renderer(tif, cam, seed=4).frame_jpeg(state, 7)
     b = Renderer(mem, cam, seed=4).frame_jpeg(state, 7)
@@ -99,9 +92,7 @@ def test_geographic_crs_is_handled(tmp_path: Path) -> None:
     m = open_map(str(path), HOME)
     x, y = m.latlon_to_map_px(HOME.lat_deg, HOME.lon_deg)
     assert abs(x - (size / 2 - 0.5)) < 1e-6 and abs(y - (size / 2 - 0.5)) < 1e-6
-    state = pose_state(
-        HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m + 150.0, alt_agl_m=150.0, pitch_rad=0.3
-    )
+    state = above(HOME, 150.0, pitch_rad=0.3)
     cam = CameraModel(noise_sigma=0.0)
     renderer = Renderer(m, cam)
     frame = renderer.render(state)

@@ -95,10 +95,8 @@ class UrbanWorld:
         kind = float(np.clip(rng.random() + 0.12 * zone, 0.0, 0.999))
         return fill_block(rng, kind, u0, v0, u1, v1)
 
-    def draw(self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook) -> np.ndarray:
-        """One BGR tile of ``size`` pixels at absolute lattice (x0, y0)."""
-        cv = Canvas(x0, y0, size, gsd_m, _ASPHALT)
-        # Layout-frame range of the tile (its rotated bounding box) plus shadow margin.
+    def _layout_corners(self, cv: Canvas) -> tuple[list[float], list[float]]:
+        """Layout-frame (u, v) of the tile's four corners: its rotated bounding box."""
         corners = [
             (cv.e_min, cv.n_min),
             (cv.e_max, cv.n_min),
@@ -107,6 +105,13 @@ class UrbanWorld:
         ]
         us = [self.c * e + self.s * n for e, n in corners]
         vs = [-self.s * e + self.c * n for e, n in corners]
+        return us, vs
+
+    def draw(self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook) -> np.ndarray:
+        """One BGR tile of ``size`` pixels at absolute lattice (x0, y0)."""
+        cv = Canvas(x0, y0, size, gsd_m, _ASPHALT)
+        # Layout-frame range of the tile (its rotated bounding box) plus shadow margin.
+        us, vs = self._layout_corners(cv)
         margin = 45.0
         kx0 = math.floor((min(us) - margin) / PITCH_M) - 1
         kx1 = math.floor((max(us) + margin) / PITCH_M) + 1
@@ -201,14 +206,7 @@ class UrbanWorld:
         """
         cv = Canvas(x0, y0, size, gsd_m, (0, 0, 0))
         out = np.zeros((size, size), dtype=np.float32)
-        corners = [
-            (cv.e_min, cv.n_min),
-            (cv.e_max, cv.n_min),
-            (cv.e_min, cv.n_max),
-            (cv.e_max, cv.n_max),
-        ]
-        us = [self.c * e + self.s * n for e, n in corners]
-        vs = [-self.s * e + self.c * n for e, n in corners]
+        us, vs = self._layout_corners(cv)
         margin = 10.0
         u_lo, u_hi = min(us) - margin, max(us) + margin
         v_lo, v_hi = min(vs) - margin, max(vs) + margin
