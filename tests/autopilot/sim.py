@@ -10,12 +10,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
+from air_sitl.autopilot.autopilot import air_start_pose
 from air_sitl.autopilot.executor import MissionExecutor
+from air_sitl.autopilot.params import ParamStore
 from air_sitl.autopilot.target import ControlPhase, ControlTarget
 from air_sitl.autopilot.tasks import NavOutput
 from air_sitl.frames import euler2quat, geodetic2ned, ned2geodetic
 from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
-from air_sitl.state import GeoPoint, VehicleState
+from air_sitl.state import FlightMode, GeoPoint, VehicleState
 
 HOME = GeoPoint(lat_deg=54.68, lon_deg=25.28, alt_amsl_m=120.0)
 G = 9.80665
@@ -155,12 +157,20 @@ def air_started(
     m: Mission, wind_ne: tuple[float, float] = (0.0, 0.0)
 ) -> tuple[MissionExecutor, KinematicPlane]:
     """An executor begun in the air at the mission's start point, and a plane placed there."""
-    from air_sitl.autopilot.autopilot import air_start_pose
-    from air_sitl.autopilot.params import ParamStore
-
     lat, lon, alt, heading, speed = air_start_pose(m, HOME)
     n, e, _ = geodetic2ned(lat, lon, alt, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m)
     plane = KinematicPlane(n, e, alt - HOME.alt_amsl_m, heading, speed, wind_ne)
     ex = MissionExecutor(m, HOME, ParamStore())
     ex.air_start(plane.state())
+    return ex, plane
+
+
+def ground_started(m: Mission) -> tuple[MissionExecutor, KinematicPlane]:
+    """An executor on the ground at home, armed in MISSION mode (flying from the next update),
+    and a plane standing there."""
+    ex = MissionExecutor(m, HOME, ParamStore())
+    plane = KinematicPlane()
+    ex.update(plane.state())
+    ex.set_mode(FlightMode.MISSION)
+    ex.arm()
     return ex, plane

@@ -16,7 +16,7 @@ from air_sitl.errors import PlanError
 from air_sitl.mission.items import MavCmd
 from air_sitl.state import FlightMode, VehicleState
 
-from .sim import HOME, KinematicPlane, air_started, do, mission, rtl, run, wp
+from .sim import HOME, KinematicPlane, air_started, do, ground_started, mission, rtl, run, wp
 
 
 def _reached_log(ex: MissionExecutor, plane: KinematicPlane, **kw: float) -> list[int]:
@@ -141,11 +141,7 @@ def test_capture_window_follows_start_and_stop_items() -> None:
 def test_default_capture_window_starts_at_first_waypoint_at_altitude() -> None:
     """No camera items: from the first waypoint after take-off (at its altitude) to the end."""
     items = (wp(0, 0, 40, MavCmd.NAV_TAKEOFF), wp(0, 800, 120), wp(0, 1600, 120))
-    ex = MissionExecutor(mission(*items), HOME, ParamStore())
-    plane = KinematicPlane()
-    ex.update(plane.state())
-    ex.set_mode(FlightMode.MISSION)
-    ex.arm()
+    ex, plane = ground_started(mission(*items))
     first: list[tuple[int, float, float]] = []
 
     def each(x: MissionExecutor, s: VehicleState, _o: NavOutput) -> None:
@@ -161,11 +157,7 @@ def test_default_capture_window_starts_at_first_waypoint_at_altitude() -> None:
 def test_default_capture_waits_for_the_altitude() -> None:
     # The first waypoint is reached long before the aircraft climbs to its altitude.
     items = (wp(0, 0, 40, MavCmd.NAV_TAKEOFF), wp(0, 200, 300), wp(0, 3000, 300))
-    ex = MissionExecutor(mission(*items), HOME, ParamStore())
-    plane = KinematicPlane()
-    ex.update(plane.state())
-    ex.set_mode(FlightMode.MISSION)
-    ex.arm()
+    ex, plane = ground_started(mission(*items))
     start: list[float] = []
 
     def each(x: MissionExecutor, s: VehicleState, _o: NavOutput) -> None:

@@ -288,14 +288,7 @@ def test_a_full_disk_stops_with_one_line_and_the_folder_resumes(
     out = tmp_path / "full"
     proc = _spawn_fly(plan, out, preexec_fn=_limit_file_size)
     _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 2
-    lines = err.decode().strip().splitlines()
-    assert len(lines) == 1 and "cannot write: File too large" in lines[0], lines
-    with air_sitl.dataset.open(out) as archive:
-        report = check_archive(archive)
-    assert report.valid, report.text()
-    assert main([*fly_args(plan, out), "--resume"]) == 0
-    assert data_files(out) == data_files(clean)
+    _stopped_in_one_line_then_resumes(proc, err, "cannot write: File too large", plan, clean, out)
 
 
 def _chattr(flag: str, path: Path) -> bool:
@@ -324,9 +317,18 @@ def test_a_folder_turning_read_only_stops_with_one_line_and_resumes(
         _, err = proc.communicate()
     finally:
         _chattr("-i", out)
+    why = "cannot write: Operation not permitted"
+    _stopped_in_one_line_then_resumes(proc, err, why, plan, clean, out)
+
+
+def _stopped_in_one_line_then_resumes(
+    proc: subprocess.Popen[bytes], err: bytes, why: str, plan: Path, clean: Path, out: Path
+) -> None:
+    """fly stopped with exit 2 and one line saying ``why``; what it left checks valid, and
+    ``--resume`` completes it to the bytes of a clean flight."""
     assert proc.returncode == 2
     lines = err.decode().strip().splitlines()
-    assert len(lines) == 1 and "cannot write: Operation not permitted" in lines[0], lines
+    assert len(lines) == 1 and why in lines[0], lines
     with air_sitl.dataset.open(out) as archive:
         report = check_archive(archive)
     assert report.valid, report.text()
