@@ -8,21 +8,24 @@ Recording it into an archive is :mod:`air_sitl.recording`'s part.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import sys
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
-from air_sitl.camera.options import open_chosen_map, open_chosen_surface
+from air_sitl.camera.options import close_map, open_chosen_map, open_chosen_surface
 from air_sitl.camera.render import Renderer
 from air_sitl.errors import OptionError
 from air_sitl.maps.base import MapSource
+from air_sitl.maps.surface import SurfaceModel
 from air_sitl.mission.items import (
     LOITER_COMMANDS,
+    RELATIVE_FRAMES,
+    TERRAIN_FRAMES,
     WAYPOINT_COMMANDS,
     MavCmd,
-    MavFrame,
     Mission,
     MissionItem,
 )
@@ -56,25 +59,26 @@ class FlightSetup:
 
 # Items whose altitude is a height to fly at; RTL and landing keep theirs.
 _SHIFTED_COMMANDS = frozenset({MavCmd.NAV_TAKEOFF, *WAYPOINT_COMMANDS, *LOITER_COMMANDS})
-_RELATIVE_FRAMES = frozenset({MavFrame.GLOBAL_RELATIVE_ALT, MavFrame.GLOBAL_RELATIVE_ALT_INT})
 
 
 def shift_altitudes(mission: Mission, offset_m: float, home: GeoPoint) -> Mission:
     """``mission`` with every altitude it flies at (take-off, waypoints, loiters, rally points)
     raised by ``offset_m``; the capture items and their window stay as they are.
 
-    OptionError when a shifted altitude is not above home.
+    OptionError when a shifted altitude is not above home (terrain frames: above the ground).
     """
     if offset_m == 0.0:
         return mission
 
     def shifted(item: MissionItem, index: int, kind: str) -> MissionItem:
         alt_m = item.alt_m + offset_m
-        above_home_m = alt_m if item.frame in _RELATIVE_FRAMES else alt_m - home.alt_amsl_m
-        if above_home_m <= 0.0:
+        base = "the ground" if item.frame in TERRAIN_FRAMES else "home"
+        relative = item.frame in RELATIVE_FRAMES or item.frame in TERRAIN_FRAMES
+        above_m = alt_m if relative else alt_m - home.alt_amsl_m
+        if above_m <= 0.0:
             msg = (
                 f"--altitude-offset {offset_m:g}: {mission.source}: {kind} {index}: altitude "
-                f"{item.alt_m:g} m would be {above_home_m:g} m above home (must stay above it)"
+                f"{item.alt_m:g} m would be {above_m:g} m above {base} (must stay above it)"
             )
             raise OptionError(msg)
         return replace(item, alt_m=alt_m)
@@ -96,23 +100,86 @@ def load_setup(
     render_workers: int | None = None,
     name: str | None = None,
 ) -> FlightSetup:
-    """Load and validate ``plan`` (PlanError naming the file and item); home is its home.
+    """Load and validate ``plan`` (PlanError naming the file and item); home is its home
+    (with ``--dem``: on the ground there, :func:`home_on_terrain`).
 
     ``options.altitude_offset_m`` shifts the plan's altitudes (:func:`shift_altitudes`).
     """
-    mission = load_mission(plan)
-    home = home_of(mission)
-    mission = shift_altitudes(mission, options.altitude_offset_m, home)
-    return FlightSetup(
-        mission=mission,
-        home=home,
-        name=name or mission.name or plan.stem,
-        options=options,
-        plan=plan,
-        camera=camera,
-        map=map or MapChoice(),
-        render_workers=render_workers,
+    choice = map or MapChoice()
+    mission = load_mission(plan, terrain=choice.dem is not None)
+    setup = home_on_terrain(
+        FlightSetup(
+            mission=mission,
+            home=home_of(mission),
+            name=name or mission.name or plan.stem,
+            options=options,
+            plan=plan,
+            camera=camera,
+            map=choice,
+            render_workers=render_workers,
+        )
     )
+    shifted = shift_altitudes(mission, options.altitude_offset_m, setup.home)
+    return replace(setup, mission=shifted)
+
+
+HOME_MISMATCH_M = 1.0  # a planned home this far from the DEM's ground is worth a warning
+
+
+def home_on_terrain(setup: FlightSetup) -> FlightSetup:
+    """``setup`` with home on the ground of its surface model (``--dem``); as it is without.
+
+    As PX4 does, home is where the vehicle stands (PX4 sets it at arming from its position),
+    not the plan's planned home altitude: the aircraft takes off from the terrain at home, and
+    altitudes relative to home are above that ground. A planned home altitude more than
+    HOME_MISMATCH_M away from it is said on stderr.
+    """
+    if setup.map.dem is None:
+        return setup
+    terrain, close = open_setup_terrain(setup)
+    try:
+        assert terrain is not None
+        ground_m = terrain.terrain_at(setup.home.lat_deg, setup.home.lon_deg)
+    finally:
+        close()
+    planned_m = setup.home.alt_amsl_m
+    if abs(ground_m - planned_m) > HOME_MISMATCH_M:
+        print(
+            f"air-sitl: warning: {setup.mission.source}: home altitude {planned_m:.1f} m AMSL, "
+            f"the ground there is at {ground_m:.1f} m (--dem {setup.map.dem}): the vehicle "
+            "starts on the ground, and altitudes relative to home are above it",
+            file=sys.stderr,
+            flush=True,
+        )
+    return replace(setup, home=replace(setup.home, alt_amsl_m=ground_m))
+
+
+def open_setup_terrain(setup: FlightSetup) -> tuple[SurfaceModel | None, Callable[[], None]]:
+    """The surface model the flight meets (``--dem``; None without) and what closes its files.
+
+    The flight opens its own (not the camera's): it samples level-0 cells along the track,
+    the camera whole tiles at the level its altitude needs.
+    """
+    if setup.map.dem is None:
+        return None, lambda: None
+    map_source = open_setup_map(setup)
+    owned = setup.map_source is None  # a map handed in (a sweep worker's) stays open
+
+    def close_map_source() -> None:
+        if owned:
+            close_map(map_source)
+
+    try:
+        surface = open_chosen_surface(setup.map, map_source)
+    except BaseException:
+        close_map_source()
+        raise
+
+    def close() -> None:
+        close_map(surface)
+        close_map_source()
+
+    return surface, close
 
 
 def open_setup_map(setup: FlightSetup) -> MapSource:
@@ -145,12 +212,19 @@ def build_flight(
 
     ``auto_start=False`` (serve): the vehicle waits on the ground, disarmed, for a client.
     """
-    flight, _home, _initial = assemble_flight(
-        setup.mission,
-        setup.options,
-        sinks=sinks,
-        camera=camera,
-        home=setup.home,
-        auto_start=auto_start,
-    )
+    terrain, close_terrain = open_setup_terrain(setup)
+    try:
+        flight, _home, _initial = assemble_flight(
+            setup.mission,
+            setup.options,
+            sinks=sinks,
+            camera=camera,
+            home=setup.home,
+            auto_start=auto_start,
+            terrain=terrain,
+        )
+    except BaseException:
+        close_terrain()
+        raise
+    flight.on_close = (close_terrain,)
     return flight

@@ -14,7 +14,7 @@ from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S
 from air_sitl.errors import DatasetError
 from air_sitl.nav.columns import NAV_COLUMNS, nav_fields
 from air_sitl.sinks import FlightResult, NullSink
-from air_sitl.state import BatteryState, FlightMode, SimSample
+from air_sitl.state import BatteryState, FlightMode, SimSample, VehicleState
 
 TRAJECTORY_COLUMNS = (
     "sim_time_ns",
@@ -94,12 +94,37 @@ MAX_TOUCHDOWN_ROLL_RAD = math.radians(30.0)  # a wing tip touches beyond this
 MIN_TOUCHDOWN_PITCH_RAD = math.radians(-10.0)  # nose first below this
 
 
+OBJECT_ABOVE_GROUND_M = 1.0  # a surface this far above the terrain is a roof or the canopy
+
+
+def _contact_with(s: VehicleState) -> str:
+    """What the aircraft touched: the ground, or (``--dem``) an object standing on it."""
+    if s.surface_amsl_m is None or s.ground_amsl_m is None:
+        return "ground contact"
+    above = s.surface_amsl_m - s.ground_amsl_m
+    if above <= OBJECT_ABOVE_GROUND_M or s.on_ground:
+        return "ground contact"
+    return f"contact with a roof or the canopy {above:.1f} m above the ground"
+
+
+def _surface_fields(s: VehicleState) -> dict[str, float]:
+    """Where on the surface a crash happened (``--dem``); nothing on the flat ground."""
+    if s.surface_amsl_m is None:
+        return {}
+    fields = {"alt_amsl_m": round(s.alt_amsl_m, 2), "surface_amsl_m": round(s.surface_amsl_m, 2)}
+    if s.ground_amsl_m is not None:
+        fields["ground_amsl_m"] = round(s.ground_amsl_m, 2)
+    return fields
+
+
 class FlightStats:
     """Summary metrics: capture frames and distance, tracking errors, waypoints reached, and
     how the flight met the ground (``crashed`` where and why, or ``landed``).
 
     ``landing_items``: mission indices of NAV_LAND items; ground contact is a landing only
     while one is current or in LAND mode, within the sink-rate and attitude limits above.
+    With a surface model (``--dem``) contact is with the surface under the aircraft: the
+    terrain, a roof or the canopy.
     """
 
     def __init__(
@@ -164,9 +189,10 @@ class FlightStats:
         a = sample.autopilot
         if self.crashed is not None:
             return
-        contact = s.on_ground or s.alt_agl_m < CONTACT_AGL_M
+        agl = s.surface_agl_m
+        contact = s.on_ground or agl < CONTACT_AGL_M
         if not contact:
-            if s.alt_agl_m > AIRBORNE_AGL_M:
+            if agl > AIRBORNE_AGL_M:
                 self._airborne = True
                 self.touched_down = False
             self._in_contact = False
@@ -179,7 +205,7 @@ class FlightStats:
         sink = s.vel_ned_m_s[2]
         if not landing:
             where = f"mode {a.mode.value}, mission item {a.current_seq}"
-            reason = f"ground contact outside a landing ({where}), sink {sink:.1f} m/s"
+            reason = f"{_contact_with(s)} outside a landing ({where}), sink {sink:.1f} m/s"
         elif sink > MAX_TOUCHDOWN_SINK_M_S:
             reason = f"hard landing: sink {sink:.1f} m/s (limit {MAX_TOUCHDOWN_SINK_M_S:g} m/s)"
         elif abs(s.roll_rad) > MAX_TOUCHDOWN_ROLL_RAD or s.pitch_rad < MIN_TOUCHDOWN_PITCH_RAD:
@@ -195,6 +221,7 @@ class FlightStats:
             "lat_deg": round(s.lat_deg, 7),
             "lon_deg": round(s.lon_deg, 7),
             "reason": reason,
+            **_surface_fields(s),
         }
         self.mission_completed = False
 

@@ -19,7 +19,7 @@ from air_sitl.autopilot.params import ParamStore
 from air_sitl.battery import Battery, BatterySpec
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S, PHYSICS_STEP_NS, Pacer, SimClock
 from air_sitl.errors import PlanError
-from air_sitl.fdm.base import FlightModel, InitialCondition
+from air_sitl.fdm.base import FlightModel, InitialCondition, Terrain
 from air_sitl.fdm.jsbsim_model import JSBSimModel
 from air_sitl.flightlog import FlightStats
 from air_sitl.frames import geodetic2ned
@@ -65,6 +65,8 @@ class Flight:
     # The onboard filter the autopilot steers on (--nav ekf); None: it steers on the truth.
     nav: OnboardNav | None = None
     battery: Battery | None = None  # the propulsion battery (truth in: throttle flown)
+    # Called once when the flight ends, after the sinks (the files a terrain model reads).
+    on_close: Sequence[Callable[[], None]] = ()
 
     def step(self) -> SimSample:
         """Run one physics step: sensors, navigation, autopilot, sinks, camera, flight model."""
@@ -170,6 +172,8 @@ class Flight:
                 self.camera.close()
             for sink in self.sinks:
                 sink.close(result)
+            for close in self.on_close:
+                close()
         return result
 
 
@@ -207,10 +211,12 @@ def assemble_flight(
     camera: FrameSource | None = None,
     home: GeoPoint | None = None,
     auto_start: bool = True,
+    terrain: Terrain | None = None,
 ) -> tuple[Flight, GeoPoint, InitialCondition]:
     """Build the flight model, autopilot and sensors (GNSS denial included) and place the aircraft.
 
     ``auto_start=False`` (serve): the vehicle waits on the ground, disarmed, for a client.
+    ``terrain`` (``--dem``): the ground under the flight; home must be on it.
     """
     home = home or home_of(mission)
     gains = gains_for(options.aircraft)
@@ -227,8 +233,9 @@ def assemble_flight(
     if options.nav_aid_sigma_m != FlightOptions().nav_aid_sigma_m:
         overrides["EKF2_EVP_NOISE"] = options.nav_aid_sigma_m
     params = ParamStore(overrides or None)
+    surface = terrain.height_at if terrain is not None else None
     if options.air_start:
-        lat, lon, alt, heading, airspeed = air_start_pose(mission, home, params)
+        lat, lon, alt, heading, airspeed = air_start_pose(mission, home, params, surface)
         initial = InitialCondition(
             lat_deg=lat,
             lon_deg=lon,
@@ -244,7 +251,7 @@ def assemble_flight(
             alt_amsl_m=home.alt_amsl_m,
             heading_rad=ground_start_heading_rad(mission, home),
         )
-    fdm = JSBSimModel(aircraft=options.aircraft, seed=options.seed)
+    fdm = JSBSimModel(aircraft=options.aircraft, seed=options.seed, terrain=terrain)
     state0 = fdm.reset(home, initial, options.wind)
     # Airborne: start the controller's integrators at the trimmed controls, so any aircraft
     # (not only ours, whose default gains hold its trim) begins steady.
@@ -256,6 +263,7 @@ def assemble_flight(
         Controller(gains, trim=trim),
         air_start=options.air_start,
         auto_start=auto_start,
+        surface=surface,
     )
     noise = SensorNoise().scaled(options.sensor_noise)
     sensors = SensorSuite(

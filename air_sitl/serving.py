@@ -59,7 +59,11 @@ def serve_vehicle(
         home=home,
         mission=setup.mission,
         post=post,
-        options=EndpointOptions(signing_key=signing_key, camera=camera_info(setup)),
+        options=EndpointOptions(
+            signing_key=signing_key,
+            camera=camera_info(setup),
+            terrain=setup.map.dem is not None,
+        ),
     )
     try:
         addresses = endpoint.open()

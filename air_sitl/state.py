@@ -31,7 +31,7 @@ class VehicleState:
     lat_deg: float
     lon_deg: float
     alt_amsl_m: float
-    alt_agl_m: float  # above the ground plane (home elevation)
+    alt_agl_m: float  # above home's ground (the take-off point): AIR's RelativeAltitude
     pos_ned_m: Vec3  # relative to home
     q_body_to_ned_wxyz: Quat  # Hamilton, scalar first
     roll_rad: float
@@ -42,6 +42,18 @@ class VehicleState:
     specific_force_frd_m_s2: Vec3  # what an accelerometer measures (about (0,0,-9.81) at rest)
     airspeed_m_s: float  # true airspeed
     on_ground: bool
+    # With a surface model (--dem): the heights AMSL under the aircraft of the ground its
+    # wheels meet and of the first surface seen from above (roofs, canopy); None: flat ground
+    # at home's elevation.
+    ground_amsl_m: float | None = None
+    surface_amsl_m: float | None = None
+
+    @property
+    def surface_agl_m(self) -> float:
+        """Height above the surface under the aircraft (without one: above home's ground)."""
+        if self.surface_amsl_m is None:
+            return self.alt_agl_m
+        return self.alt_amsl_m - self.surface_amsl_m
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)

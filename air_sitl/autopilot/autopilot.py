@@ -15,7 +15,12 @@ from air_sitl.autopilot.executor import MissionExecutor, air_start_item
 from air_sitl.autopilot.params import GuidanceParams, ParamStore
 from air_sitl.autopilot.target import ControlPhase, ControlTarget
 from air_sitl.frames import ned2geodetic
-from air_sitl.mission.geometry import item_point, loiter_geometry, next_nav_index
+from air_sitl.mission.geometry import (
+    SurfaceFn,
+    item_point,
+    loiter_geometry,
+    next_nav_index,
+)
 from air_sitl.mission.items import LOITER_COMMANDS, WAYPOINT_COMMANDS, MavCmd, Mission
 from air_sitl.state import ActuatorCommand, AutopilotStatus, FlightMode, GeoPoint, VehicleState
 
@@ -36,7 +41,8 @@ class Autopilot:
     ``auto_start`` (the ``fly`` command): arm and start the mission at the first update.
     ``air_start``: begin in the air at the first flown waypoint, armed, in MISSION mode, take-off
     done; place the flight model with :func:`air_start_pose`. Missions come validated from their
-    edge (a plan file, a MAVLink upload) and are flown as they are.
+    edge (a plan file, a MAVLink upload) and are flown as they are. ``surface`` (``--dem``):
+    the terrain model that terrain-relative items are flown above.
     """
 
     def __init__(
@@ -48,8 +54,9 @@ class Autopilot:
         *,
         air_start: bool = False,
         auto_start: bool = True,
+        surface: SurfaceFn | None = None,
     ) -> None:
-        self._exec = MissionExecutor(mission, home, params)
+        self._exec = MissionExecutor(mission, home, params, surface=surface)
         self._controller = controller
         self._air_start_pending = air_start
         self._auto_start_pending = auto_start and not air_start
@@ -243,7 +250,10 @@ class Autopilot:
 
 
 def air_start_pose(
-    mission: Mission, home: GeoPoint, params: ParamStore | None = None
+    mission: Mission,
+    home: GeoPoint,
+    params: ParamStore | None = None,
+    surface: SurfaceFn | None = None,
 ) -> tuple[float, float, float, float, float]:
     """Where an air start begins: (lat_deg, lon_deg, alt_amsl_m, heading_rad, airspeed_m_s).
 
@@ -265,7 +275,7 @@ def air_start_pose(
         ):
             speed = item.param2
     speed = GuidanceParams.from_store(params).clamp_speed(speed)
-    n, e, alt = item_point(items[first], home)
+    n, e, alt = item_point(items[first], home, surface)
     if math.isnan(n):
         n, e = 0.0, 0.0
     default_radius = params.in_range("NAV_LOITER_RAD")

@@ -40,9 +40,11 @@ from air_sitl.autopilot.tasks import (
     Tick,
     WaitTask,
 )
+from air_sitl.autopilot.terrain import TerrainFollower
 from air_sitl.mission.geometry import (
     MAX_DO_STEPS,
     Point,
+    SurfaceFn,
     first_flown_item,
     item_point,
     loiter_geometry,
@@ -51,6 +53,7 @@ from air_sitl.mission.geometry import (
 from air_sitl.mission.items import (
     CAPTURE_COMMANDS,
     LOITER_COMMANDS,
+    TERRAIN_FRAMES,
     WAYPOINT_COMMANDS,
     MavCmd,
     Mission,
@@ -65,11 +68,21 @@ class MissionSequencer:
     """Modes, mission sequencing and the capture window; one :class:`Task` at a time.
 
     Everything runs on the simulation thread. The commands that change modes live in the
-    subclass :class:`~air_sitl.autopilot.executor.MissionExecutor`.
+    subclass :class:`~air_sitl.autopilot.executor.MissionExecutor`. ``surface`` (``--dem``):
+    the terrain model terrain-relative items are flown above (:mod:`air_sitl.autopilot.terrain`).
     """
 
-    def __init__(self, mission: Mission, home: GeoPoint, params: ParamStore) -> None:
+    def __init__(
+        self,
+        mission: Mission,
+        home: GeoPoint,
+        params: ParamStore,
+        *,
+        surface: SurfaceFn | None = None,
+    ) -> None:
         self.home = home
+        self._surface = surface
+        self._terrain = TerrainFollower(surface) if surface is not None else None
         self.params = params
         self._params_version = -1
         self._guidance_params = GuidanceParams.from_store(params)
@@ -95,7 +108,7 @@ class MissionSequencer:
     def _set_mission_fields(self, mission: Mission) -> None:
         self.mission = mission
         self._items = mission.items
-        self._points = [item_point(item, self.home) for item in mission.items]
+        self._points = [item_point(item, self.home, self._surface) for item in mission.items]
         self._do.new_mission()
         self._prev_point: Point | None = None
         self._has_capture_items = any(item.command in CAPTURE_COMMANDS for item in mission.items)
@@ -196,6 +209,8 @@ class MissionSequencer:
             tick.speed = self._speed(p, tick.course)
             out = self._task.update(tick)
         task = self._task
+        if self._terrain is not None and isinstance(task, (LegTask, LoiterTask)):
+            out = self._follow_terrain(out, tick)
         if isinstance(task, LoiterTask) and task.established and not task.announced:
             self._on_established(task)
         if self._default_capture_pending and (
@@ -204,6 +219,18 @@ class MissionSequencer:
             self._default_capture_pending = False
             self._set_capture(True)
         return out
+
+    def _follow_terrain(self, out: NavOutput, tick: Tick) -> NavOutput:
+        """A leg or loiter toward a terrain-relative mission item keeps its height above the
+        surface under the aircraft, not the item's altitude at the item."""
+        seq = self.current_seq
+        if not (self._in_mission and 0 <= seq < len(self._items)):
+            return out
+        item = self._items[seq]
+        if item.frame not in TERRAIN_FRAMES or self.mode is not FlightMode.MISSION:
+            return out
+        assert self._terrain is not None
+        return self._terrain.follow(out, tick, item.alt_m)
 
     def _tick_now(self) -> Tick:
         """A tick for the last state (commands create tasks between updates)."""

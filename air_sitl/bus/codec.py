@@ -24,6 +24,9 @@ JSON_ENCODING = "application/json"
 JPEG_ENCODING = "image/jpeg"
 
 _STATE_FIELDS = tuple(f.name for f in fields(VehicleState))
+# Fields with a default (the surface under the aircraft, --dem): sent only when set, so flights
+# without relief publish what they did before.
+_OPTIONAL_STATE_FIELDS = frozenset(f.name for f in fields(VehicleState) if f.default is None)
 
 
 def dumps(message: dict[str, Any]) -> bytes:
@@ -94,14 +97,22 @@ def encode_gps(fix: GpsFix) -> bytes:
 
 
 def encode_state(state: VehicleState) -> dict[str, Any]:
-    """Every VehicleState field under its own name (tuples become lists)."""
-    return {name: getattr(state, name) for name in _STATE_FIELDS}
+    """Every VehicleState field under its own name (tuples become lists; an optional field
+    only when it is set)."""
+    out = {name: getattr(state, name) for name in _STATE_FIELDS}
+    for name in _OPTIONAL_STATE_FIELDS:
+        if out[name] is None:
+            del out[name]
+    return out
 
 
 def decode_state(m: dict[str, Any], what: str = "truth") -> VehicleState:
     """A VehicleState from :func:`encode_state` output (exact float round trip)."""
     try:
-        values = {name: m[name] for name in _STATE_FIELDS}
+        values: dict[str, Any] = {
+            name: m.get(name) if name in _OPTIONAL_STATE_FIELDS else m[name]
+            for name in _STATE_FIELDS
+        }
     except KeyError as err:
         msg = f"{what}: missing field {err.args[0]!r}"
         raise BusError(msg) from None

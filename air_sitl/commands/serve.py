@@ -14,7 +14,7 @@ import threading
 from pathlib import Path
 from types import FrameType
 
-from air_sitl.builder import FlightSetup
+from air_sitl.builder import FlightSetup, home_on_terrain
 from air_sitl.bus.hookup import bus_sinks_from_args
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
@@ -135,7 +135,7 @@ def _max_sim_ns(max_sim_time_s: float) -> int:
 def _setup(args: argparse.Namespace, options: FlightOptions) -> FlightSetup:
     """The served flight: the preloaded plan (or none) at ``--home``, the plan's, or PX4's."""
     if args.plan:
-        mission = load_mission(Path(args.plan))
+        mission = load_mission(Path(args.plan), terrain=args.dem is not None)
         for note in mission.notes:  # item warnings come as STATUSTEXT from the executor
             print(f"{mission.source}: warning: {note}", file=sys.stderr)
         home = parse_home(args.home) if args.home else home_of(mission)
@@ -144,7 +144,7 @@ def _setup(args: argparse.Namespace, options: FlightOptions) -> FlightSetup:
         lat, lon, alt = DEFAULT_HOME
         default = GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
         home = parse_home(args.home) if args.home else default
-    return FlightSetup(
+    setup = FlightSetup(
         mission=mission,
         home=home,
         name=mission.name,
@@ -153,3 +153,4 @@ def _setup(args: argparse.Namespace, options: FlightOptions) -> FlightSetup:
         camera=camera_from_args(args),
         map=map_choice_from_args(args),
     )
+    return home_on_terrain(setup)  # with --dem the vehicle stands on the ground at home

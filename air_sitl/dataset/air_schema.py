@@ -96,6 +96,20 @@ FRAMES_COLUMNS: tuple[str, ...] = (
 FRAMES_HEADER = ",".join(FRAMES_COLUMNS) + "\n"
 FRAMES_NAV_COLUMNS = FRAMES_COLUMNS + NAV_COLUMNS
 FRAMES_NAV_HEADER = ",".join(FRAMES_NAV_COLUMNS) + "\n"
+# With relief (--dem): the height above the surface under the aircraft (terrain, roof, canopy),
+# last, so that archives without a DEM keep their columns.
+FRAMES_AGL_COLUMNS: tuple[str, ...] = ("agl_m",)
+
+
+def frames_header(*, nav: bool, agl: bool) -> str:
+    """The ``frames.csv`` header: FRAMES_COLUMNS, then NAV_COLUMNS (``--nav ekf``), then
+    FRAMES_AGL_COLUMNS (``--dem``)."""
+    columns = FRAMES_NAV_COLUMNS if nav else FRAMES_COLUMNS
+    return ",".join(columns + (FRAMES_AGL_COLUMNS if agl else ())) + "\n"
+
+
+# Every header a frames.csv may have (an unfinished archive is recognised by it).
+FRAMES_HEADERS = tuple(frames_header(nav=n, agl=a) for n in (False, True) for a in (False, True))
 
 IMU_COLUMNS: tuple[str, ...] = (
     "sim_time_ns",
@@ -215,10 +229,15 @@ def _gps_text(gps: GpsFix | None, now_ns: int) -> str:
 
 
 def frames_row(
-    frame: CameraFrame, filename: str, last_gps: GpsFix | None, *, nav: bool = False
+    frame: CameraFrame,
+    filename: str,
+    last_gps: GpsFix | None,
+    *,
+    nav: bool = False,
+    agl: bool = False,
 ) -> str:
     """One ``frames.csv`` line: timestamp, truth, GPS as last received, map pixel, mission
-    (``nav``: then the NAV_COLUMNS)."""
+    (``nav``: then the NAV_COLUMNS; ``agl``: then the height above the surface)."""
     sample = frame.sample
     s = sample.state
     a = sample.autopilot
@@ -238,7 +257,8 @@ def frames_row(
         f"{p:.6f},{q:.6f},{r:.6f},{fx:.5f},{fy:.5f},{fz:.5f},"
         f"{_gps_text(last_gps, s.sim_time_ns)},"
         f"{int(frame.map_xy_px[0])},{int(frame.map_xy_px[1])},{a.current_seq},{a.mode.value}"
-        + ("\n" if not nav else f",{nav_fields(sample.nav)}\n")
+        + ("" if not nav else f",{nav_fields(sample.nav)}")
+        + ("\n" if not agl else f",{s.surface_agl_m:.4f}\n")
     )
 
 

@@ -32,8 +32,7 @@ from air_sitl.dataset.air_schema import (
     AIR_HEADER,
     CAMERA_YAML,
     FRAMES_CSV,
-    FRAMES_HEADER,
-    FRAMES_NAV_HEADER,
+    FRAMES_HEADERS,
     IMU_CSV,
     IMU_HEADER,
     METADATA_CSV,
@@ -41,6 +40,7 @@ from air_sitl.dataset.air_schema import (
     SUMMARY_JSON,
     frame_filename,
     frame_index_of,
+    frames_header,
     frames_row,
     imu_row,
     metadata_row,
@@ -72,6 +72,7 @@ class ArchiveInfo:
     manifest: Mapping[str, Any] = field(default_factory=dict)
     run_key: Mapping[str, Any] = field(default_factory=dict)
     nav_columns: bool = False  # frames.csv carries the onboard estimate (--nav ekf)
+    agl_column: bool = False  # frames.csv ends with the height above the surface (--dem)
 
 
 class DatasetWriter(NullSink):
@@ -161,7 +162,13 @@ class DatasetWriter(NullSink):
         self.last_time_ns = frame.sim_time_ns
         name = frame_filename(frame.index)
         meta = metadata_row(name, frame.sample, frame.map_xy_px)
-        extra = frames_row(frame, name, self._gps_at(frame.sim_time_ns), nav=self.info.nav_columns)
+        extra = frames_row(
+            frame,
+            name,
+            self._gps_at(frame.sim_time_ns),
+            nav=self.info.nav_columns,
+            agl=self.info.agl_column,
+        )
         self._post(("frame", name, frame.jpeg, meta, extra))
 
     def close(self, result: FlightResult) -> None:
@@ -233,7 +240,11 @@ class DatasetWriter(NullSink):
         append = self.first_frame > 0
         specs = (
             (METADATA_CSV, AIR_HEADER, append),
-            (FRAMES_CSV, FRAMES_NAV_HEADER if self.info.nav_columns else FRAMES_HEADER, append),
+            (
+                FRAMES_CSV,
+                frames_header(nav=self.info.nav_columns, agl=self.info.agl_column),
+                append,
+            ),
             (IMU_CSV, IMU_HEADER, False),
         )
         for name, header, keep in specs:
@@ -349,11 +360,13 @@ def recover_partial(folder: Path) -> PartialArchive:
     """
     run_key = read_run_key(folder)
     meta = _complete_lines(folder / METADATA_CSV, AIR_HEADER)
-    frames_header = FRAMES_HEADER
-    extra = _complete_lines(folder / FRAMES_CSV, frames_header)
-    if extra is None:  # an archive of a --nav ekf flight: the nav columns follow
-        frames_header = FRAMES_NAV_HEADER
-        extra = _complete_lines(folder / FRAMES_CSV, frames_header)
+    # Columns follow the flight's options (--nav ekf, --dem): the header says which.
+    frames_head, extra = FRAMES_HEADERS[0], None
+    for candidate in FRAMES_HEADERS:
+        extra = _complete_lines(folder / FRAMES_CSV, candidate)
+        if extra is not None:
+            frames_head = candidate
+            break
     kept = 0
     if meta is not None and extra is not None:
         for i, (m, f) in enumerate(zip(meta[0], extra[0], strict=False)):
@@ -369,7 +382,7 @@ def recover_partial(folder: Path) -> PartialArchive:
     try:
         for path, lines, header in (
             (folder / METADATA_CSV, meta, AIR_HEADER),
-            (folder / FRAMES_CSV, extra, frames_header),
+            (folder / FRAMES_CSV, extra, frames_head),
         ):
             if lines is None:
                 if path.exists():

@@ -29,11 +29,29 @@ class InitialCondition:
     on_ground: bool = True
 
 
+class Terrain(Protocol):
+    """The ground under the flight (``--dem``), heights above mean sea level in metres.
+
+    ``terrain_at``: what the wheels roll on; ``height_at``: the first surface seen from above
+    (roofs and canopy included, where the model has them; a DEM file is both).
+    :class:`~air_sitl.maps.surface.SurfaceModel` is one.
+    """
+
+    def terrain_at(self, lat_deg: float, lon_deg: float) -> float:
+        """Height of the ground under a position."""
+        ...
+
+    def height_at(self, lat_deg: float, lon_deg: float) -> float:
+        """Height of the first surface under a position."""
+        ...
+
+
 class FlightModel(Protocol):
     """A fixed-step flight dynamics model.
 
-    ``ground`` is the home point: ground elevation is ``ground.alt_amsl_m`` everywhere, and
-    ``pos_ned_m`` in states is relative to it.
+    ``ground`` is the home point and ``pos_ned_m`` in states is relative to it. Without a
+    :class:`Terrain` the ground elevation is ``ground.alt_amsl_m`` everywhere; with one, the
+    wheels meet the terrain under the aircraft and states carry the surface beneath it.
     """
 
     step_ns: int

@@ -19,7 +19,7 @@ import jsbsim
 
 from air_sitl.clock import NS_PER_S, PHYSICS_STEP_NS
 from air_sitl.errors import AircraftError
-from air_sitl.fdm.base import InitialCondition, Wind
+from air_sitl.fdm.base import InitialCondition, Terrain, Wind
 from air_sitl.frames import WGS84_A_M, WGS84_E2, euler2quat
 from air_sitl.state import ActuatorCommand, GeoPoint, VehicleState
 
@@ -131,6 +131,8 @@ class JSBSimModel:
     stable for airsitl_uav and the wheel's light aircraft. ``seed`` seeds JSBSim's
     turbulence (``Wind.turbulence`` > 0), so gusty flights repeat exactly. After
     :meth:`reset` of an airborne start, :attr:`trim_command` holds the trimmed controls.
+    ``terrain`` (``--dem``): JSBSim's ground follows it under the aircraft (set after every
+    step for the next one) and states carry the ground and surface heights beneath.
     """
 
     def __init__(
@@ -140,6 +142,7 @@ class JSBSimModel:
         step_ns: int = PHYSICS_STEP_NS,
         substeps: int = 1,
         seed: int = 0,
+        terrain: Terrain | None = None,
     ) -> None:
         if step_ns <= 0 or substeps < 1:
             msg = f"JSBSimModel: step_ns {step_ns} and substeps {substeps} must be positive"
@@ -156,6 +159,8 @@ class JSBSimModel:
         self.step_ns = step_ns
         self._substeps = substeps
         self._seed = seed
+        self._terrain = terrain
+        self._set_terrain_ft: Any = None
         self._dt_s = step_ns / NS_PER_S / substeps
         self._own = (OWN_AIRCRAFT_DIR / aircraft / f"{aircraft}.xml").is_file()
         self.trim_command = ActuatorCommand()
@@ -214,6 +219,7 @@ class JSBSimModel:
         self._set_throttle = node("fcs/throttle-cmd-norm").set_double_value
         self._set_brake_left = node("fcs/left-brake-cmd-norm").set_double_value
         self._set_brake_right = node("fcs/right-brake-cmd-norm").set_double_value
+        self._set_terrain_ft = node("position/terrain-elevation-asl-ft").set_double_value
         self._run = fdm.run
         self._fdm = fdm
 
@@ -226,7 +232,7 @@ class JSBSimModel:
         self._time_ns = 0
         fdm["ic/lat-geod-deg"] = initial.lat_deg
         fdm["ic/long-gc-deg"] = initial.lon_deg
-        fdm["ic/terrain-elevation-ft"] = ground.alt_amsl_m * M_FT
+        fdm["ic/terrain-elevation-ft"] = self._ground_under(initial) * M_FT
         fdm["ic/psi-true-deg"] = math.degrees(initial.heading_rad) % 360.0
         if initial.on_ground:
             self._place_on_ground()
@@ -244,6 +250,12 @@ class JSBSimModel:
         self._run()
         fdm.resume_integration()
         return self._build_state()
+
+    def _ground_under(self, initial: InitialCondition) -> float:
+        """Ground elevation at the start: home's, or the terrain's under the aircraft."""
+        if self._terrain is None:
+            return self._ground.alt_amsl_m
+        return self._terrain.terrain_at(initial.lat_deg, initial.lon_deg)
 
     def _place_on_ground(self) -> None:
         fdm = self._fdm
@@ -276,7 +288,7 @@ class JSBSimModel:
 
     def _trim_airborne(self, initial: InitialCondition, wind: Wind) -> None:
         fdm = self._fdm
-        alt_agl_m = initial.alt_amsl_m - self._ground.alt_amsl_m
+        alt_agl_m = initial.alt_amsl_m - self._ground_under(initial)
         if alt_agl_m < 1.0 or initial.airspeed_m_s <= 0.0:
             msg = (
                 f"air start: altitude {alt_agl_m:.1f} m above ground and airspeed "
@@ -389,6 +401,14 @@ class JSBSimModel:
         theta = g[4]()
         psi = g[5]()
         yaw = (psi + _PI) % _TWO_PI - _PI
+        ground_m: float | None = None
+        surface_m: float | None = None
+        terrain = self._terrain
+        if terrain is not None:
+            # The ground the wheels meet during the next step: the terrain under the aircraft.
+            ground_m = terrain.terrain_at(lat, lon)
+            surface_m = terrain.height_at(lat, lon)
+            self._set_terrain_ft(ground_m * M_FT)
         return VehicleState(
             sim_time_ns=self._time_ns,
             lat_deg=lat,
@@ -405,4 +425,6 @@ class JSBSimModel:
             specific_force_frd_m_s2=(g[12]() * FT_M, g[13]() * FT_M, g[14]() * FT_M),
             airspeed_m_s=g[15]() * FT_M,
             on_ground=g[16]() > 0.5,
+            ground_amsl_m=ground_m,
+            surface_amsl_m=surface_m,
         )

@@ -21,6 +21,22 @@ from air_sitl.maps.base import TILE_PX, MapSource, TileCache, paste_tiles
 
 Heights = npt.NDArray[np.float32]
 SURFACE_CACHE_BYTES = 96 * 1024 * 1024
+# One level-0 cell: (ix, iy, h00, h01, h10, h11), its corner heights as floats.
+Cell = tuple[int, int, float, float, float, float]
+
+
+def cell_of(ix: int, iy: int, h: Heights) -> Cell:
+    """The cell at (ix, iy) from its 2 x 2 corner heights."""
+    h64 = h.astype(np.float64)
+    return (ix, iy, float(h64[0, 0]), float(h64[0, 1]), float(h64[1, 0]), float(h64[1, 1]))
+
+
+def bilinear(cell: Cell, x_px: float, y_px: float) -> float:
+    """Height inside ``cell`` at a continuous level-0 pixel (its own cell's)."""
+    fx, fy = x_px - cell[0], y_px - cell[1]
+    top = cell[2] * (1 - fx) + cell[3] * fx
+    bottom = cell[4] * (1 - fx) + cell[5] * fx
+    return top * (1 - fy) + bottom * fy
 
 
 @runtime_checkable
@@ -41,6 +57,11 @@ class SurfaceModel(Protocol):
         """Height under a WGS84 position."""
         ...
 
+    def terrain_at(self, lat_deg: float, lon_deg: float) -> float:
+        """Height of the ground under a WGS84 position: where wheels roll (no roofs, no
+        crowns where the model can tell them apart; a DEM file is taken as the ground)."""
+        ...
+
     def describe(self) -> dict[str, Any]:
         """Provenance for manifests."""
         ...
@@ -55,6 +76,9 @@ class TiledSurface:
         self.map = map_source
         self._cache = TileCache(cache_bytes)
         self._warned: set[str] = set()
+        # The level-0 cell of the last point sampled (ix, iy, h00, h01, h10, h11): a flight
+        # samples every physics step, mostly within one cell.
+        self._cell: Cell | None = None
 
     def _make_tile(self, level: int, tx: int, ty: int) -> Heights:
         """Heights (TILE_PX x TILE_PX) of tile (tx, ty) of level ``level``."""
@@ -90,16 +114,20 @@ class TiledSurface:
     def height_at_map_px(self, x_px: float, y_px: float) -> float:
         """Height at a continuous level-0 map pixel (bilinear over the level-0 tiles)."""
         ix, iy = math.floor(x_px), math.floor(y_px)
-        fx, fy = x_px - ix, y_px - iy
-        h = self.heights(0, ix, iy, 2, 2).astype(np.float64)
-        top = h[0, 0] * (1 - fx) + h[0, 1] * fx
-        bottom = h[1, 0] * (1 - fx) + h[1, 1] * fx
-        return float(top * (1 - fy) + bottom * fy)
+        cell = self._cell  # one read: other threads may replace it meanwhile
+        if cell is None or cell[0] != ix or cell[1] != iy:
+            cell = self._cell = cell_of(ix, iy, self.heights(0, ix, iy, 2, 2))
+        return bilinear(cell, x_px, y_px)
 
     def height_at(self, lat_deg: float, lon_deg: float) -> float:
         """Height under a WGS84 position."""
         x, y = self.map.latlon_to_map_px(lat_deg, lon_deg)
         return self.height_at_map_px(x, y)
+
+    def terrain_at(self, lat_deg: float, lon_deg: float) -> float:
+        """The ground under a WGS84 position: the surface itself, unless a subclass knows the
+        bare terrain beneath its objects."""
+        return self.height_at(lat_deg, lon_deg)
 
     def level_centres_crs(
         self, level: int, tx: int, ty: int, n: int = TILE_PX

@@ -5,11 +5,13 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from air_sitl.frames import geodetic2ned
 from air_sitl.mission.items import (
     LOITER_COMMANDS,
     RELATIVE_FRAMES,
+    TERRAIN_FRAMES,
     WAYPOINT_COMMANDS,
     MavCmd,
     Mission,
@@ -22,21 +24,37 @@ MAX_DO_STEPS = 10_000
 POSITIONED_COMMANDS = LOITER_COMMANDS | WAYPOINT_COMMANDS
 
 Point = tuple[float, float, float]  # north m, east m, altitude AMSL m
+# Height AMSL of the surface under a (lat_deg, lon_deg): the terrain model of --dem.
+SurfaceFn = Callable[[float, float], float]
 
 
-def item_altitude_amsl(item: MissionItem, home: GeoPoint) -> float:
-    """Altitude of a positioned item above mean sea level (relative frames add home's)."""
+def item_altitude_amsl(
+    item: MissionItem, home: GeoPoint, surface: SurfaceFn | None = None
+) -> float:
+    """Altitude of a positioned item above mean sea level: relative frames add home's, terrain
+    frames the surface's at the item (at home for an item without a position). Terrain frames
+    are flown only with a surface model (validation refuses them otherwise); without one, the
+    ground is home's."""
     if item.frame in RELATIVE_FRAMES:
         return home.alt_amsl_m + item.alt_m
+    if item.frame in TERRAIN_FRAMES:
+        if surface is None or not has_position(item):
+            return home.alt_amsl_m + item.alt_m
+        return surface(item.lat_deg, item.lon_deg) + item.alt_m
     return item.alt_m
 
 
-def item_point(item: MissionItem, home: GeoPoint) -> Point:
-    """Position of an item in home's NED frame; NaN north/east when it has none (0, 0)."""
-    alt = item_altitude_amsl(item, home)
-    if (item.lat_deg == 0.0 and item.lon_deg == 0.0) or not (
+def has_position(item: MissionItem) -> bool:
+    """The item names a place (finite latitude and longitude, not the (0, 0) "here")."""
+    return not (item.lat_deg == 0.0 and item.lon_deg == 0.0) and (
         math.isfinite(item.lat_deg) and math.isfinite(item.lon_deg)
-    ):
+    )
+
+
+def item_point(item: MissionItem, home: GeoPoint, surface: SurfaceFn | None = None) -> Point:
+    """Position of an item in home's NED frame; NaN north/east when it has none (0, 0)."""
+    alt = item_altitude_amsl(item, home, surface)
+    if not has_position(item):
         return (math.nan, math.nan, alt)
     n, e, _ = geodetic2ned(
         item.lat_deg, item.lon_deg, alt, home.lat_deg, home.lon_deg, home.alt_amsl_m

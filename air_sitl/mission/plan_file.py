@@ -44,14 +44,15 @@ from air_sitl.mission.validate import MISSION_LEVEL, check_mission
 from air_sitl.mission.wpl import wpl_from_text
 
 
-def load_mission(path: PathLike) -> Mission:
-    """Read a ``.plan`` or ``QGC WPL 110`` file (chosen by content) and validate it."""
+def load_mission(path: PathLike, *, terrain: bool = False) -> Mission:
+    """Read a ``.plan`` or ``QGC WPL 110`` file (chosen by content) and validate it
+    (``terrain``: a terrain model is loaded, terrain-relative frames fly)."""
     text = read_text(path)
     if _is_wpl(text):
         mission, labels = wpl_from_text(text, path)
     else:
         mission, labels = plan_and_labels(text, path)
-    validate_mission(mission, item_labels=labels)
+    validate_mission(mission, item_labels=labels, terrain=terrain)
     return mission
 
 
@@ -74,10 +75,13 @@ def read_wpl(path: PathLike) -> Mission:
     return wpl_from_text(read_text(path), path)[0]
 
 
-def validate_mission(mission: Mission, *, item_labels: Sequence[str] | None = None) -> None:
+def validate_mission(
+    mission: Mission, *, item_labels: Sequence[str] | None = None, terrain: bool = False
+) -> None:
     """Raise :class:`PlanError` for the first problem of the mission, fence or rally list.
 
-    ``item_labels[i]`` names mission item ``i`` in messages (default ``"item i"``).
+    ``item_labels[i]`` names mission item ``i`` in messages (default ``"item i"``);
+    ``terrain``: terrain-relative frames are accepted (a terrain model is loaded).
     """
     _check_home(mission)
     lists = (
@@ -88,7 +92,7 @@ def validate_mission(mission: Mission, *, item_labels: Sequence[str] | None = No
     for mission_type, items, labels in lists:
         if mission_type is not MissionType.MISSION and not items:
             continue
-        problem = check_mission(items, mission_type)
+        problem = check_mission(items, mission_type, terrain=terrain)
         if problem is None:
             continue
         if problem.index == MISSION_LEVEL:

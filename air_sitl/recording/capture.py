@@ -86,6 +86,7 @@ class CaptureRecorder:
             plan_text=text,
             manifest=self.manifest,
             nav_columns=sample.nav is not None,
+            agl_column=sample.state.surface_amsl_m is not None,
         )
         writer = DatasetWriter(folder, info)
         self._window = _Window(folder, writer, self._ticks, start_ns=sample.state.sim_time_ns)

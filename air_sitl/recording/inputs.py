@@ -137,4 +137,5 @@ def archive_info_for(setup: FlightSetup, map_source: MapSource, *, plan_sha256: 
         manifest={**jsonable(manifest), **denial},
         run_key={**run_key, **denial},
         nav_columns=options.nav == "ekf",
+        agl_column=setup.map.dem is not None,
     )

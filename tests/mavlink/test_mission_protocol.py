@@ -393,3 +393,15 @@ def test_lossy_upload_is_all_or_nothing(
     )
     if gcs.result == MissionResult.ACCEPTED:
         assert same_items(stored, sent_items)
+
+
+def test_terrain_frames_are_accepted_only_with_a_terrain_model() -> None:
+    items = (
+        wp(47.0),
+        bad(frame=MavFrame.GLOBAL_TERRAIN_ALT),
+        bad(frame=MavFrame.GLOBAL_TERRAIN_ALT_INT, lat_deg=47.001),
+    )
+    assert ack_of(upload(MissionProtocol(), items)).result == MissionResult.UNSUPPORTED_FRAME
+    proto = MissionProtocol(terrain=True)  # serve --dem
+    assert ack_of(upload(proto, items)).result == MissionResult.ACCEPTED
+    assert proto.items(MissionType.MISSION) == items

@@ -18,7 +18,7 @@ import numpy as np
 from air_sitl.maps.base import TILE_PX
 from air_sitl.maps.procedural import ProceduralMap
 from air_sitl.maps.procedural.noise import fractal_noise, key_of
-from air_sitl.maps.surface import Heights, TiledSurface
+from air_sitl.maps.surface import Cell, Heights, TiledSurface, bilinear, cell_of
 
 # (amplitude m, cell m, octaves) of the bare terrain of each map.
 TERRAIN = {"urban": (4.0, 600.0, 2), "forest": (28.0, 900.0, 3)}
@@ -31,17 +31,10 @@ class ProceduralSurface(TiledSurface):
         super().__init__(map_source)
         self.procedural = map_source
         self.name = f"builtin-{map_source.name}"
-        ox, oy = map_source.origin_abs_px
-        gsd = map_source.georef.gsd_m
+        self._terrain_cell: Cell | None = None
         # Bare terrain at home (level 0, bilinear) is home's elevation.
         hx, hy = self._home_px()
-        ix, iy = math.floor(hx), math.floor(hy)
-        t = self._terrain(ox + ix, oy + iy, 2, gsd).astype(np.float64)
-        fx, fy = hx - ix, hy - iy
-        at_home = (t[0, 0] * (1 - fx) + t[0, 1] * fx) * (1 - fy) + (
-            t[1, 0] * (1 - fx) + t[1, 1] * fx
-        ) * fy
-        self.offset_m = float(map_source.ground_elevation_m - at_home)
+        self.offset_m = float(map_source.ground_elevation_m - self._bare_terrain_at_px(hx, hy))
 
     def _home_px(self) -> tuple[float, float]:
         return self.procedural.home_px
@@ -62,17 +55,21 @@ class ProceduralSurface(TiledSurface):
         objects = m.world.objects(x0, y0, TILE_PX, gsd, m.date)
         return ground + objects + np.float32(self.offset_m)
 
+    def _bare_terrain_at_px(self, x: float, y: float) -> float:
+        """The terrain's noise (no offset) at a continuous level-0 map pixel, bilinear; the
+        last cell is kept (a flight samples the ground at every physics step)."""
+        ix, iy = math.floor(x), math.floor(y)
+        cell = self._terrain_cell
+        if cell is None or cell[0] != ix or cell[1] != iy:
+            ox, oy = self.procedural.origin_abs_px
+            t = self._terrain(ox + ix, oy + iy, 2, self.procedural.georef.gsd_m)
+            cell = self._terrain_cell = cell_of(ix, iy, t)
+        return bilinear(cell, x, y)
+
     def terrain_at(self, lat_deg: float, lon_deg: float) -> float:
         """Bare terrain height (AMSL m) under a position: where aircraft take off and land."""
         x, y = self.map.latlon_to_map_px(lat_deg, lon_deg)
-        ox, oy = self.procedural.origin_abs_px
-        ix, iy = math.floor(x), math.floor(y)
-        t = self._terrain(ox + ix, oy + iy, 2, self.procedural.georef.gsd_m).astype(np.float64)
-        fx, fy = x - ix, y - iy
-        v = (t[0, 0] * (1 - fx) + t[0, 1] * fx) * (1 - fy) + (
-            t[1, 0] * (1 - fx) + t[1, 1] * fx
-        ) * fy
-        return float(v + self.offset_m)
+        return self._bare_terrain_at_px(x, y) + self.offset_m
 
     def describe(self) -> dict[str, Any]:
         """Provenance: the built-in surface of a procedural map."""
