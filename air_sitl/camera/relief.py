@@ -13,13 +13,14 @@ where the parallax (pixels of lean) bends by more than ``EDGE_PX`` (roof edges, 
 occlusion boundaries), marching the new rays over their cell's corners' altitude range;
 then every pixel of the remaining edge cells is marched on its own and the rest is
 interpolated bilinearly (exact for a plane to far below a pixel). Then one remap from the
-map window. Cost (bench_camera.py part 4): 11-31x the flat render on this machine, NumPy
-per-ray work at about 0.3 us a ray being the floor; a compiled march would be the next step.
+map window. The samples sit half a pixel off the pixel grid, so the last step to full
+resolution is one ``cv2.resize``. Each march is a few large array operations: all its rays
+at once, in blocks of similar length, heights sampled by one ``cv2.remap`` over rows of
+4096 samples (a remap over thousands of short rows costs ten times more).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import cv2
@@ -34,8 +35,12 @@ STRIDE = 16
 EDGE_PX = 2.0  # a cell is re-marched where the parallax bends by more at a corner (px)
 MAX_STEPS = 160
 REFINE = 4  # bisection steps after the march, before the secant
-GROUP_LOG2 = 3.0  # rays needing up to 8x fewer steps are marched apart (less work, more calls)
+TOL_M = 0.25  # a ray this close to the surface at a corner's hit altitude is on it (m)
+BLOCK_STEPS = (16, MAX_STEPS)  # rays are marched in blocks of up to these many steps
 _MIN_DOWN = 1e-6
+_COLS = 4096  # samples per remap row (cv2.remap wants fewer than 32767 rows and columns)
+_NESTED = np.array([[0.5, 0.0, 0.0], [0.0, 0.5, 0.0]])  # dst (2i, 2j) <- src (i, j)
+_CELL = np.array([[1, 2, 1, 2], [1, 1, 2, 2]])  # a stride-2 cell's pixels past its sample
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,50 +109,81 @@ def march(
     above it at z_bottom are not found (their z_hit is z_bottom).
     """
     n = ax.shape[0]
+    z_hit = np.empty(n, dtype=np.float32)
+    found = np.empty(n, dtype=bool)
     if n == 0:
-        return np.empty(0, np.float32), np.empty(0, bool)
-    span = np.maximum(z_top - z_bottom, 0.0).astype(np.float32)
-    reach = span * np.hypot(ax, ay)  # level px travelled over the range
-    # Rays needing few steps are marched apart from those needing many (powers of 8).
-    need = np.ceil(np.log2(np.maximum(reach, 1.0)) / GROUP_LOG2).astype(np.int64)
-    groups = np.nonzero(np.bincount(need))[0]
-    if groups.size > 1:
-        z_hit = np.empty(n, dtype=np.float32)
-        found = np.empty(n, dtype=bool)
-        for grp in groups.tolist():
-            sel = np.nonzero(need == grp)[0]
-            z_hit[sel], found[sel] = march(
-                window, cx, cy, cam_z, ax[sel], ay[sel], z_top[sel], z_bottom[sel]
-            )
         return z_hit, found
-    steps = int(min(MAX_STEPS, max(1, math.ceil(float(reach.max())))))
-    k = np.arange(steps + 1, dtype=np.float32)[None, :] / np.float32(steps)
-    z = z_top[:, None] - span[:, None] * k  # (n, steps + 1)
-    depth = np.float32(cam_z) - z
+    span = np.maximum(z_top - z_bottom, np.float32(0.0))
+    steps = np.ceil(span * np.hypot(ax, ay))  # level px travelled over the range, at most
+    block = np.searchsorted(np.array(BLOCK_STEPS, dtype=np.float32), steps)
+    np.minimum(block, len(BLOCK_STEPS) - 1, out=block)
     ox, oy = np.float32(cx - window.x0), np.float32(cy - window.y0)
-    mx = ox + depth * ax[:, None]
-    my = oy + depth * ay[:, None]
-    h = _sample(window.values, mx, my)
-    below = z <= h
-    found = below.any(axis=1)
-    first = np.argmax(below, axis=1)
-    rows = np.arange(n)
-    prev = np.maximum(first - 1, 0)
-    z_lo, z_hi = z[rows, first], z[rows, prev]  # first sample under the surface, last above
-    f_lo, f_hi = z_lo - h[rows, first], z[rows, prev] - h[rows, prev]
+    args = (window.values, ox, oy, np.float32(cam_z))
+    used = np.flatnonzero(np.bincount(block, minlength=len(BLOCK_STEPS)))
+    if used.size == 1:  # one block: no gathering and scattering
+        s = int(min(MAX_STEPS, max(1.0, float(steps.max()))))
+        return _march_block(*args, ax, ay, z_top, span, s)
+    for b in used.tolist():
+        sel = np.flatnonzero(block == b)
+        s = int(min(MAX_STEPS, max(1.0, float(steps[sel].max()))))
+        z_hit[sel], found[sel] = _march_block(*args, ax[sel], ay[sel], z_top[sel], span[sel], s)
+    return z_hit, found
+
+
+def _march_block(
+    values: Heights,
+    ox: np.float32,
+    oy: np.float32,
+    cam: np.float32,
+    ax: F32,
+    ay: F32,
+    z_top: F32,
+    span: F32,
+    steps: int,
+) -> tuple[F32, npt.NDArray[np.bool_]]:
+    """March rays in ``steps`` equal altitude steps each (see :func:`march`)."""
+    n = ax.shape[0]
+    # Samples as (steps + 1, n): NumPy's inner loops run over the rays (long), not the steps.
+    t = (np.arange(steps + 1, dtype=np.float32) / np.float32(steps))[:, None]
+    size = n * (steps + 1)
+    buf_x, buf_y = _buffers(size)
+    mx = buf_x[:size].reshape(steps + 1, n)
+    my = buf_y[:size].reshape(steps + 1, n)
+    d0 = cam - z_top  # depth below the camera at the top of the range
+    np.multiply(t, span * ax, out=mx)
+    mx += ox + d0 * ax
+    np.multiply(t, span * ay, out=my)
+    my += oy + d0 * ay
+    h = _remap(values, buf_x, buf_y)[:size]
+    z = (z_top - t * span).ravel()
+    below = h >= z
+    first = below.reshape(steps + 1, n).argmax(axis=0)
+    at = first * n + np.arange(n)
+    found = below[at]
+    prev = np.where(first > 0, at - n, at)
+    z_lo, z_hi = z[at], z[prev]  # first sample under the surface, last above
+    f_lo, f_hi = z_lo - h[at], z_hi - h[prev]
     # Bisection between them, then the secant of (z - height) in the last bracket: exact on
     # a plane, and within 1/16 of a step anywhere.
+    px0, py0 = ox + cam * ax, oy + cam * ay  # the ray at altitude z is at p0 - z * a
+    bx, by = _buffers(n)
+    qx, qy = bx[:n], by[:n]
     for _ in range(REFINE):
         zm = (z_hi + z_lo) * np.float32(0.5)
-        d = np.float32(cam_z) - zm
-        fm = zm - _sample(window.values, ox + d * ax, oy + d * ay)
+        np.subtract(px0, np.multiply(zm, ax, out=qx), out=qx)
+        np.subtract(py0, np.multiply(zm, ay, out=qy), out=qy)
+        fm = zm - _remap(values, bx, by)[:n]
         under = fm <= 0
-        z_lo, f_lo = np.where(under, zm, z_lo), np.where(under, fm, f_lo)
-        z_hi, f_hi = np.where(under, z_hi, zm), np.where(under, f_hi, fm)
+        np.copyto(z_lo, zm, where=under)
+        np.copyto(f_lo, fm, where=under)
+        np.logical_not(under, out=under)
+        np.copyto(z_hi, zm, where=under)
+        np.copyto(f_hi, fm, where=under)
     denom = f_hi - f_lo
-    safe = np.where(denom > 1e-6, denom, 1.0)
-    z_lo = np.where((first > 0) & (denom > 1e-6), z_lo + (z_hi - z_lo) * (-f_lo) / safe, z_lo)
-    z_hit = np.where(found, z_lo, z_bottom).astype(np.float32)
+    ok = (first > 0) & (denom > 1e-6)
+    safe = np.where(ok, denom, np.float32(1.0))
+    z_lo = np.where(ok, z_lo + (z_hi - z_lo) * (-f_lo) / safe, z_lo)
+    z_hit: F32 = np.where(found, z_lo, z_top - span).astype(np.float32)
     return z_hit, found
 
 
@@ -165,15 +201,15 @@ def ground_maps(
     """Level-pixel coordinates (relative to the window) of the surface each pixel sees.
 
     Returns ((height, width, 2) map x, y; stats of the march). Rays that never descend
-    are the caller's to mask (sky). Samples sit at pixels (STRIDE * j - PAD, STRIDE * i -
-    PAD); each level halves the stride, interpolating midpoints and marching again only the
-    cells whose corners' parallax differs by more than EDGE_PX.
+    are the caller's to mask (sky). Samples sit at image points (STRIDE * j - PAD + 0.5,
+    STRIDE * i - PAD + 0.5); each level halves the stride, interpolating midpoints and
+    marching again only the cells whose corners' parallax differs by more than EDGE_PX.
     """
     st, pad = STRIDE, STRIDE // 2
-    nx = -(-(width - 1 + pad) // st) + 1
-    ny = -(-(height - 1 + pad) // st) + 1
-    gu = np.arange(nx, dtype=np.float32) * st - pad
-    gv = np.arange(ny, dtype=np.float32) * st - pad
+    nx = -(-(width + pad) // st) + 1
+    ny = -(-(height + pad) // st) + 1
+    gu = np.arange(nx, dtype=np.float32) * st - (pad - 0.5)
+    gv = np.arange(ny, dtype=np.float32) * st - (pad - 0.5)
     uu, vv = np.meshgrid(gu, gv)
     rays = ray_slopes(r, jac, level, uu.ravel(), vv.ravel())
     n = rays.ax.shape[0]
@@ -199,42 +235,114 @@ def ground_maps(
             pj1 = np.minimum(pj + 2, zr.shape[0] - 1)
             pi1 = np.minimum(pi + 2, zr.shape[1] - 1)
             corners = np.stack([zr[pj, pi], zr[pj, pi1], zr[pj1, pi], zr[pj1, pi1]])
-            top, bot = _range(corners, window, cam_z)
-            u = (ii * st - pad).astype(np.float32)
-            v = (jj * st - pad).astype(np.float32)
+            u = (ii * st).astype(np.float32) - np.float32(pad - 0.5)
+            v = (jj * st).astype(np.float32) - np.float32(pad - 0.5)
             fine = ray_slopes(r, jac, level, u, v)
-            z_fix, ok = march(window, cx, cy, cam_z, fine.ax, fine.ay, top, bot)
+            z_fix, ok = settle(window, cx, cy, cam_z, fine.ax, fine.ay, corners)
             d = np.float32(cam_z) - z_fix
-            grid[jj, ii, 0] = np.where(ok, ox + d * fine.ax, grid[jj, ii, 0])
-            grid[jj, ii, 1] = np.where(ok, oy + d * fine.ay, grid[jj, ii, 1])
-            grid[jj, ii, 2] = np.where(ok, z_fix, grid[jj, ii, 2])
-            grid[jj, ii, 3] = np.hypot(fine.ax, fine.ay)
+            grid[jj, ii] = np.stack(
+                [
+                    np.where(ok, ox + d * fine.ax, grid[jj, ii, 0]),
+                    np.where(ok, oy + d * fine.ay, grid[jj, ii, 1]),
+                    np.where(ok, z_fix, grid[jj, ii, 2]),
+                    np.hypot(fine.ax, fine.ay),
+                ],
+                axis=-1,
+            )
             stats["fixed_rays"] += float(jj.size)
         # Only cells inside an edge cell of the coarser level can be edges now.
         edge = _edges(grid, window.h_min) & np.repeat(np.repeat(edge, 2, 0), 2, 1)
-    # Full resolution: bilinear from the stride-2 grid (sample (j, i) is pixel (2i - pad,
-    # 2j - pad)), then every pixel of a remaining edge cell marched on its own.
+    # Full resolution: bilinear from the stride-2 grid (sample (j, i) is image point
+    # (2i - pad + 0.5, 2j - pad + 0.5): cv2.resize's x2 grid puts output pixel x - pad at
+    # input x / 2 - 0.25), then every pixel of a remaining edge cell marched on its own.
     stats["rays_before_full"] = stats["fixed_rays"]
-    full = _upsample(np.ascontiguousarray(grid[:, :, :2]))
-    maps = np.ascontiguousarray(full[pad : pad + height, pad : pad + width])
+    coarse = np.ascontiguousarray(grid[:, :, :2])
+    size = (2 * coarse.shape[1], 2 * coarse.shape[0])
+    full: F32 = cv2.resize(coarse, size, interpolation=cv2.INTER_LINEAR)  # type: ignore[assignment]
+    maps = full[pad : pad + height, pad : pad + width]  # a view: remap takes it
     if edge.any():
         zr = grid[:, :, 2]
         ej, ei = np.nonzero(edge)
-        # The cell's own sample (offset 0, 0) is exact already: its three other pixels.
-        py = (ej[:, None] * st - pad + np.array([[0, 1, 1]])).ravel()
-        px = (ei[:, None] * st - pad + np.array([[1, 0, 1]])).ravel()
+        # The cell's four pixels (none is a sample: they sit half a pixel off).
+        py = (ej[:, None] * 2 - pad + _CELL[1]).ravel()
+        px = (ei[:, None] * 2 - pad + _CELL[0]).ravel()
         corners = np.stack([zr[ej, ei], zr[ej, ei + 1], zr[ej + 1, ei], zr[ej + 1, ei + 1]])
-        top, bot = _range(corners, window, cam_z)
-        top, bot = np.repeat(top, 3), np.repeat(bot, 3)
+        corners = np.repeat(corners, 4, axis=1)
         keep = (px >= 0) & (py >= 0) & (px < width) & (py < height)
-        px, py, top, bot = px[keep], py[keep], top[keep], bot[keep]
+        px, py, corners = px[keep], py[keep], corners[:, keep]
         fine = ray_slopes(r, jac, level, px.astype(np.float32), py.astype(np.float32))
-        z_fix, ok = march(window, cx, cy, cam_z, fine.ax, fine.ay, top, bot)
+        z_fix, ok = settle(window, cx, cy, cam_z, fine.ax, fine.ay, corners)
         d = np.float32(cam_z) - z_fix[ok]
-        maps[py[ok], px[ok], 0] = ox + d * fine.ax[ok]
-        maps[py[ok], px[ok], 1] = oy + d * fine.ay[ok]
+        maps[py[ok], px[ok]] = np.stack([ox + d * fine.ax[ok], oy + d * fine.ay[ok]], axis=-1)
         stats["fixed_rays"] += float(px.size)
     return maps, stats
+
+
+def settle(
+    window: HeightWindow,
+    cx: float,
+    cy: float,
+    cam_z: float,
+    ax: F32,
+    ay: F32,
+    corners: F32,
+) -> tuple[F32, npt.NDArray[np.bool_]]:
+    """First surface point of rays inside a cell, from the altitudes its corners' rays hit.
+
+    Each ray is tried at the corners' hit altitudes, highest first. At the first one where
+    the ray is not above the surface, a surface within TOL_M of the ray is its hit (exact on
+    flat roofs and ground; on a slope, a secant step through "the height found there").
+    Rays under the surface there (a wall, or something no corner saw) or above it at every
+    corner altitude are marched over the corners' range (:func:`march`). Returns (z_hit,
+    found) as :func:`march` does.
+    """
+    m = ax.shape[0]
+    if m == 0:
+        return np.empty(0, dtype=np.float32), np.empty(0, dtype=bool)
+    values, tol = window.values, np.float32(TOL_M)
+    cand = _sorted_down(corners)  # (4, m), highest first
+    cam = np.float32(cam_z)
+    px0 = np.float32(cx - window.x0) + cam * ax  # the ray at altitude z is at p0 - z * a
+    py0 = np.float32(cy - window.y0) + cam * ay
+    size = cand.size
+    bx, by = _buffers(size)
+    np.subtract(px0, cand * ax, out=bx[:size].reshape(cand.shape))
+    np.subtract(py0, cand * ay, out=by[:size].reshape(cand.shape))
+    h = _remap(values, bx, by)[:size]
+    f = cand.ravel() - h
+    not_above = f <= tol
+    k = not_above.reshape(cand.shape).argmax(axis=0)
+    at = k * m + np.arange(m)
+    f_k, z_k = f[at], cand.ravel()[at]
+    on = not_above[at] & (f_k >= -tol)
+    # Secant through (z_k, f_k) and the height found there (z_1 = h_k).
+    z_1 = z_k - f_k
+    qx, qy = bx[:m], by[:m]
+    np.subtract(px0, z_1 * ax, out=qx)
+    np.subtract(py0, z_1 * ay, out=qy)
+    f_1 = z_1 - _remap(values, bx, by)[:m]
+    denom = f_1 - f_k
+    step = np.abs(denom) > 1e-6
+    z_hit = np.where(step, z_1 - f_1 * (z_1 - z_k) / np.where(step, denom, 1.0), z_1)
+    z_hit = z_hit.astype(np.float32)
+    found = np.ones(m, dtype=bool)
+    rest = np.flatnonzero(~on)
+    if rest.size:
+        top, bot = _range(corners[:, rest], window, cam_z)
+        z_hit[rest], found[rest] = march(window, cx, cy, cam_z, ax[rest], ay[rest], top, bot)
+    return z_hit, found
+
+
+def _sorted_down(corners: F32) -> F32:
+    """The four rows sorted highest first, element by element (a sorting network: NumPy's
+    sort along a short first axis costs far more)."""
+    a, b, c, d = corners
+    a, b = np.maximum(a, b), np.minimum(a, b)
+    c, d = np.maximum(c, d), np.minimum(c, d)
+    a, c = np.maximum(a, c), np.minimum(a, c)
+    b, d = np.maximum(b, d), np.minimum(b, d)
+    b, c = np.maximum(b, c), np.minimum(b, c)
+    return np.stack([a, b, c, d])
 
 
 def _range(corners: F32, window: HeightWindow, cam_z: float) -> tuple[F32, F32]:
@@ -265,11 +373,9 @@ def _edges(grid: F32, h_min: float) -> npt.NDArray[np.bool_]:
 
 def _upsample(grid: F32) -> F32:
     """Nested x2 upsampling: old samples kept, midpoints and centres averaged (bilinear)."""
-    ny, nx, c = grid.shape
-    out = np.empty((2 * ny - 1, 2 * nx - 1, c), dtype=np.float32)
-    out[::2, ::2] = grid
-    out[::2, 1::2] = (grid[:, :-1] + grid[:, 1:]) * np.float32(0.5)
-    out[1::2, :] = (out[:-2:2, :] + out[2::2, :]) * np.float32(0.5)
+    ny, nx = grid.shape[:2]
+    flags = cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP
+    out: F32 = cv2.warpAffine(grid, _NESTED, (2 * nx - 1, 2 * ny - 1), flags=flags)  # type: ignore[assignment]
     return out
 
 
@@ -283,37 +389,32 @@ def _fresh_samples(edge: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     return mask
 
 
-def _sample(values: Heights, mx: F32, my: F32) -> F32:
-    """Bilinear heights at level pixels (mx, my) of any shape (edges repeat outward).
+def _buffers(size: int) -> tuple[F32, F32]:
+    """Two coordinate buffers holding ``size`` samples, shaped for one remap (zero tail)."""
+    cols = size if size < 32767 else _COLS
+    rows = -(-size // cols)
+    bx = np.empty((rows, cols), dtype=np.float32)
+    by = np.empty((rows, cols), dtype=np.float32)
+    bx.ravel()[size:] = 0.0
+    by.ravel()[size:] = 0.0
+    return bx.ravel(), by.ravel()
 
-    NumPy gathers for few points (remap's set-up costs more there), remap for many.
-    """
-    shape = mx.shape
-    n = mx.size
-    if n < 16384:
-        h, w = values.shape
-        x = np.clip(mx.ravel(), 0.0, w - 1.001)
-        y = np.clip(my.ravel(), 0.0, h - 1.001)
-        ix, iy = x.astype(np.int64), y.astype(np.int64)
-        fx, fy = x - ix, y - iy
-        flat = values.ravel()
-        i = iy * w + ix
-        top = flat[i] * (1 - fx) + flat[i + 1] * fx
-        bottom = flat[i + w] * (1 - fx) + flat[i + w + 1] * fx
-        got: F32 = (top * (1 - fy) + bottom * fy).astype(np.float32).reshape(shape)
-        return got
-    cols = 4096  # remap wants fewer than 32767 rows and columns
-    rows = -(-n // cols)
-    fx = np.zeros(rows * cols, dtype=np.float32)
-    fy = np.zeros(rows * cols, dtype=np.float32)
-    fx[:n] = mx.ravel()
-    fy[:n] = my.ravel()
-    out = cv2.remap(
-        values,
-        fx.reshape(rows, cols),
-        fy.reshape(rows, cols),
-        interpolation=cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_REPLICATE,
-    )
-    result: F32 = np.asarray(out, dtype=np.float32).ravel()[:n].reshape(shape)
-    return result
+
+def _remap(values: Heights, fx: F32, fy: F32) -> F32:
+    """Bilinear heights at the level pixels of two buffers from :func:`_buffers`."""
+    size = fx.shape[0]
+    cols = size if size < 32767 else _COLS
+    shape = (size // cols, cols)
+    out = cv2.remap(values, fx.reshape(shape), fy.reshape(shape), interpolation=cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)  # fmt: skip
+    got: F32 = np.asarray(out, dtype=np.float32).ravel()
+    return got
+
+
+def _sample(values: Heights, mx: F32, my: F32) -> F32:
+    """Bilinear heights at level pixels (mx, my) of one dimension (edges repeat outward)."""
+    n = mx.shape[0]
+    bx, by = _buffers(n)
+    bx[:n] = mx
+    by[:n] = my
+    return _remap(values, bx, by)[:n]
