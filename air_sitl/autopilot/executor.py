@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 from air_sitl.autopilot.sequencer import MissionSequencer
-from air_sitl.autopilot.tasks import IdleTask, TakeoffTask
+from air_sitl.autopilot.tasks import IdleTask, LandTask, TakeoffTask
 from air_sitl.errors import PlanError
 from air_sitl.frames import geodetic2ned
 from air_sitl.mission.geometry import first_flown_item
@@ -92,7 +92,7 @@ class MissionExecutor(MissionSequencer):
             return True, ""
         # LAND
         self._in_mission = False
-        self._task = self._land_ahead(self._tick_now())
+        self._task = LandTask.ahead(self._tick_now(), self.home.alt_amsl_m)
         self._set_mode(FlightMode.LAND)
         self._emit("Landing")
         return True, ""

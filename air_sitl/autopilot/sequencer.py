@@ -322,7 +322,7 @@ class MissionSequencer:
                 return
             ground = self.home.alt_amsl_m
             if math.isnan(self._points[seq][0]):
-                self._task = self._land_ahead(t)
+                self._task = LandTask.ahead(t, self.home.alt_amsl_m)
             else:
                 prev = self._prev_point if self._prev_point is not None else here
                 self._task = LandTask(prev, (n, e, max(ground, min(alt, ground + 1.0))))
@@ -489,14 +489,6 @@ class MissionSequencer:
         self._task = LoiterTask(t, (0.0, 0.0, alt), t.p.loiter_radius_m, 1)
         self._set_mode(FlightMode.RTL)
         self._emit("Returning home")
-
-    def _land_ahead(self, t: Tick) -> LandTask:
-        """Glide straight ahead to a touchdown point on the FW_LND_ANG slope."""
-        agl = max(0.0, t.alt - self.home.alt_amsl_m)
-        dist = max(50.0, agl / math.tan(t.p.land_angle_rad))
-        c = t.course
-        td = (t.pn + dist * math.cos(c), t.pe + dist * math.sin(c), self.home.alt_amsl_m)
-        return LandTask((t.pn, t.pe, t.alt), td)
 
     @property
     def on_ground(self) -> bool:

@@ -348,6 +348,15 @@ class LandTask(Task):
         self.td_alt = touchdown[2]
         self.touched = False
 
+    @classmethod
+    def ahead(cls, t: Tick, ground_amsl_m: float) -> LandTask:
+        """Glide straight ahead to a touchdown point on the FW_LND_ANG slope."""
+        agl = max(0.0, t.alt - ground_amsl_m)
+        dist = max(50.0, agl / math.tan(t.p.land_angle_rad))
+        c = t.course
+        td = (t.pn + dist * math.cos(c), t.pe + dist * math.sin(c), ground_amsl_m)
+        return cls((t.pn, t.pe, t.alt), td)
+
     def update(self, t: Tick) -> NavOutput:
         p = t.p
         s = t.state
