@@ -434,6 +434,18 @@ ERROR_CASES: list[tuple[str, Mutation | str, list[str]]] = [
 ]
 
 
+def _refused_in_one_line(path: Path, expected: list[str]) -> None:
+    """load_mission refuses ``path`` with one line starting with the path, saying each of
+    ``expected``."""
+    with pytest.raises(PlanError) as info:
+        load_mission(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert message.startswith(f"{path}: ")
+    for part in expected:
+        assert part in message, message
+
+
 @pytest.mark.parametrize(
     ("change", "expected"), [c[1:] for c in ERROR_CASES], ids=[c[0] for c in ERROR_CASES]
 )
@@ -445,13 +457,7 @@ def test_user_errors_are_one_line(
 ) -> None:
     doc = change if isinstance(change, str) else change(base_plan)
     path = write_doc(doc, "bad.plan")
-    with pytest.raises(PlanError) as info:
-        load_mission(path)
-    message = str(info.value)
-    assert "\n" not in message
-    assert message.startswith(f"{path}: ")
-    for text in expected:
-        assert text in message, message
+    _refused_in_one_line(path, expected)
 
 
 def test_missing_file(tmp_path: Path) -> None:
@@ -519,10 +525,4 @@ WPL_HOME = "QGC WPL 110\n" + _row("0 1 0 16 0 0 0 0 47.3 8.5 488 1")
 )
 def test_wpl_errors(write_doc: PlanWriter, text: str, expected: list[str]) -> None:
     path = write_doc(text, "bad.waypoints")
-    with pytest.raises(PlanError) as info:
-        load_mission(path)
-    message = str(info.value)
-    assert "\n" not in message
-    assert message.startswith(f"{path}: ")
-    for part in expected:
-        assert part in message, message
+    _refused_in_one_line(path, expected)
