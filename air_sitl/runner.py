@@ -29,7 +29,7 @@ from air_sitl.nav.params import NavParams
 from air_sitl.options import DEFAULT_AIRCRAFT, FlightOptions
 from air_sitl.sensors import SensorNoise, SensorSuite
 from air_sitl.sinks import FlightResult, FrameSource, Sink
-from air_sitl.state import GeoPoint, SimSample, VehicleState
+from air_sitl.state import CameraTick, GeoPoint, SimSample, VehicleState
 
 InboxItem = Callable[["Flight"], None]
 ProgressFn = Callable[[SimSample, "Flight"], None]
@@ -42,7 +42,8 @@ class FlightCounters:
     steps: int = 0
     frames_submitted: int = 0
     frames_delivered: int = 0
-    capture_ticks: int = 0
+    capture_ticks: int = 0  # camera ticks inside the capture window (the archive's frames)
+    camera_ticks: int = 0  # every camera tick (outside the window too when the camera stays on)
 
 
 @dataclass(slots=True)
@@ -55,8 +56,12 @@ class Flight:
     sinks: Sequence[Sink] = ()
     camera: FrameSource | None = None
     pacer: Pacer = field(default_factory=lambda: Pacer(0.0))
-    # Frames with a lower index are counted but not rendered (resume of a partial archive).
+    # Capture frames with a lower index are counted but not rendered (resume of an archive).
     first_frame_to_render: int = 0
+    # With an aid (--nav-aid) the camera runs for the whole flight: the aid's localizer needs
+    # frames before and after the capture window too (only the window's frames are archived).
+    # Without, the camera runs inside the capture window only.
+    keep_camera_on: bool = False
     stats: FlightStats = field(default_factory=lambda: FlightStats(0))
     counters: FlightCounters = field(default_factory=FlightCounters)
     clock: SimClock = field(default_factory=lambda: SimClock(PHYSICS_STEP_NS))
@@ -82,6 +87,7 @@ class Flight:
         battery = None
         if self.battery is not None:
             battery = self.battery.step(state.sim_time_ns, command.throttle)
+        tick = self._camera_tick(state.sim_time_ns, status.capturing)
         sample = SimSample(
             state=state,
             autopilot=status,
@@ -90,18 +96,20 @@ class Flight:
             nav=nav.estimate if nav is not None else None,
             actuators=command,
             battery=battery,
+            camera=tick,
         )
         self.stats.add(sample)
         for sink in self.sinks:
             sink.on_sample(sample)
-        if status.capturing and state.sim_time_ns % CAMERA_PERIOD_NS == 0:
-            index = self.counters.capture_ticks
-            self.counters.capture_ticks += 1
-            if self.camera is not None and index >= self.first_frame_to_render:
-                self.camera.submit(sample, index)
+        if tick is not None:
+            resumed = tick.capture_index is not None and (
+                tick.capture_index < self.first_frame_to_render
+            )
+            if self.camera is not None and not resumed:
+                self.camera.submit(sample, tick.index)
                 self.counters.frames_submitted += 1
             if nav is not None:
-                nav.frames_submitted = self.counters.capture_ticks
+                nav.frames_submitted = self.counters.camera_ticks
         if self.camera is not None:
             self._deliver(self.camera.ready())
         self.last_sample = sample
@@ -109,6 +117,22 @@ class Flight:
         self.clock.tick()
         self.counters.steps += 1
         return sample
+
+    def _camera_tick(self, t_ns: int, capturing: bool) -> CameraTick | None:
+        """The camera exposure at ``t_ns``, if any: every 50 Hz tick inside the capture window,
+        or of the whole flight when the camera stays on (:attr:`keep_camera_on`). The one home
+        of the frame indices every sink sees (``SimSample.camera``)."""
+        if t_ns % CAMERA_PERIOD_NS:
+            return None
+        c = self.counters
+        capture_index: int | None = None
+        if capturing:
+            capture_index = c.capture_ticks
+            c.capture_ticks += 1
+        elif not self.keep_camera_on:
+            return None
+        c.camera_ticks += 1
+        return CameraTick(index=c.camera_ticks - 1, capture_index=capture_index)
 
     def _deliver(self, frames: Iterable[object]) -> None:
         for frame in frames:
@@ -301,5 +325,6 @@ def assemble_flight(
         clock=SimClock(fdm.step_ns),
         state=state0,
         battery=Battery(lambda: BatterySpec.from_params(params.get)),
+        keep_camera_on=options.nav_aid is not None,
     )
     return flight, home, initial

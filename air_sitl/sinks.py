@@ -32,7 +32,9 @@ class Sink(Protocol):
         ...
 
     def on_frame(self, frame: CameraFrame) -> None:
-        """Called for every camera frame inside the capture window, in index order."""
+        """Called for every camera frame, in index order: those of the capture window, or of
+        the whole flight when the camera stays on for an aid (outside the window
+        ``frame.sample.camera`` has no ``capture_index``: not for an archive)."""
         ...
 
     def close(self, result: FlightResult) -> None:

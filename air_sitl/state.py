@@ -171,6 +171,16 @@ class NavEstimate:
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
+class CameraTick:
+    """A camera exposure at this physics step (the runner decides them, for every sink)."""
+
+    index: int  # the camera's frame index: what the FrameSource renders, the bus's ``frame``
+    # Index within the capture window (the archive's frame); None outside it (with an aid the
+    # camera runs for the whole flight: those frames are not archived).
+    capture_index: int | None
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
 class SimSample:
     """Everything produced at one physics step; what sinks receive."""
 
@@ -182,6 +192,7 @@ class SimSample:
     nav: NavEstimate | None = None
     actuators: ActuatorCommand | None = None  # what the autopilot commanded for this step
     battery: BatteryState | None = None
+    camera: CameraTick | None = None  # a camera exposure at this step, None between them
 
 
 def mission_sample(
@@ -212,7 +223,9 @@ def mission_sample(
 class CameraFrame:
     """One rendered camera frame with the pose it was taken from."""
 
-    index: int  # 0-based index within the capture window
+    # The camera's 0-based frame index: within the capture window, or of the whole flight when
+    # the camera stays on for an aid (``sample.camera`` then tells the capture index, or None).
+    index: int
     sim_time_ns: int
     jpeg: bytes
     width_px: int

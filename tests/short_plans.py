@@ -19,10 +19,12 @@ def write_short_plan(
     alt_m: float = 200.0,
     leg: Literal["east", "north"] = "east",
     name: str | None = None,
+    lead_m: float = 0.0,
 ) -> Path:
     """Take-off, a waypoint 300 m out, IMAGE_START, a capture leg, IMAGE_STOP, one more waypoint.
 
-    The capture leg of ``leg_m`` runs ``leg`` (about 330 frames per 100 m at 15 m/s).
+    The capture leg of ``leg_m`` runs ``leg`` (about 330 frames per 100 m at 15 m/s);
+    ``lead_m`` > 0 puts a leg that long (and its waypoint) before IMAGE_START.
     """
 
     def wp(along_m: float, out_m: float) -> MissionItem:
@@ -34,10 +36,11 @@ def write_short_plan(
         MissionItem(command=MavCmd.NAV_TAKEOFF, param1=15.0, lat_deg=home.lat_deg,
                     lon_deg=home.lon_deg, alt_m=alt_m),
         wp(0.0, 300.0),
+        *((wp(lead_m, 300.0),) if lead_m > 0 else ()),
         MissionItem(command=MavCmd.IMAGE_START_CAPTURE, frame=MavFrame.MISSION, param2=0.02),
-        wp(leg_m, 300.0),
+        wp(lead_m + leg_m, 300.0),
         MissionItem(command=MavCmd.IMAGE_STOP_CAPTURE, frame=MavFrame.MISSION),
-        wp(leg_m + 60.0, 300.0),
+        wp(lead_m + leg_m + 60.0, 300.0),
     )  # fmt: skip
     mission = Mission(items=items, planned_home=home, cruise_speed_m_s=15.0, name=name or path.stem)
     write_plan(mission, path)

@@ -1,8 +1,10 @@
 """Estimates coming back from external localization processes: logged, and awaited in lockstep.
 
-Subscribes to ``air/<vehicle>/estimate/*``. Each estimate is written (on the zenoh thread: it
-is I/O, not simulation state) to ``estimates/<name>.csv`` with its latency in wall
-milliseconds and in frames, counted from the moment its frame was published.
+Subscribes to ``air/<vehicle>/estimate/*``. Each estimate of a capture-window frame is written
+(on the zenoh thread: it is I/O, not simulation state) to ``estimates/<name>.csv`` under the
+frame's capture index (the archive's frame), with its latency in wall milliseconds and in
+frames, counted from the moment its frame was published. Estimates of frames outside the
+window (a camera kept on for an aid) are awaited and handed to the listeners, not logged.
 """
 
 from __future__ import annotations
@@ -49,8 +51,9 @@ class _Track:
 
     file: IO[str] | None
     frames: set[int] = field(default_factory=set)
-    enu_by_frame: dict[int, Vec3] = field(default_factory=dict)
-    rows: int = 0
+    enu_by_frame: dict[int, Vec3] = field(default_factory=dict)  # by capture index
+    rows: int = 0  # logged (capture-window frames, or frames the ledger does not know)
+    received: int = 0
 
 
 class EstimateLog:
@@ -94,11 +97,15 @@ class EstimateLog:
                 self._tell(name, None, None, None)
             return
         frame, t, wall, last = self.ledger.lookup(est.frame, est.sim_time_ns)
+        capture = frame if frame is None else self.ledger.capture_index(frame)
+        logged = frame is None or capture is not None
         enu, geo = self._positions(est)
-        q = est.q_body_to_ned_wxyz
-        latency_ms = "" if wall is None else f"{(received - wall) * 1e3:.3f}"
-        latency_frames = "" if frame is None or wall is None else str(last - frame)
-        row = estimate_row(t, frame, enu, geo, q, latency_ms, latency_frames)
+        row = ""
+        if logged:
+            latency_ms = "" if wall is None else f"{(received - wall) * 1e3:.3f}"
+            latency_frames = "" if frame is None or wall is None else str(last - frame)
+            q = est.q_body_to_ned_wxyz
+            row = estimate_row(t, capture, enu, geo, q, latency_ms, latency_frames)
         with self._cond:
             if self._closed:
                 return
@@ -106,13 +113,15 @@ class EstimateLog:
             if track is None:
                 track = _Track(self._open(name))
                 self._tracks[name] = track
-            if track.file is not None:
-                track.file.write(row)
-            track.rows += 1
+            track.received += 1
+            if logged:
+                if track.file is not None:
+                    track.file.write(row)
+                track.rows += 1
             if frame is not None:
                 track.frames.add(frame)
-                if all(math.isfinite(c) for c in enu):
-                    track.enu_by_frame[frame] = enu
+                if capture is not None and all(math.isfinite(c) for c in enu):
+                    track.enu_by_frame[capture] = enu
             self._tell(name, frame, t, est)
             self._cond.notify_all()
 
@@ -185,12 +194,12 @@ class EstimateLog:
         end = time.monotonic() + max_s
         with self._cond:
             while True:
-                before = sum(t.rows for t in self._tracks.values())
+                before = sum(t.received for t in self._tracks.values())
                 left = min(quiet_s, end - time.monotonic())
                 if left <= 0:
                     return
                 self._cond.wait(left)
-                if sum(t.rows for t in self._tracks.values()) == before:
+                if sum(t.received for t in self._tracks.values()) == before:
                     return
 
     def names(self) -> list[str]:
@@ -199,13 +208,13 @@ class EstimateLog:
             return sorted(self._tracks)
 
     def rows(self, name: str) -> int:
-        """Estimates received from ``name``."""
+        """Estimates of ``name`` logged (those of the capture window's frames)."""
         with self._cond:
             track = self._tracks.get(name)
             return 0 if track is None else track.rows
 
     def positions_enu(self, name: str) -> dict[int, Vec3]:
-        """Latest ENU position per frame from ``name`` (for AIR's SvoX..SvoZ)."""
+        """Latest ENU position per capture frame from ``name`` (for AIR's SvoX..SvoZ)."""
         with self._cond:
             track = self._tracks.get(name)
             return {} if track is None else dict(track.enu_by_frame)

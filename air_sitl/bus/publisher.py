@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from air_sitl.bus import codec
 from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace
 from air_sitl.bus.session import Bus, Publisher, QueryAnswer, QueryRequest
-from air_sitl.clock import CAMERA_PERIOD_NS, CAMERA_RATE_HZ, NS_PER_S
+from air_sitl.clock import CAMERA_RATE_HZ, NS_PER_S
 from air_sitl.errors import BusError
 from air_sitl.sinks import FlightResult, NullSink
 from air_sitl.state import AutopilotStatus, CameraFrame, GeoPoint, SimSample
@@ -34,7 +34,8 @@ class PublishOptions:
 
 
 class FrameLedger:
-    """Frames published so far: index -> (sim time, wall time); shared with the estimate log.
+    """Frames published so far: index -> (sim time, wall time, capture index); shared with the
+    estimate log.
 
     Written on the simulation thread, read on zenoh threads: guarded by a lock.
     """
@@ -44,18 +45,35 @@ class FrameLedger:
         self._wall_s: dict[int, float] = {}
         self._time_ns: dict[int, int] = {}
         self._index_by_time: dict[int, int] = {}
+        # Frames whose capture index differs from their index (None: outside the window).
+        self._capture: dict[int, int | None] = {}
         self.last_index = -1
         self.count = 0
 
-    def record(self, index: int, sim_time_ns: int) -> None:
-        """Frame ``index`` was just published."""
+    def expose(self, index: int, sim_time_ns: int, capture_index: int | None) -> None:
+        """Frame ``index`` is taken at ``sim_time_ns`` (``capture_index``: its index in the
+        capture window, None when it is taken outside it). Known from the exposure on: an
+        estimate may answer the truth of the exposure before the frame is published."""
+        with self._lock:
+            self._time_ns[index] = sim_time_ns
+            self._index_by_time[sim_time_ns] = index
+            if capture_index != index:
+                self._capture[index] = capture_index
+
+    def record(self, index: int, sim_time_ns: int, capture_index: int | None) -> None:
+        """Frame ``index`` was just published (see :meth:`expose` for the arguments)."""
+        self.expose(index, sim_time_ns, capture_index)
         now = time.monotonic()
         with self._lock:
             self._wall_s[index] = now
-            self._time_ns[index] = sim_time_ns
-            self._index_by_time[sim_time_ns] = index
             self.last_index = max(self.last_index, index)
             self.count += 1
+
+    def capture_index(self, index: int) -> int | None:
+        """The capture-window index of frame ``index`` (what the archive calls it); None for a
+        frame taken outside the window (a camera kept on for an aid)."""
+        with self._lock:
+            return self._capture.get(index, index)
 
     def published(self, index: int) -> bool:
         """True once frame ``index`` went out."""
@@ -110,7 +128,6 @@ class BusPublisher(NullSink):
             bus.queryable(key, self._answer_latest)
         self._imu_every = max(1, round(200.0 / max(options.imu_rate_hz, 1e-9)))
         self._step = 0
-        self._capture_ticks = 0
         self._last_status: tuple[object, ...] | None = None
         self._last_status_ns = -NS_PER_S
         self.frames_published = 0
@@ -165,12 +182,11 @@ class BusPublisher(NullSink):
         self._step += 1
         if sample.gps is not None:
             self._put(self._gps, k.gps, codec.encode_gps(sample.gps))
-        frame: int | None = None
-        if status.capturing and t % CAMERA_PERIOD_NS == 0:
-            # Same rule as the runner's capture index: every camera tick inside the window.
-            frame = self._capture_ticks
-            self._capture_ticks += 1
+        tick = sample.camera
+        if tick is not None:
+            self.ledger.expose(tick.index, t, tick.capture_index)
         if self._truth is not None:
+            frame = None if tick is None else tick.index
             self._put(self._truth, k.truth, codec.encode_truth(sample.state, frame))
 
     def on_frame(self, frame: CameraFrame) -> None:
@@ -198,7 +214,9 @@ class BusPublisher(NullSink):
             height_px=frame.height_px,
         )
         # Recorded before the put: an estimate may come back before put() returns.
-        self.ledger.record(frame.index, frame.sim_time_ns)
+        tick = frame.sample.camera
+        capture = frame.index if tick is None else tick.capture_index
+        self.ledger.record(frame.index, frame.sim_time_ns, capture)
         self._image.put(frame.jpeg, codec.encode_frame_meta(meta))
         self.frames_published += 1
 

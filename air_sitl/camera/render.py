@@ -57,6 +57,8 @@ Image = npt.NDArray[np.uint8]
 
 FILL_BGR: tuple[int, int, int] = FILL_BGRX[:3]
 _COARSE_MAP = 0.5  # warn when a map pixel spans more than 2 image pixels
+# ... from this height up: lower (a camera on for an aid during take-off) every map is coarse.
+_COARSE_WARN_MIN_HEIGHT_M = 10.0
 _NOISE_BANK_FACTOR = 2
 _STRIP_BYTES = 320 * 1024  # 4-channel warp output per strip: well inside a core's L2 cache
 _STRIP_SOURCE_BYTES = 640 * 1024  # largest map window copied for one strip (see _strip_source)
@@ -159,7 +161,8 @@ class Renderer:
             )
             effective = math.sqrt(centre_step * widest)
             level = self.map.level_for_gsd(effective * self.map.georef.gsd_m)
-            if effective < _COARSE_MAP and not self._warned_gsd:
+            coarse = effective < _COARSE_MAP and height >= _COARSE_WARN_MIN_HEIGHT_M
+            if coarse and not self._warned_gsd:
                 self._warn_coarse(effective, height)
         g = FrameGeometry(to_mat(h), level, centre_px, sees_horizon, height)
         if self._remap is not None and self.surface is not None and centre_px is not None:

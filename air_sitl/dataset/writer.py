@@ -17,6 +17,7 @@ writing and is raised as a one-line :class:`~air_sitl.errors.DatasetError` at th
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import queue
@@ -96,6 +97,7 @@ class DatasetWriter(NullSink):
         self.info = info
         self.first_frame = first_frame
         self.next_index = first_frame
+        self._outside = 0  # frames seen outside the capture window (not archived)
         self.error: DatasetError | None = None
         self.jpeg_hashes: dict[str, str] = {}
         self.first_time_ns: int | None = None
@@ -146,8 +148,19 @@ class DatasetWriter(NullSink):
             self._post(("flush",))
 
     def on_frame(self, frame: CameraFrame) -> None:
-        """Queue the image and its two CSV lines (written in this order by the I/O thread)."""
+        """Queue the image and its two CSV lines (written in this order by the I/O thread).
+
+        Only frames of the capture window are archived: a camera kept on for an aid also takes
+        frames outside it (for the bus); they are skipped, and the window's frames numbered
+        without them.
+        """
         self._raise_if_failed()
+        tick = frame.sample.camera
+        if tick is not None and tick.capture_index is None:
+            self._outside += 1
+            return
+        if self._outside:
+            frame = dataclasses.replace(frame, index=frame.index - self._outside)
         if frame.index < self.first_frame:
             return
         if frame.index != self.next_index:

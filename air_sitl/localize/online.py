@@ -20,7 +20,11 @@ What the observations hold, and how that differs from the offline driver:
 
 The run ends on ``stop`` (SIGINT/SIGTERM in the command), when the capture window is over
 (``mission/status`` says so and no frame came for :data:`QUIET_S`), or when the simulator
-has been silent for ``wait_s`` after the first frame.
+has been silent for ``wait_s`` after the first frame (an error). A simulator whose camera
+runs for the whole flight (``fly --nav-aid``: the aid needs frames before and after the
+capture window) sends frames outside the window too: the run then ends when the mission is
+completed and the frames stopped, or, without an error, when the flight stopped and the
+simulator fell silent. The method sees those frames like any other.
 """
 
 from __future__ import annotations
@@ -108,6 +112,16 @@ def gnss_fix_of(message: Message) -> GnssFix | None:
         )
 
 
+def _outside_window(
+    t_ns: int, capturing: bool | None, opened_ns: int | None, closed_ns: int | None
+) -> bool:
+    """A frame at ``t_ns`` was taken outside the capture window (before it opened, or after
+    the last one closed), as the last status (``capturing``, when it turned on and off) says."""
+    if opened_ns is None:
+        return capturing is False
+    return t_ns < opened_ns or (closed_ns is not None and opened_ns <= closed_ns <= t_ns)
+
+
 class BusLocalizer:
     """Feeds one method from the bus and publishes its estimates (see the module docstring)."""
 
@@ -138,6 +152,9 @@ class BusLocalizer:
         self._capturing: bool | None = None
         self._status_t_ns = -1
         self._completed = False
+        self._window_opened_ns: int | None = None  # when ``capturing`` last turned true
+        self._window_closed_ns: int | None = None  # and false
+        self._camera_kept_on = False  # a frame came from outside the capture window
         self._last_heard = time.monotonic()
         self.frames = 0
         self.estimated = 0
@@ -201,7 +218,13 @@ class BusLocalizer:
             t = int(m.get("sim_time_ns", 0))
             if t >= self._status_t_ns:
                 self._status_t_ns = t
-                self._capturing = bool(m.get("capturing"))
+                capturing = bool(m.get("capturing"))
+                if capturing != bool(self._capturing):
+                    if capturing:
+                        self._window_opened_ns = t
+                    else:
+                        self._window_closed_ns = t
+                self._capturing = capturing
                 self._completed = bool(m.get("mission_completed"))
             self._last_heard = time.monotonic()
 
@@ -216,6 +239,8 @@ class BusLocalizer:
                 return False
             if self._completed:
                 return True
+            if self._camera_kept_on:
+                return False  # frames outside the window: the flight decides the end
             return self._capturing is False and self._status_t_ns > self._last_t_ns
 
     def run(self, stop: threading.Event) -> None:
@@ -236,6 +261,8 @@ class BusLocalizer:
             with self._cond:
                 silent = now - self._last_heard
             if self.frames and silent > self.wait_s:
+                if self._camera_kept_on:
+                    return  # the flight stopped with the camera on (no mission completion)
                 msg = f"{self.keys.root}: the simulator has been silent for {silent:.0f} s"
                 raise BusError(msg)
 
@@ -306,6 +333,11 @@ class BusLocalizer:
             self.step_s += time.perf_counter() - start
         self.last_frame = meta.frame
         self._last_t_ns = meta.sim_time_ns
+        with self._cond:
+            if _outside_window(
+                meta.sim_time_ns, self._capturing, self._window_opened_ns, self._window_closed_ns
+            ):
+                self._camera_kept_on = True
         enu = None if est is None else est.enu_m
         if enu is not None and all(math.isfinite(c) for c in enu):
             self.estimated += 1
@@ -327,6 +359,7 @@ class BusLocalizer:
         self.last_frame = -1
         self._last_t_ns = None
         self._last_fix_t_ns = None
+        self._camera_kept_on = False
         self.frames = 0
 
     def summary(self) -> dict[str, Any]:

@@ -125,13 +125,16 @@ class CaptureRecorder:
             self._ticks += 1
 
     def on_frame(self, frame: CameraFrame) -> None:
-        """Renumber the frame within its window and hand it to that window's writer."""
+        """Renumber the frame within its window and hand it to that window's writer (frames
+        outside the windows, of a camera kept on for an aid, are not recorded)."""
         w = self._window
-        if w is None or frame.index < w.first_tick:
+        tick = frame.sample.camera
+        index = frame.index if tick is None else tick.capture_index
+        if w is None or index is None or index < w.first_tick:
             return
         try:
-            w.writer.on_frame(dataclasses.replace(frame, index=frame.index - w.first_tick))
-            w.next_frame = frame.index - w.first_tick + 1
+            w.writer.on_frame(dataclasses.replace(frame, index=index - w.first_tick))
+            w.next_frame = index - w.first_tick + 1
             if w.end_tick is not None and w.next_frame >= w.end_tick - w.first_tick:
                 self._seal()
         except AirSitlError as err:

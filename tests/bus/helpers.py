@@ -16,6 +16,7 @@ from pathlib import Path
 from air_sitl.bus.session import Bus, BusConfig, open_bus
 from air_sitl.frames import euler2quat, ned2geodetic
 from air_sitl.state import (
+    CameraTick,
     GeoPoint,
     GpsFix,
     SimSample,
@@ -63,8 +64,10 @@ def make_sample(
     yaw_rad: float = math.pi / 2,
     capturing: bool = True,
     gps: bool = False,
+    frame: int | None = None,
 ) -> SimSample:
-    """A level aircraft flying east at ``east_m`` from home, ``alt_agl_m`` high."""
+    """A level aircraft flying east at ``east_m`` from home, ``alt_agl_m`` high (``frame``: a
+    camera exposure of that index, inside the capture window when ``capturing``)."""
     lat, lon, alt = ned2geodetic(
         0.0, east_m, -alt_agl_m, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m
     )
@@ -99,7 +102,11 @@ def make_sample(
             eph_m=1.5,
             epv_m=3.0,
         )
-    return dataclasses.replace(mission_sample(state, capturing=capturing, current_seq=2), gps=fix)
+    tick = None
+    if frame is not None:
+        tick = CameraTick(index=frame, capture_index=frame if capturing else None)
+    sample = mission_sample(state, capturing=capturing, current_seq=2)
+    return dataclasses.replace(sample, gps=fix, camera=tick)
 
 
 def cli(*args: str) -> list[str]:

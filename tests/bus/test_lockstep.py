@@ -134,8 +134,8 @@ def test_estimates_by_timestamp_map_to_frames_and_bad_ones_are_counted(tmp_path:
     with sim, est:
         ledger = FrameLedger()
         log = EstimateLog(sim, KEYS, ledger, out_dir=tmp_path, home=HOME)
-        ledger.record(0, 0)
-        ledger.record(1, CAMERA_PERIOD_NS)
+        ledger.record(0, 0, 0)
+        ledger.record(1, CAMERA_PERIOD_NS, 1)
         out = est.publisher(KEYS.estimate("ts"), encoding=codec.JSON_ENCODING)
         assert wait_until(lambda: out.matched)
         out.put(codec.encode_estimate(sim_time_ns=CAMERA_PERIOD_NS, enu_m=(1.0, 2.0, 3.0)))

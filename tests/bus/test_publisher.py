@@ -47,10 +47,13 @@ def test_topics_rates_truth_frame_index_and_latest_values() -> None:
             sim, PublishOptions(keys=KEYS, publish_truth=True, imu_rate_hz=50.0, home=HOME)
         )
         assert wait_until(lambda: pub._clock.matched)
-        steps = 400  # 2 s: capture from step 100 on
+        steps = 400  # 2 s: capture from step 100 on, a frame every 4th step (50 Hz)
         for i in range(steps):
             t = i * PHYSICS_STEP_NS
-            pub.on_sample(make_sample(t, capturing=i >= 100, gps=t % (NS_PER_S // 5) == 0))
+            frame = (i - 100) // 4 if i >= 100 and i % 4 == 0 else None
+            pub.on_sample(
+                make_sample(t, capturing=i >= 100, gps=t % (NS_PER_S // 5) == 0, frame=frame)
+            )
         assert wait_until(lambda: got.count(KEYS.clock) == steps)
         assert wait_until(lambda: got.count(KEYS.truth) == steps)
         assert got.count(KEYS.imu) == steps // 4  # 50 Hz of a 200 Hz simulation

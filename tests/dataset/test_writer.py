@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 import os
@@ -18,8 +19,10 @@ from air_sitl.dataset.estimates import fill_svo_columns
 from air_sitl.dataset.writer import ArchiveInfo, DatasetWriter, recover_partial
 from air_sitl.errors import DatasetError
 from air_sitl.frames import geodetic2ned
+from air_sitl.sinks import FlightResult
+from air_sitl.state import CameraFrame, CameraTick
 
-from .synth import HOME, H, W, fly
+from .synth import HOME, H, W, fly, samples
 
 FRAMES = 120
 
@@ -202,3 +205,32 @@ def test_unwritable_folder_is_a_one_line_error(tmp_path: Path) -> None:
     (tmp_path / "file").write_text("x")
     with pytest.raises(DatasetError, match="cannot write"):
         DatasetWriter(tmp_path / "file" / "sub", _info())
+
+
+def test_frames_outside_the_capture_window_are_not_archived(tmp_path: Path) -> None:
+    # A camera kept on for an aid: window frames 0-9, 5 frames after it, window frames 10-19,
+    # 5 more after. The archive holds the 20 window frames under their capture index.
+    window = [f for _, f in samples(20) if f is not None]
+    stream: list[tuple[CameraFrame, int | None]] = []
+    for k, frame in enumerate(window):
+        if k == 10:
+            stream += [(frame, None)] * 5
+        stream.append((frame, k))
+    stream += [(window[-1], None)] * 5
+    writer = DatasetWriter(tmp_path / "a", _info(), threaded=False)
+    for index, (frame, capture) in enumerate(stream):
+        tick = CameraTick(index=index, capture_index=capture)
+        sample = dataclasses.replace(frame.sample, camera=tick)
+        writer.on_frame(dataclasses.replace(frame, index=index, sample=sample))
+    writer.close(FlightResult(mission_completed=True, sim_time_ns=0, wall_time_s=0.0))
+    writer.finish({"capture_distance_m": 1.0, "wall_time_s": 0.1})
+    folder = tmp_path / "a"
+    names = sorted(p.name for p in folder.glob("frame_*.jpg"))
+    assert names == [frame_filename(k) for k in range(20)]
+    assert [(folder / n).read_bytes() for n in names] == [f.jpeg for f in window]
+    with (folder / "frames.csv").open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [(int(r["frame"]), int(r["sim_time_ns"])) for r in rows] == [
+        (k, f.sim_time_ns) for k, f in enumerate(window)
+    ]
+    assert check_archive(air_sitl.dataset.open(folder)).valid
