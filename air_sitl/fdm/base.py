@@ -32,13 +32,13 @@ class InitialCondition:
 class Terrain(Protocol):
     """The ground under the flight (``--dem``), heights above mean sea level in metres.
 
-    ``terrain_at``: what the wheels roll on; ``height_at``: the first surface seen from above
-    (roofs and canopy included, where the model has them; a DEM file is both).
+    The ground is what the wheels roll on, the surface the first one seen from above (roofs
+    and canopy included, where the model has them; a DEM file is both).
     :class:`~air_sitl.maps.surface.SurfaceModel` is one.
     """
 
-    def terrain_at(self, lat_deg: float, lon_deg: float) -> float:
-        """Height of the ground under a position."""
+    def ground_and_surface_at(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
+        """Heights of the ground and of the first surface under a position."""
         ...
 
     def height_at(self, lat_deg: float, lon_deg: float) -> float:

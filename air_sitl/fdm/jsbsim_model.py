@@ -255,7 +255,7 @@ class JSBSimModel:
         """Ground elevation at the start: home's, or the terrain's under the aircraft."""
         if self._terrain is None:
             return self._ground.alt_amsl_m
-        return self._terrain.terrain_at(initial.lat_deg, initial.lon_deg)
+        return self._terrain.ground_and_surface_at(initial.lat_deg, initial.lon_deg)[0]
 
     def _place_on_ground(self) -> None:
         fdm = self._fdm
@@ -406,8 +406,7 @@ class JSBSimModel:
         terrain = self._terrain
         if terrain is not None:
             # The ground the wheels meet during the next step: the terrain under the aircraft.
-            ground_m = terrain.terrain_at(lat, lon)
-            surface_m = terrain.height_at(lat, lon)
+            ground_m, surface_m = terrain.ground_and_surface_at(lat, lon)
             self._set_terrain_ft(ground_m * M_FT)
         return VehicleState(
             sim_time_ns=self._time_ns,

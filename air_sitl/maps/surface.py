@@ -21,22 +21,36 @@ from air_sitl.maps.base import TILE_PX, MapSource, TileCache, paste_tiles
 
 Heights = npt.NDArray[np.float32]
 SURFACE_CACHE_BYTES = 96 * 1024 * 1024
-# One level-0 cell: (ix, iy, h00, h01, h10, h11), its corner heights as floats.
-Cell = tuple[int, int, float, float, float, float]
+BLOCK_PX = 16  # level-0 heights per side of a block kept for point samples (15 x 15 cells)
 
 
-def cell_of(ix: int, iy: int, h: Heights) -> Cell:
-    """The cell at (ix, iy) from its 2 x 2 corner heights."""
-    h64 = h.astype(np.float64)
-    return (ix, iy, float(h64[0, 0]), float(h64[0, 1]), float(h64[1, 0]), float(h64[1, 1]))
+class HeightBlock:
+    """Level-0 heights [y0, y0+n) x [x0, x0+n) as Python floats: a flight samples the ground
+    at every physics step, centimetres apart, so one block serves many steps."""
 
+    __slots__ = ("rows", "x0", "y0")
 
-def bilinear(cell: Cell, x_px: float, y_px: float) -> float:
-    """Height inside ``cell`` at a continuous level-0 pixel (its own cell's)."""
-    fx, fy = x_px - cell[0], y_px - cell[1]
-    top = cell[2] * (1 - fx) + cell[3] * fx
-    bottom = cell[4] * (1 - fx) + cell[5] * fx
-    return top * (1 - fy) + bottom * fy
+    def __init__(self, x0: int, y0: int, heights: Heights) -> None:
+        self.x0, self.y0 = x0, y0
+        self.rows: list[list[float]] = heights.astype(np.float64).tolist()
+
+    @staticmethod
+    def origin(ix: int, iy: int, n: int = BLOCK_PX) -> tuple[int, int]:
+        """The block origin whose cells hold cell (ix, iy) (blocks overlap by one height)."""
+        return (ix // (n - 1)) * (n - 1), (iy // (n - 1)) * (n - 1)
+
+    def at(self, x_px: float, y_px: float) -> float | None:
+        """Bilinear height at a continuous level-0 pixel; None outside the block's cells."""
+        ix, iy = math.floor(x_px), math.floor(y_px)
+        i, j = ix - self.x0, iy - self.y0
+        rows = self.rows
+        if not (0 <= j < len(rows) - 1 and 0 <= i < len(rows[0]) - 1):
+            return None
+        fx, fy = x_px - ix, y_px - iy
+        r0, r1 = rows[j], rows[j + 1]
+        top = r0[i] * (1 - fx) + r0[i + 1] * fx
+        bottom = r1[i] * (1 - fx) + r1[i + 1] * fx
+        return top * (1 - fy) + bottom * fy
 
 
 @runtime_checkable
@@ -62,6 +76,10 @@ class SurfaceModel(Protocol):
         crowns where the model can tell them apart; a DEM file is taken as the ground)."""
         ...
 
+    def ground_and_surface_at(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
+        """``terrain_at`` and ``height_at`` of one position at once."""
+        ...
+
     def describe(self) -> dict[str, Any]:
         """Provenance for manifests."""
         ...
@@ -76,9 +94,7 @@ class TiledSurface:
         self.map = map_source
         self._cache = TileCache(cache_bytes)
         self._warned: set[str] = set()
-        # The level-0 cell of the last point sampled (ix, iy, h00, h01, h10, h11): a flight
-        # samples every physics step, mostly within one cell.
-        self._cell: Cell | None = None
+        self._block: HeightBlock | None = None  # around the last point sampled
 
     def _make_tile(self, level: int, tx: int, ty: int) -> Heights:
         """Heights (TILE_PX x TILE_PX) of tile (tx, ty) of level ``level``."""
@@ -113,21 +129,35 @@ class TiledSurface:
 
     def height_at_map_px(self, x_px: float, y_px: float) -> float:
         """Height at a continuous level-0 map pixel (bilinear over the level-0 tiles)."""
-        ix, iy = math.floor(x_px), math.floor(y_px)
-        cell = self._cell  # one read: other threads may replace it meanwhile
-        if cell is None or cell[0] != ix or cell[1] != iy:
-            cell = self._cell = cell_of(ix, iy, self.heights(0, ix, iy, 2, 2))
-        return bilinear(cell, x_px, y_px)
+        block = self._block  # one read: other threads may replace it meanwhile
+        h = None if block is None else block.at(x_px, y_px)
+        if h is None:
+            x0, y0 = HeightBlock.origin(math.floor(x_px), math.floor(y_px))
+            block = self._block = HeightBlock(x0, y0, self.heights(0, x0, y0, BLOCK_PX, BLOCK_PX))
+            h = block.at(x_px, y_px)
+            assert h is not None
+        return h
 
     def height_at(self, lat_deg: float, lon_deg: float) -> float:
         """Height under a WGS84 position."""
         x, y = self.map.latlon_to_map_px(lat_deg, lon_deg)
         return self.height_at_map_px(x, y)
 
+    def terrain_at_map_px(self, x_px: float, y_px: float) -> float:
+        """The ground at a continuous level-0 map pixel: the surface itself, unless a subclass
+        knows the bare terrain beneath its objects."""
+        return self.height_at_map_px(x_px, y_px)
+
     def terrain_at(self, lat_deg: float, lon_deg: float) -> float:
-        """The ground under a WGS84 position: the surface itself, unless a subclass knows the
-        bare terrain beneath its objects."""
-        return self.height_at(lat_deg, lon_deg)
+        """The ground under a WGS84 position (:meth:`terrain_at_map_px`)."""
+        x, y = self.map.latlon_to_map_px(lat_deg, lon_deg)
+        return self.terrain_at_map_px(x, y)
+
+    def ground_and_surface_at(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
+        """The ground and the surface under a WGS84 position, converted to the map once (a
+        flight asks at every physics step)."""
+        x, y = self.map.latlon_to_map_px(lat_deg, lon_deg)
+        return self.terrain_at_map_px(x, y), self.height_at_map_px(x, y)
 
     def level_centres_crs(
         self, level: int, tx: int, ty: int, n: int = TILE_PX

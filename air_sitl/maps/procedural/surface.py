@@ -18,7 +18,7 @@ import numpy as np
 from air_sitl.maps.base import TILE_PX
 from air_sitl.maps.procedural import ProceduralMap
 from air_sitl.maps.procedural.noise import fractal_noise, key_of
-from air_sitl.maps.surface import Cell, Heights, TiledSurface, bilinear, cell_of
+from air_sitl.maps.surface import BLOCK_PX, HeightBlock, Heights, TiledSurface
 
 # (amplitude m, cell m, octaves) of the bare terrain of each map.
 TERRAIN = {"urban": (4.0, 600.0, 2), "forest": (28.0, 900.0, 3)}
@@ -31,10 +31,15 @@ class ProceduralSurface(TiledSurface):
         super().__init__(map_source)
         self.procedural = map_source
         self.name = f"builtin-{map_source.name}"
-        self._terrain_cell: Cell | None = None
-        # Bare terrain at home (level 0, bilinear) is home's elevation.
+        self._terrain_block: HeightBlock | None = None
+        # Bare terrain at home (level 0, bilinear over its cell) is home's elevation.
         hx, hy = self._home_px()
-        self.offset_m = float(map_source.ground_elevation_m - self._bare_terrain_at_px(hx, hy))
+        ix, iy = math.floor(hx), math.floor(hy)
+        ox, oy = map_source.origin_abs_px
+        cell = HeightBlock(ix, iy, self._terrain(ox + ix, oy + iy, 2, map_source.georef.gsd_m))
+        at_home = cell.at(hx, hy)
+        assert at_home is not None
+        self.offset_m = float(map_source.ground_elevation_m - at_home)
 
     def _home_px(self) -> tuple[float, float]:
         return self.procedural.home_px
@@ -57,19 +62,21 @@ class ProceduralSurface(TiledSurface):
 
     def _bare_terrain_at_px(self, x: float, y: float) -> float:
         """The terrain's noise (no offset) at a continuous level-0 map pixel, bilinear; the
-        last cell is kept (a flight samples the ground at every physics step)."""
-        ix, iy = math.floor(x), math.floor(y)
-        cell = self._terrain_cell
-        if cell is None or cell[0] != ix or cell[1] != iy:
+        last block is kept (a flight samples the ground at every physics step)."""
+        block = self._terrain_block
+        h = None if block is None else block.at(x, y)
+        if h is None:
+            x0, y0 = HeightBlock.origin(math.floor(x), math.floor(y))
             ox, oy = self.procedural.origin_abs_px
-            t = self._terrain(ox + ix, oy + iy, 2, self.procedural.georef.gsd_m)
-            cell = self._terrain_cell = cell_of(ix, iy, t)
-        return bilinear(cell, x, y)
+            t = self._terrain(ox + x0, oy + y0, BLOCK_PX, self.procedural.georef.gsd_m)
+            block = self._terrain_block = HeightBlock(x0, y0, t)
+            h = block.at(x, y)
+            assert h is not None
+        return h
 
-    def terrain_at(self, lat_deg: float, lon_deg: float) -> float:
-        """Bare terrain height (AMSL m) under a position: where aircraft take off and land."""
-        x, y = self.map.latlon_to_map_px(lat_deg, lon_deg)
-        return self._bare_terrain_at_px(x, y) + self.offset_m
+    def terrain_at_map_px(self, x_px: float, y_px: float) -> float:
+        """Bare terrain height (AMSL m) at a level-0 map pixel: where aircraft take off and land."""
+        return self._bare_terrain_at_px(x_px, y_px) + self.offset_m
 
     def describe(self) -> dict[str, Any]:
         """Provenance: the built-in surface of a procedural map."""
