@@ -45,3 +45,21 @@ def write_short_plan(
     mission = Mission(items=items, planned_home=home, cruise_speed_m_s=15.0, name=name or path.stem)
     write_plan(mission, path)
     return path
+
+
+PlanItem = tuple[int, int, float, float, float]  # command, frame, lat_deg, lon_deg, altitude m
+
+
+def write_items_plan(path: Path, home: GeoPoint, items: list[PlanItem]) -> Path:
+    """A ``.plan`` of plain items with its planned home at ``home``, cruise 15 m/s."""
+    mission = Mission(
+        items=tuple(
+            MissionItem(command=cmd, frame=frame, lat_deg=lat, lon_deg=lon, alt_m=alt)
+            for cmd, frame, lat, lon, alt in items
+        ),
+        planned_home=home,
+        cruise_speed_m_s=15.0,
+        name=path.stem,
+    )
+    write_plan(mission, path)
+    return path

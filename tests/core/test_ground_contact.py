@@ -8,6 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
+import short_plans
 
 from air_sitl.cli import main
 from air_sitl.frames import ned2geodetic
@@ -20,20 +21,11 @@ HOME = GeoPoint(lat_deg=54.68, lon_deg=25.28, alt_amsl_m=120.0)
 
 def _plan(tmp_path: Path, items: list[tuple[int, float, float, float]]) -> Path:
     """(command, north m, east m, altitude above home m) items as a QGC plan."""
-    out = []
-    for k, (cmd, n, e, alt) in enumerate(items, start=1):
+    placed = []
+    for cmd, n, e, alt in items:
         lat, lon, _ = ned2geodetic(n, e, 0.0, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m)
-        out.append({"type": "SimpleItem", "command": cmd, "frame": 3, "autoContinue": True,
-                    "doJumpId": k, "params": [0, 0, 0, None, lat, lon, alt]})  # fmt: skip
-    doc = {
-        "fileType": "Plan", "version": 1, "groundStation": "QGroundControl",
-        "mission": {"version": 2, "firmwareType": 12, "vehicleType": 1, "cruiseSpeed": 15,
-                    "plannedHomePosition": [HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m],
-                    "items": out},
-    }  # fmt: skip
-    path = tmp_path / "contact.plan"
-    path.write_text(json.dumps(doc))
-    return path
+        placed.append((cmd, 3, lat, lon, alt))
+    return short_plans.write_items_plan(tmp_path / "contact.plan", HOME, placed)
 
 
 def _fly(tmp_path: Path, plan: Path) -> tuple[int, dict]:  # type: ignore[type-arg]

@@ -64,19 +64,8 @@ def write_dem(path: Path, relief: Relief, half_m: float = 4000.0, px_m: float = 
 
 def write_plan(path: Path, items: list[tuple[int, int, float, float, float]]) -> Path:
     """(command, frame, north m, east m, altitude m) items; planned home at HOME (120 m)."""
-    out = []
-    for k, (cmd, frame, n, e, alt) in enumerate(items, start=1):
-        lat, lon = latlon(n, e)
-        out.append({"type": "SimpleItem", "command": cmd, "frame": frame, "autoContinue": True,
-                    "doJumpId": k, "params": [0, 0, 0, None, lat, lon, alt]})  # fmt: skip
-    doc = {
-        "fileType": "Plan", "version": 1, "groundStation": "QGroundControl",
-        "mission": {"version": 2, "firmwareType": 12, "vehicleType": 1, "cruiseSpeed": 15,
-                    "plannedHomePosition": [HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m],
-                    "items": out},
-    }  # fmt: skip
-    path.write_text(json.dumps(doc))
-    return path
+    placed = [(cmd, frame, *latlon(n, e), alt) for cmd, frame, n, e, alt in items]
+    return short_plans.write_items_plan(path, HOME, placed)
 
 
 def fly(plan: Path, dem: Path, out: Path, *extra: str) -> tuple[int, dict[str, Any]]:

@@ -3,10 +3,10 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
+import short_plans
 
 from air_sitl.errors import PlanError
 from air_sitl.mission.geometry import item_altitude_amsl
@@ -18,18 +18,8 @@ HOME = GeoPoint(lat_deg=47.0, lon_deg=8.0, alt_amsl_m=400.0)
 
 
 def _plan(tmp_path: Path, frame: int) -> Path:
-    items = [
-        {"type": "SimpleItem", "command": 22, "frame": 3, "autoContinue": True, "doJumpId": 1,
-         "params": [0, 0, 0, None, 47.0, 8.0, 40]},
-        {"type": "SimpleItem", "command": 16, "frame": frame, "autoContinue": True,
-         "doJumpId": 2, "params": [0, 0, 0, None, 47.01, 8.0, 120]},
-    ]  # fmt: skip
-    doc = {"fileType": "Plan", "version": 1, "mission": {
-        "version": 2, "firmwareType": 12, "vehicleType": 1, "items": items,
-        "plannedHomePosition": [47.0, 8.0, 400.0]}}  # fmt: skip
-    path = tmp_path / "terrain.plan"
-    path.write_text(json.dumps(doc))
-    return path
+    items = [(22, 3, 47.0, 8.0, 40.0), (16, frame, 47.01, 8.0, 120.0)]
+    return short_plans.write_items_plan(tmp_path / "terrain.plan", HOME, items)
 
 
 @pytest.mark.parametrize("frame", [10, 11])
