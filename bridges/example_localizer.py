@@ -17,7 +17,6 @@ Run: ``python bridges/example_localizer.py --name ex`` next to ``air-sitl fly --
 from __future__ import annotations
 
 import argparse
-import contextlib
 import sys
 import threading
 from collections import deque
@@ -29,7 +28,7 @@ from air_sitl.bus.session import Bus, Message, open_bus
 from air_sitl.bus.signals import wait_until_signalled
 from air_sitl.errors import AirSitlError, BusError
 from air_sitl.localize.base import GnssFix, LocalizerContext, Observation
-from air_sitl.localize.online import ask, camera_from_info, gnss_fix_of
+from air_sitl.localize.online import ask, camera_from_info, feed_latest, gnss_fix_of
 from air_sitl.localize.vo import VisualOdometry
 from air_sitl.state import GeoPoint, Quat
 
@@ -56,9 +55,7 @@ class Localizer:
         home = GeoPoint(lat_deg=h["lat_deg"], lon_deg=h["lon_deg"], alt_amsl_m=h["alt_amsl_m"])
         self.vo = VisualOdometry()
         self.vo.reset(LocalizerContext(home=home, camera=camera_from_info(info)))
-        for key, handler in ((keys.gps, self._on_gps), (keys.imu, self._on_imu)):
-            with contextlib.suppress(BusError):  # the latest value, if there is one yet
-                handler(Message(key, bus.query(key, timeout_s=2.0).payload, None))
+        feed_latest(bus, {keys.gps: self._on_gps, keys.imu: self._on_imu})
         self._out = bus.publisher(self.key_out, encoding=codec.JSON_ENCODING, block=True)
         bus.subscribe(keys.image, self._on_image)
 

@@ -35,9 +35,11 @@ import queue
 import threading
 import time
 from collections import deque
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import cv2
 import numpy as np
 
 from air_sitl.bus import codec
@@ -94,6 +96,14 @@ def ask(bus: Bus, key: str, wait_s: float) -> Message:
             if time.monotonic() > deadline:
                 raise
             time.sleep(0.1)  # the simulator is not up yet: ask again
+
+
+def feed_latest(bus: Bus, handlers: Mapping[str, Callable[[Message], None]]) -> None:
+    """Hand each handler the latest message of its key, when there is one yet (a query each):
+    what a localizer joining a running flight starts from."""
+    for key, handler in handlers.items():
+        with contextlib.suppress(BusError):
+            handler(Message(key, bus.query(key, timeout_s=2.0).payload, None))
 
 
 def gnss_fix_of(message: Message) -> GnssFix | None:
@@ -187,9 +197,7 @@ class BusLocalizer:
             extras={"bus": keys.root},
         )
         method.reset(self.context)
-        for key, handler in ((keys.gps, self._on_gps), (keys.imu, self._on_imu)):
-            with contextlib.suppress(BusError):  # the latest value, if there is one yet
-                handler(Message(key, bus.query(key, timeout_s=2.0).payload, None))
+        feed_latest(bus, {keys.gps: self._on_gps, keys.imu: self._on_imu})
         self._out = bus.publisher(self.key_out, encoding=codec.JSON_ENCODING, block=True)
         bus.subscribe(keys.image, self._on_image)
 
@@ -302,8 +310,6 @@ class BusLocalizer:
             self._last_fix_t_ns = fix.sim_time_ns
         image = None
         if self.method.needs_image:
-            import cv2
-
             decoded = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
             image = None if decoded is None else np.asarray(decoded, dtype=np.uint8)
         return Observation(
