@@ -1,13 +1,15 @@
 """Speed of the flight core: flight model + autopilot + sensors (+ the onboard EKF), against bare
 JSBSim.
 
-Usage: python benchmarks/bench_flight.py [SCENARIO] [--seconds 600]
+Usage: python benchmarks/bench_flight.py [SCENARIO] [--seconds 600] [--dem builtin|FILE]
 
 Flies SCENARIO (default FR-300) with --air-start and no camera for --seconds of simulated time
 and prints simulated seconds per wall second, beside the floor measured in the same run: the
 bare flight model stepping the same number of times with a fixed command. The flight runs
 twice, on the truth (--nav truth) and on the onboard filter (--nav ekf, the default of the
-commands): the difference per step is what the filter costs.
+commands): the difference per step is what the filter costs. ``--dem`` adds a truth flight
+over that relief (ground and surface sampled at every step, home on the ground): its
+difference is what the relief costs the flight.
 """
 
 from __future__ import annotations
@@ -22,20 +24,22 @@ REPO = Path(__file__).resolve().parent.parent
 def main() -> None:
     from dataclasses import replace
 
-    from air_sitl.builder import build_flight, load_setup
+    from air_sitl.builder import FlightSetup, build_flight, load_setup
     from air_sitl.clock import NS_PER_S
-    from air_sitl.options import FlightOptions
+    from air_sitl.options import FlightOptions, MapChoice
     from air_sitl.state import ActuatorCommand
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenario", nargs="?", default="FR-300")
     parser.add_argument("--seconds", type=float, default=600.0)
+    parser.add_argument("--dem", default=None, help="also fly over this relief (builtin, FILE)")
     args = parser.parse_args()
     setup = load_setup(REPO / "missions" / f"{args.scenario}.plan", FlightOptions(air_start=True))
     limit_ns = int(args.seconds * NS_PER_S)
 
-    def fly(nav: str) -> tuple[float, float, int, int]:
-        flight = build_flight(replace(setup, options=replace(setup.options, nav=nav)))
+    def fly(nav: str, over: FlightSetup | None = None) -> tuple[float, float, int, int]:
+        base = over or setup
+        flight = build_flight(replace(base, options=replace(base.options, nav=nav)))
         t0, c0 = time.perf_counter(), time.process_time()
         result = flight.run(stop=lambda s: False, max_sim_time_ns=limit_ns)
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
@@ -69,6 +73,16 @@ def main() -> None:
         f"ratio with / without {full_ekf / full:.2f} wall, {cpu_ekf / cpu:.2f} CPU"
     )
     print(f"target: >= 100 x real time -> {'met' if sim_s / full >= 100 else 'NOT met'}")
+    if args.dem:
+        plan = REPO / "missions" / f"{args.scenario}.plan"
+        relief = load_setup(plan, FlightOptions(air_start=True), map=MapChoice(dem=args.dem))
+        runs_dem = [fly("truth", relief) for _ in range(2)]
+        cpu_dem = min(r[1] for r in runs_dem)
+        print(
+            f"--dem {args.dem}: {min(r[0] for r in runs_dem) / steps * 1e6:.1f} us/step wall, "
+            f"relief cost {(cpu_dem - cpu) / steps * 1e6:.1f} us/step CPU "
+            f"(ratio {cpu_dem / cpu:.2f} CPU)"
+        )
 
 
 if __name__ == "__main__":
