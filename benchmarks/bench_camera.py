@@ -8,9 +8,11 @@ Run: ``python benchmarks/bench_camera.py [--frames N] [--cog /tmp/bench40k.tif]`
 2. the threaded camera bridge (FrameSource) in frames/s with 1 and 2 workers;
 3. resident memory while flying over a 40,000 x 40,000 pixel COG (built with
    ``air-sitl map make urban --size-m 24000 24000`` when missing; target < 1 GB);
-4. relief (``--dem builtin``): render cost per frame (geometry + pixels + noise) beside the
-   flat render of the same frames, and their ratio (target <= 3), at 200, 300 and 3000 m
-   over ``urban`` and ``forest`` (``--relief-only`` runs just this part).
+4. relief: render cost per frame (geometry + pixels + noise) beside the flat render of the
+   same frames, and their ratio (target <= 3), at 200, 300 and 3000 m over ``urban`` and
+   ``forest`` with ``--dem builtin``, and over ``urban`` with a GeoTIFF DSM (the built-in
+   urban surface written at 1.2 m, like a lidar DSM; ``--dsm``, built when missing)
+   (``--relief-only`` runs just this part).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
 from air_sitl.frames import ned2geodetic
+from air_sitl.maps.base import MapSource
 from air_sitl.maps.open import open_map, open_surface
 from air_sitl.state import GeoPoint, VehicleState, mission_sample
 
@@ -190,18 +193,25 @@ def big_cog(cog: Path, frames: int) -> None:
     )
 
 
-def relief(frames: int) -> None:
-    """Per-frame render cost with relief (built-in surface) vs flat, same frames, same run."""
+def relief(frames: int, dsm: Path) -> None:
+    """Per-frame render cost with relief vs flat, same frames, same run."""
     cv2.setNumThreads(1)
     print(
-        "4) relief (--dem builtin) vs flat, one core, render + noise, tiles warm "
+        "4) relief vs flat, one core, render + noise, tiles warm "
         "(median CPU ms per frame, best of 3 passes)"
     )
-    print(f"{'map':>7} {'alt m':>6} {'flat':>7} {'relief':>7} {'ratio':>6} {'marched rays':>13}")
-    for kind in ("urban", "forest"):
+    head = f"{'map':>7} {'dem':>8} {'alt m':>6} {'flat':>7} {'relief':>7} {'ratio':>6}"
+    print(f"{head} {'marched rays':>13}")
+    for kind, dem in (("urban", "builtin"), ("forest", "builtin"), ("urban", "dsm")):
         m = open_map(kind, HOME, seed=0)
         flat = Renderer(m, CameraModel(), seed=0)
-        rel = Renderer(m, CameraModel(), seed=0, surface=open_surface("builtin", m))
+        if dem == "dsm":
+            if not dsm.exists():
+                write_dsm(dsm, m)
+            surface = open_surface(str(dsm), m)
+        else:
+            surface = open_surface(dem, m)
+        rel = Renderer(m, CameraModel(), seed=0, surface=surface)
         for alt in (200.0, 300.0, 3000.0):
             states = path_states(alt, frames)
             for s in states[:: max(1, frames // 10)]:  # generate the tiles, untimed
@@ -219,9 +229,31 @@ def relief(frames: int) -> None:
                 best.append(min(passes))
             rays = _marched_rays(rel, states[len(states) // 2])
             print(
-                f"{kind:>7} {alt:6.0f} {best[0]:7.2f} {best[1]:7.2f} {best[1] / best[0]:6.2f}"
-                f" {rays:13.0f}"
+                f"{kind:>7} {dem:>8} {alt:6.0f} {best[0]:7.2f} {best[1]:7.2f}"
+                f" {best[1] / best[0]:6.2f} {rays:13.0f}"
             )
+
+
+def write_dsm(path: Path, m: MapSource, half_m: float = 3200.0) -> None:
+    """The built-in surface of a procedural map as a GeoTIFF at twice its pixel size."""
+    import rasterio
+    from rasterio.transform import Affine
+
+    print(f"   writing {path} (once)...", flush=True)
+    surface = open_surface("builtin", m)
+    assert surface is not None
+    hx, hy = m.latlon_to_map_px(HOME.lat_deg, HOME.lon_deg)
+    n = round(half_m / m.georef.gsd_m / 2)  # level-1 pixels each side of home
+    x0, y0 = round(hx / 2) - n, round(hy / 2) - n
+    heights = surface.heights(1, x0, y0, 2 * n, 2 * n)
+    _, t1, t2, _, t4, t5 = m.georef.transform
+    ex, ey = m.georef.px_to_crs(2 * x0 - 0.5, 2 * y0 - 0.5)  # level-1 pixel (x0, y0)'s corner
+    with rasterio.open(
+        path, "w", driver="GTiff", width=2 * n, height=2 * n, count=1, dtype="float32",
+        crs=m.georef.crs, transform=Affine(2 * t1, 2 * t2, ex, 2 * t4, 2 * t5, ey),
+        tiled=True, blockxsize=256, blockysize=256, compress="deflate",
+    ) as dst:  # fmt: skip
+        dst.write(heights, 1)
 
 
 def _marched_rays(renderer: Renderer, state: VehicleState) -> float:
@@ -246,17 +278,18 @@ def main() -> None:
     parser.add_argument("--skip-cog", action="store_true")
     parser.add_argument("--only-cog", action="store_true")
     parser.add_argument("--relief-only", action="store_true")
+    parser.add_argument("--dsm", type=Path, default=Path("/tmp/bench_dsm_urban.tif"))
     args = parser.parse_args()
     print(f"RSS at start {rss_mb():.0f} MB")
     if args.relief_only:
-        relief(args.frames)
+        relief(args.frames, args.dsm)
         return
     if not args.skip_cog:
         big_cog(args.cog, args.frames)  # first: its RSS is not mixed with the other maps'
     if not args.only_cog:
         one_core(args.frames)
         threaded(args.frames * 2)
-        relief(args.frames)
+        relief(args.frames, args.dsm)
 
 
 if __name__ == "__main__":

@@ -35,7 +35,8 @@ STRIDE = 16
 EDGE_PX = 2.0  # a cell is re-marched where the parallax bends by more at a corner (px)
 MAX_STEPS = 160
 REFINE = 4  # bisection steps after the march, before the secant
-TOL_M = 0.25  # a ray this close to the surface at a corner's hit altitude is on it (m)
+TOL_M = 1.0  # a ray this close to the surface at a corner's hit altitude may settle there (m)
+SETTLED_M = 0.05  # ... if after the secant step it is this close (m)
 BLOCK_STEPS = (16, MAX_STEPS)  # rays are marched in blocks of up to these many steps
 _MIN_DOWN = 1e-6
 _COLS = 4096  # samples per remap row (cv2.remap wants fewer than 32767 rows and columns)
@@ -290,11 +291,12 @@ def settle(
     """First surface point of rays inside a cell, from the altitudes its corners' rays hit.
 
     Each ray is tried at the corners' hit altitudes, highest first. At the first one where
-    the ray is not above the surface, a surface within TOL_M of the ray is its hit (exact on
-    flat roofs and ground; on a slope, a secant step through "the height found there").
-    Rays under the surface there (a wall, or something no corner saw) or above it at every
-    corner altitude are marched over the corners' range (:func:`march`). Returns (z_hit,
-    found) as :func:`march` does.
+    the ray is not above the surface (by more than TOL_M), a surface within TOL_M of the
+    ray gives its hit by a secant step through "the height found there" (exact on a plane),
+    kept if the ray is then within SETTLED_M of the surface. Rays under the surface there
+    (a wall, or something no corner saw), above it at every corner altitude, or not settled
+    are marched over the corners' range (:func:`march`). Returns (z_hit, found) as
+    :func:`march` does.
     """
     m = ax.shape[0]
     if m == 0:
@@ -311,7 +313,8 @@ def settle(
     h = _remap(values, bx, by)[:size]
     f = cand.ravel() - h
     not_above = f <= tol
-    k = not_above.reshape(cand.shape).argmax(axis=0)
+    na = not_above.reshape(cand.shape)
+    k = np.where(na[0], 0, np.where(na[1], 1, np.where(na[2], 2, 3)))  # the first, or 3
     at = k * m + np.arange(m)
     f_k, z_k = f[at], cand.ravel()[at]
     on = not_above[at] & (f_k >= -tol)
@@ -325,6 +328,9 @@ def settle(
     step = np.abs(denom) > 1e-6
     z_hit = np.where(step, z_1 - f_1 * (z_1 - z_k) / np.where(step, denom, 1.0), z_1)
     z_hit = z_hit.astype(np.float32)
+    np.subtract(px0, z_hit * ax, out=qx)
+    np.subtract(py0, z_hit * ay, out=qy)
+    on &= np.abs(z_hit - _remap(values, bx, by)[:m]) <= np.float32(SETTLED_M)
     found = np.ones(m, dtype=bool)
     rest = np.flatnonzero(~on)
     if rest.size:
