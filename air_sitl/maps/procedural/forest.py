@@ -9,13 +9,21 @@ from their world cell indices, so any tile is drawn alone.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
 from air_sitl.maps.procedural.canvas import Canvas, Color, DateLook, Point, rect, shade
-from air_sitl.maps.procedural.noise import fractal_noise, key_of, rng_for, value_noise, white_noise
+from air_sitl.maps.procedural.noise import (
+    FloatImage,
+    fractal_noise,
+    key_of,
+    rng_for,
+    value_noise,
+    white_noise,
+)
 
 _CONIFER = {"summer": (38, 64, 40), "autumn": (36, 60, 40), "spring": (44, 66, 46)}
 _DECIDUOUS = {"summer": (44, 100, 66), "autumn": (46, 96, 140), "spring": (72, 104, 104)}
@@ -49,13 +57,7 @@ class ForestWorld:
         d = date.index
         season = date.season
         # Canopy height field (arbitrary units) and its sun shading.
-        crowns = value_noise(k + 1, x0, y0, size, 3.0 * pm)
-        groups = value_noise(k + 2, x0, y0, size, 8.0 * pm)
-        fine = fractal_noise(k + 3, x0, y0, size, 1.2 * pm, 2)
-        # Drawn coarse (direct pyramid levels), features under ~2 px average out: fade them.
-        w_crown = float(np.clip((3.0 * pm - 1.0) / 2.0, 0.0, 1.0))
-        w_group = float(np.clip((8.0 * pm - 1.0) / 2.0, 0.0, 1.0))
-        height = 0.55 * w_crown * crowns + 0.35 * w_group * groups + 0.18 * fine
+        height, crowns, _, fine, w_crown, _ = _canopy(k, x0, y0, size, pm)
         gx = cv2.Sobel(height, cv2.CV_32F, 1, 0, ksize=3) * np.float32(pm / 8.0 * 3.0)
         gy = cv2.Sobel(height, cv2.CV_32F, 0, 1, ksize=3) * np.float32(pm / 8.0 * 3.0)
         sun_e, sun_n = date.sun_dir()
@@ -140,12 +142,7 @@ class ForestWorld:
         k = key_of(self.seed, 41)
         pm = 1.0 / gsd_m
         d = date.index
-        crowns = value_noise(k + 1, x0, y0, size, 3.0 * pm)
-        groups = value_noise(k + 2, x0, y0, size, 8.0 * pm)
-        fine = fractal_noise(k + 3, x0, y0, size, 1.2 * pm, 2)
-        w_crown = float(np.clip((3.0 * pm - 1.0) / 2.0, 0.0, 1.0))
-        w_group = float(np.clip((8.0 * pm - 1.0) / 2.0, 0.0, 1.0))
-        height = 0.55 * w_crown * crowns + 0.35 * w_group * groups + 0.18 * fine
+        height, crowns, groups, _, w_crown, w_group = _canopy(k, x0, y0, size, pm)
         clear_n = fractal_noise(k + 6, x0, y0, size, 160.0 * pm, 3)
         thr = 1.45 + 0.12 * d
         open_a = np.clip((clear_n - thr) * 5.0, 0.0, 1.0)
@@ -318,3 +315,24 @@ class ForestWorld:
                             ],
                             roof,
                         )
+
+
+class _Canopy(NamedTuple):
+    """A tile's canopy height field (arbitrary units) and what it is made of."""
+
+    height: FloatImage
+    crowns: FloatImage
+    groups: FloatImage  # groups of trees
+    fine: FloatImage
+    w_crown: float  # weights: drawn coarse, features under ~2 px average out and fade
+    w_group: float
+
+
+def _canopy(k: int, x0: int, y0: int, size: int, pm: float) -> _Canopy:
+    crowns = value_noise(k + 1, x0, y0, size, 3.0 * pm)
+    groups = value_noise(k + 2, x0, y0, size, 8.0 * pm)
+    fine = fractal_noise(k + 3, x0, y0, size, 1.2 * pm, 2)
+    w_crown = float(np.clip((3.0 * pm - 1.0) / 2.0, 0.0, 1.0))
+    w_group = float(np.clip((8.0 * pm - 1.0) / 2.0, 0.0, 1.0))
+    height = 0.55 * w_crown * crowns + 0.35 * w_group * groups + 0.18 * fine
+    return _Canopy(height, crowns, groups, fine, w_crown, w_group)
