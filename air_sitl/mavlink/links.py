@@ -22,6 +22,10 @@ Address = tuple[str, int]
 DEFAULT_LINKS = ("udpout:127.0.0.1:14550", "udpout:127.0.0.1:14540")
 UDP_MAX_PEERS = 32  # udpin/udpout peers kept (the least recently heard is dropped beyond)
 TCP_MAX_BUFFER_BYTES = 256 * 1024  # per client; beyond this, frames to it are dropped
+# The kernel's send buffer of a TCP client (autotuned, it grows to megabytes): enough for a
+# second of full-rate telemetry over a slow link, small enough that a client that stops
+# reading sees drops within seconds, not minutes of stale telemetry later.
+TCP_SNDBUF_BYTES = 64 * 1024
 _URL = re.compile(r"^(udpout|udpin|tcpin)(?::|://)(\[[0-9a-fA-F:.]+\]|[^:\[\]]*):(\d{1,5})$")
 
 
@@ -234,6 +238,7 @@ class TcpServerLink(Link):
             return
         conn.setblocking(False)
         conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        conn.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, TCP_SNDBUF_BYTES)
         address = (str(addr[0]), int(addr[1]))
         ch = Channel(self, address, self._new_parser(), time.monotonic(), sock=conn)
         self.channels[address] = ch
