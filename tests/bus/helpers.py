@@ -13,14 +13,15 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from vehicle_states import airborne_state
+
 from air_sitl.bus.session import Bus, BusConfig, open_bus
-from air_sitl.frames import euler2quat, ned2geodetic
+from air_sitl.frames import ned2geodetic
 from air_sitl.state import (
     CameraTick,
     GeoPoint,
     GpsFix,
     SimSample,
-    VehicleState,
     mission_sample,
 )
 
@@ -71,23 +72,16 @@ def make_sample(
     lat, lon, alt = ned2geodetic(
         0.0, east_m, -alt_agl_m, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m
     )
-    q = euler2quat(0.0, 0.0, yaw_rad)
-    state = VehicleState(
-        sim_time_ns=t_ns,
+    state = airborne_state(
+        t_ns,
         lat_deg=lat,
         lon_deg=lon,
         alt_amsl_m=alt,
         alt_agl_m=alt_agl_m,
         pos_ned_m=(0.0, east_m, -alt_agl_m),
-        q_body_to_ned_wxyz=q,
-        roll_rad=0.0,
-        pitch_rad=0.0,
-        yaw_rad=yaw_rad,
+        rpy_rad=(0.0, 0.0, yaw_rad),
         vel_ned_m_s=(0.0, 15.0, 0.0),
-        rate_frd_rad_s=(0.0, 0.0, 0.0),
         specific_force_frd_m_s2=(0.0, 0.0, -9.80665),
-        airspeed_m_s=15.0,
-        on_ground=False,
     )
     fix = None
     if gps:
