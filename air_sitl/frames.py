@@ -54,32 +54,51 @@ def _ecef2ned_matrix(lat0_deg: float, lon0_deg: float) -> tuple[Vec3, Vec3, Vec3
     return ((-sl * co, -sl * so, cl), (-so, co, 0.0), (-cl * co, -cl * so, -sl))
 
 
+class LocalNed:
+    """A local NED frame at a fixed origin, its rotation and ECEF origin computed once (a
+    filter converting every 20 ms at one home pays only for the conversion itself)."""
+
+    __slots__ = ("_m", "_origin")
+
+    def __init__(self, lat0_deg: float, lon0_deg: float, alt0_m: float) -> None:
+        self._m = _ecef2ned_matrix(lat0_deg, lon0_deg)
+        self._origin = geodetic2ecef(lat0_deg, lon0_deg, alt0_m)
+
+    def from_geodetic(self, lat_deg: float, lon_deg: float, alt_m: float) -> Vec3:
+        """Position of a WGS84 point in this frame (n, e, d metres)."""
+        x, y, z = geodetic2ecef(lat_deg, lon_deg, alt_m)
+        x0, y0, z0 = self._origin
+        d = (x - x0, y - y0, z - z0)
+        m = self._m
+        return (
+            m[0][0] * d[0] + m[0][1] * d[1] + m[0][2] * d[2],
+            m[1][0] * d[0] + m[1][1] * d[1] + m[1][2] * d[2],
+            m[2][0] * d[0] + m[2][1] * d[1] + m[2][2] * d[2],
+        )
+
+    def to_geodetic(self, n_m: float, e_m: float, d_m: float) -> tuple[float, float, float]:
+        """(lat_deg, lon_deg, alt_m) of a point of this frame."""
+        m = self._m
+        # The matrix is orthonormal: its transpose maps NED back to ECEF.
+        dx = m[0][0] * n_m + m[1][0] * e_m + m[2][0] * d_m
+        dy = m[0][1] * n_m + m[1][1] * e_m + m[2][1] * d_m
+        dz = m[0][2] * n_m + m[1][2] * e_m + m[2][2] * d_m
+        x0, y0, z0 = self._origin
+        return ecef2geodetic(x0 + dx, y0 + dy, z0 + dz)
+
+
 def geodetic2ned(
     lat_deg: float, lon_deg: float, alt_m: float, lat0_deg: float, lon0_deg: float, alt0_m: float
 ) -> Vec3:
     """Position of a point in the local NED frame whose origin is (lat0, lon0, alt0)."""
-    x, y, z = geodetic2ecef(lat_deg, lon_deg, alt_m)
-    x0, y0, z0 = geodetic2ecef(lat0_deg, lon0_deg, alt0_m)
-    d = (x - x0, y - y0, z - z0)
-    m = _ecef2ned_matrix(lat0_deg, lon0_deg)
-    return (
-        m[0][0] * d[0] + m[0][1] * d[1] + m[0][2] * d[2],
-        m[1][0] * d[0] + m[1][1] * d[1] + m[1][2] * d[2],
-        m[2][0] * d[0] + m[2][1] * d[1] + m[2][2] * d[2],
-    )
+    return LocalNed(lat0_deg, lon0_deg, alt0_m).from_geodetic(lat_deg, lon_deg, alt_m)
 
 
 def ned2geodetic(
     n_m: float, e_m: float, d_m: float, lat0_deg: float, lon0_deg: float, alt0_m: float
 ) -> tuple[float, float, float]:
     """Inverse of :func:`geodetic2ned`: (lat_deg, lon_deg, alt_m)."""
-    m = _ecef2ned_matrix(lat0_deg, lon0_deg)
-    # The matrix is orthonormal: its transpose maps NED back to ECEF.
-    dx = m[0][0] * n_m + m[1][0] * e_m + m[2][0] * d_m
-    dy = m[0][1] * n_m + m[1][1] * e_m + m[2][1] * d_m
-    dz = m[0][2] * n_m + m[1][2] * e_m + m[2][2] * d_m
-    x0, y0, z0 = geodetic2ecef(lat0_deg, lon0_deg, alt0_m)
-    return ecef2geodetic(x0 + dx, y0 + dy, z0 + dz)
+    return LocalNed(lat0_deg, lon0_deg, alt0_m).to_geodetic(n_m, e_m, d_m)
 
 
 def ned2enu(v: Vec3) -> Vec3:

@@ -21,7 +21,7 @@ from numbers import Integral, Real
 
 import numpy as np
 
-from air_sitl.frames import geodetic2ned
+from air_sitl.frames import LocalNed
 from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.nav.ekf import POS, ErrorStateEkf
 from air_sitl.nav.fusion import fuse_direct
@@ -66,6 +66,7 @@ class AidControl:
         self.name = name
         self.params = params
         self.home = home
+        self._local = LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
         self.counters = SourceCounters()
         self.buffer: TimedBuffer[AidItem] = TimedBuffer(params.aid_buffer_len)
         self.last_accepted_ns: int | None = None  # measurement time
@@ -132,10 +133,7 @@ class AidControl:
         else:
             if abs(pos[0]) > 90.0 or abs(pos[1]) > 180.0:
                 return None
-            h = self.home
-            north, east, _ = geodetic2ned(
-                pos[0], pos[1], pos[2], h.lat_deg, h.lon_deg, h.alt_amsl_m
-            )
+            north, east, _ = self._local.from_geodetic(pos[0], pos[1], pos[2])
         floor = self.params.aid_noise_floor_m**2
         if m.cov_m2 is not None:
             cov = _finite(m.cov_m2, 9)

@@ -49,9 +49,9 @@ class AirspeedControl:
             if tas < p.airspeed_min_m_s:
                 self.counters.empty += 1  # not flying: nothing to fuse
                 continue
-            r = rotation_matrix(ekf.q)
             if not self.wind_started:
                 # Air velocity along the body x axis projected on the horizontal.
+                r = rotation_matrix(ekf.q)
                 hx, hy = r[0], r[3]
                 norm = math.hypot(hx, hy) or 1.0
                 air = (tas * hx / norm, tas * hy / norm)

@@ -145,7 +145,6 @@ _F_COLS = np.array(
     (3, 4, 5, 7, 8, 6, 8, 6, 7, 7, 8, 6, 8, 6, 7, 12, 13, 14, 12, 13, 14, 12, 13, 14, 9, 10, 11,
      9, 10, 11, 9, 10, 11)
 )  # fmt: skip
-_DIAG = np.arange(N_STATES)
 
 
 class ErrorStateEkf:
@@ -166,9 +165,13 @@ class ErrorStateEkf:
         self._cov_dt = 0.0
         self._cov_dv = [0.0, 0.0, 0.0]
         self._cov_steps = 0
+        self._cov_every = params.cov_every
         self._imu_dt = params.imu_period_ns / 1e9
+        self._q_T = math.nan  # the step length of _q_diag (none yet)
+        self._q_diag: Matrix = np.zeros(N_STATES)
         # Corrections since the output predictor last took them (summed: first order).
-        self.pending: list[float] = [0.0] * N_STATES
+        self.pending: Matrix = np.zeros(N_STATES)
+        self._corrected = False
 
     def init_covariance(self) -> None:
         p = self.params
@@ -192,7 +195,7 @@ class ErrorStateEkf:
         c[2] += dv_nav[2]
         self._cov_dt += dt
         self._cov_steps += 1
-        if self._cov_steps >= self.params.cov_every:
+        if self._cov_steps >= self._cov_every:
             self._predict_covariance()
 
     def _predict_covariance(self) -> None:
@@ -206,23 +209,31 @@ class ErrorStateEkf:
         F = self._F
         F[_F_ROWS, _F_COLS] = values
         P = F @ self.P @ F.T
-        p = self.params
-        qv = p.accel_noise_m_s2**2 * self._imu_dt * T
-        qa = p.gyro_noise_rad_s**2 * self._imu_dt * T
-        qbg = p.gyro_bias_noise_rad_s2**2 * T
-        qba = p.accel_bias_noise_m_s3**2 * T
-        qw = p.wind_noise_m_s2**2 * T
-        P[_DIAG, _DIAG] += (0, 0, 0, qv, qv, qv, qa, qa, qa, qbg, qbg, qbg, qba, qba, qba, qw, qw)
+        P.ravel()[:: N_STATES + 1] += self._process_noise(T)  # the diagonal, in place
         self.P = 0.5 * (P + P.T)
         self._cov_dt = 0.0
         self._cov_dv = [0.0, 0.0, 0.0]
         self._cov_steps = 0
 
-    def correct(self, dx: list[float]) -> None:
+    def _process_noise(self, T: float) -> Matrix:
+        """The diagonal of Q over a covariance step of ``T`` s (kept: T repeats)."""
+        if self._q_T != T:
+            p = self.params
+            qv = p.accel_noise_m_s2**2 * self._imu_dt * T
+            qa = p.gyro_noise_rad_s**2 * self._imu_dt * T
+            qbg = p.gyro_bias_noise_rad_s2**2 * T
+            qba = p.accel_bias_noise_m_s3**2 * T
+            qw = p.wind_noise_m_s2**2 * T
+            q = (0, 0, 0, qv, qv, qv, qa, qa, qa, qbg, qbg, qbg, qba, qba, qba, qw, qw)
+            self._q_diag = np.array(q, dtype=np.float64)
+            self._q_T = T
+        return self._q_diag
+
+    def correct(self, correction: Matrix | list[float]) -> None:
         """Inject an error-state correction into the nominal state."""
-        pend = self.pending
-        for i in range(N_STATES):
-            pend[i] += dx[i]
+        self.pending += correction
+        self._corrected = True
+        dx = correction.tolist() if isinstance(correction, np.ndarray) else correction
         p, v, bg, ba, w = self.p, self.v, self.bg, self.ba, self.wind
         self.p = (p[0] + dx[0], p[1] + dx[1], p[2] + dx[2])
         self.v = (v[0] + dx[3], v[1] + dx[4], v[2] + dx[5])
@@ -230,6 +241,16 @@ class ErrorStateEkf:
         self.bg = (bg[0] + dx[9], bg[1] + dx[10], bg[2] + dx[11])
         self.ba = (ba[0] + dx[12], ba[1] + dx[13], ba[2] + dx[14])
         self.wind = (w[0] + dx[15], w[1] + dx[16])
+
+    def take_pending(self) -> list[float] | None:
+        """The corrections summed since the last call (None if they sum to nothing); the sum
+        starts afresh."""
+        if not self._corrected:
+            return None
+        self._corrected = False
+        dx = self.pending.tolist()
+        self.pending.fill(0.0)
+        return dx if any(dx) else None
 
     def reset_states(self, first: int, values: tuple[float, ...], variance: float) -> list[float]:
         """Set position/velocity/wind components and their variance; returns the jump applied.
@@ -254,6 +275,7 @@ class ErrorStateEkf:
         delta = math.remainder(yaw_rad - yaw, 2.0 * math.pi)
         self.q = rotate_global(self.q, (0.0, 0.0, delta))
         self.pending[ATT + 2] += delta
+        self._corrected = True
         self.P[ATT + 2, :] = 0.0
         self.P[:, ATT + 2] = 0.0
         self.P[ATT + 2, ATT + 2] = variance

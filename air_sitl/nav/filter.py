@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from air_sitl.frames import euler2quat, ned2geodetic
+from air_sitl.frames import LocalNed, euler2quat
 from air_sitl.nav.aid import AidControl
 from air_sitl.nav.airspeed import AirspeedControl
 from air_sitl.nav.baro import BaroControl
@@ -41,6 +41,7 @@ class NavFilter:
 
     def __init__(self, home: GeoPoint, params: NavParams | None = None) -> None:
         self.home = home
+        self._local = LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
         self.params = p = params or NavParams()
         g = normal_gravity_m_s2(home.lat_deg, home.alt_amsl_m)
         self.ekf = ErrorStateEkf(p, g)
@@ -67,6 +68,8 @@ class NavFilter:
         self._period_ns = p.filter_period_ns
         self._horizon_ns = p.fusion_horizon_ns
         self._imu_dt = p.imu_period_ns * 1e-9
+        self._flags_key: tuple[bool, ...] = ()  # of _flags_now (none yet: never equal)
+        self._flags_now = NavFlags(**dict.fromkeys(NavFlags.__dataclass_fields__, False))
 
     # ------------------------------------------------------------------ prediction
 
@@ -137,13 +140,12 @@ class NavFilter:
         if self.gnss.started and not self.gnss.fusing(t_d):
             self.gnss_denied_ns += round(d.dt * 1e9)
         out = self.output
+        pending = ekf.take_pending()
         if t_d - self._last_replay_ns >= REPLAY_PERIOD_NS:
             self._last_replay_ns = t_d
             out.replay(ekf.p, ekf.v, ekf.q, self.deltas, ekf.bg, ekf.ba)
-            ekf.pending = [0.0] * len(ekf.pending)
-        elif any(ekf.pending):
-            out.carry(ekf.pending, (out.t_ns - t_d) * 1e-9, d.cv, d.cp)
-            ekf.pending = [0.0] * len(ekf.pending)
+        elif pending is not None:
+            out.carry(pending, (out.t_ns - t_d) * 1e-9, d.cv, d.cp)
 
     def _fuse_gnss_due(self, t_d: int) -> None:
         gnss = self.gnss
@@ -193,7 +195,7 @@ class NavFilter:
             ekf.P[VEL + k, VEL + k] = UNKNOWN_VEL_M_S**2
         if heading is None:
             ekf.P[8, 8] = math.pi**2
-        ekf.pending = [0.0] * len(ekf.pending)
+        ekf.take_pending()
         out = self.output
         out.p, out.v, out.q, out.t_ns = ekf.p, ekf.v, ekf.q, t
         self.aligned = True
@@ -259,19 +261,26 @@ class NavFilter:
     def _flags(self) -> NavFlags:
         t_d = self._t_delayed or 0
         gnss = self.gnss.fusing(t_d)
-        aid = any(a.fusing(t_d) for a in self.aids.values())
-        return NavFlags(
-            attitude=self.aligned,
-            velocity_horiz=self.vel_valid,
-            velocity_vert=self.aligned,
-            pos_horiz_rel=self.pos_valid,
-            pos_horiz_abs=gnss or aid,
-            pos_vert_abs=self.baro.started,
-            gnss_fusing=gnss,
-            aid_fusing=aid,
-            dead_reckoning=self.pos_valid and not (gnss or aid),
-            wind_estimated=self.airspeed.wind_started,
-        )
+        aid = bool(self.aids) and any(a.fusing(t_d) for a in self.aids.values())
+        key = (
+            self.aligned, self.vel_valid, self.pos_valid, gnss, aid, self.baro.started,
+            self.airspeed.wind_started,
+        )  # fmt: skip
+        if key != self._flags_key:  # they change a few times a flight: one object each time
+            self._flags_key = key
+            self._flags_now = NavFlags(
+                attitude=self.aligned,
+                velocity_horiz=self.vel_valid,
+                velocity_vert=self.aligned,
+                pos_horiz_rel=self.pos_valid,
+                pos_horiz_abs=gnss or aid,
+                pos_vert_abs=self.baro.started,
+                gnss_fusing=gnss,
+                aid_fusing=aid,
+                dead_reckoning=self.pos_valid and not (gnss or aid),
+                wind_estimated=self.airspeed.wind_started,
+            )
+        return self._flags_now
 
     def estimate(self) -> NavEstimate:
         """The state at the newest IMU time: the output predictor advanced over the IMU
@@ -292,8 +301,7 @@ class NavFilter:
                 dt,
                 out.g,
             )
-        h = self.home
-        lat, lon, alt = ned2geodetic(p[0], p[1], p[2], h.lat_deg, h.lon_deg, h.alt_amsl_m)
+        lat, lon, alt = self._local.to_geodetic(p[0], p[1], p[2])
         P = ekf.P
         a, b, c = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
         big = 0.5 * (a + c) + math.sqrt(max(0.0, 0.25 * (a - c) ** 2 + b * b))

@@ -28,6 +28,8 @@ class FusionResult:
 
 
 REJECTED_BAD = FusionResult(False, math.inf)
+# np.outer's own ufunc, without np.outer's Python wrapper (same products, bit for bit).
+_outer = np.multiply.outer
 
 
 def _inverse(s: list[list[float]]) -> list[list[float]] | None:
@@ -76,7 +78,7 @@ def fuse_direct(
     m = len(innovation)
     P = ekf.P
     if m == 1:  # the common scalar case (height) in fewer numpy calls
-        col = P[:, first].copy()
+        col = P[:, first]  # a view: the outer product below is made before P changes
         s0 = float(col[first]) + R[0][0]
         if not (s0 > 0.0 and math.isfinite(s0)):
             return REJECTED_BAD
@@ -85,10 +87,10 @@ def fuse_direct(
         if ratio > 1.0 and not force:
             return FusionResult(False, ratio)
         k = col * (1.0 / s0)
-        P -= np.outer(k, col)
-        ekf.correct((k * y0).tolist())
+        P -= _outer(k, col)
+        ekf.correct(k * y0)
         return FusionResult(True, ratio)
-    pht = P[:, first : first + m].copy()
+    pht = P[:, first : first + m]
     block = pht[first : first + m].tolist()
     s = [[block[r][c] + R[r][c] for c in range(m)] for r in range(m)]
     s_inv = _inverse(s)
@@ -102,9 +104,9 @@ def fuse_direct(
     ratio = d2 / (gate * gate)
     if ratio > 1.0 and not force:
         return FusionResult(False, ratio)
-    K = pht @ np.array(s_inv)
-    P -= K @ pht.T
-    ekf.correct((pht @ np.array(w)).tolist())
+    dx = pht.dot(w)  # before P changes: pht is a view of it
+    P -= pht.dot(s_inv).dot(pht.T)
+    ekf.correct(dx)
     return FusionResult(True, ratio)
 
 
@@ -120,14 +122,14 @@ def fuse_scalar(
     """Fuse one scalar measurement with Jacobian row ``h`` (all error states)."""
     P = ekf.P
     hv = np.array(h)
-    pht = P @ hv
-    s = float(hv @ pht) + R
+    pht = P.dot(hv)  # .dot: the same BLAS call as @ with less dispatch
+    s = float(hv.dot(pht)) + R
     if not (s > 0.0 and math.isfinite(s)):
         return REJECTED_BAD
     ratio = innovation * innovation / (s * gate * gate)
     if ratio > 1.0 and not force:
         return FusionResult(False, ratio)
     k = pht * (1.0 / s)
-    P -= np.outer(k, pht)
-    ekf.correct((k * innovation).tolist())
+    P -= _outer(k, pht)
+    ekf.correct(k * innovation)
     return FusionResult(True, ratio)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 
-from air_sitl.frames import geodetic2ecef
+from air_sitl.frames import LocalNed
 from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.nav.ekf import POS, VEL, ErrorStateEkf
 from air_sitl.nav.fusion import fuse_direct
@@ -27,10 +27,7 @@ class GnssControl:
     def __init__(self, params: NavParams, home: GeoPoint) -> None:
         self.params = params
         self.home = home
-        self._home_ecef = geodetic2ecef(home.lat_deg, home.lon_deg, home.alt_amsl_m)
-        lat, lon = math.radians(home.lat_deg), math.radians(home.lon_deg)
-        sl, cl, so, co = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
-        self._ecef2ned = ((-sl * co, -sl * so, cl), (-so, co, 0.0), (-cl * co, -cl * so, -sl))
+        self._local = LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
         self.counters = SourceCounters()
         self.buffer: TimedBuffer[GnssItem] = TimedBuffer(64)
         self.started = False
@@ -59,13 +56,7 @@ class GnssControl:
         if fix.sim_time_ns < horizon_start_ns:
             c.reject("stale")
             return False
-        x, y, z = geodetic2ecef(fix.lat_deg, fix.lon_deg, fix.alt_amsl_m)
-        h = self._home_ecef
-        dx, dy, dz = x - h[0], y - h[1], z - h[2]
-        m = self._ecef2ned
-        n = m[0][0] * dx + m[0][1] * dy + m[0][2] * dz
-        e = m[1][0] * dx + m[1][1] * dy + m[1][2] * dz
-        d = m[2][0] * dx + m[2][1] * dy + m[2][2] * dz
+        n, e, d = self._local.from_geodetic(fix.lat_deg, fix.lon_deg, fix.alt_amsl_m)
         v = fix.vel_ned_m_s
         item = (n, e, d, v[0], v[1], v[2], fix.eph_m, fix.epv_m, fix.alt_amsl_m)
         if not self.buffer.push(fix.sim_time_ns, item):

@@ -40,6 +40,7 @@ from air_sitl.nav.sensors_extra import (
 )
 from air_sitl.nav.status import NavStatus
 from air_sitl.nav.types import AidMeasurement, AidResult
+from air_sitl.nav.vehicle import vehicle_state
 from air_sitl.state import (
     AutopilotStatus,
     FlightMode,
@@ -119,6 +120,11 @@ class OnboardNav:
             noise=replace(m, noise_rad=m.noise_rad * f, offset_rad=m.offset_rad * f,
                           drift_rad_sqrt_s=m.drift_rad_sqrt_s * f),
         )  # fmt: skip
+        # The extra sensors read only at multiples of their periods: at other steps none is
+        # asked (each would answer None).
+        self._sensor_period_ns = math.gcd(
+            self.baro.period_ns, self.airspeed.period_ns, self.mag.period_ns
+        )
         self.gps_denied = gps_denied
         self.aid_name = aid_name
         self.aid_feed: AidFeed | None = None
@@ -155,16 +161,17 @@ class OnboardNav:
         """Feed one physics step; the state the autopilot flies on at this instant."""
         nav = self.filter
         t = imu.sim_time_ns
-        heading = self.mag.sample(truth)
-        if heading is not None:
-            nav.fuse_heading(heading, t)
-        baro = self.baro.sample(truth)
-        if baro is not None:
-            nav.fuse_baro(baro, t)
-        airspeed = self.airspeed.sample(truth)
-        if airspeed is not None:
-            nav.fuse_airspeed(airspeed, t)
-            self._airspeed_m_s = airspeed.airspeed_m_s
+        if truth.sim_time_ns % self._sensor_period_ns == 0:
+            heading = self.mag.sample(truth)
+            if heading is not None:
+                nav.fuse_heading(heading, t)
+            baro = self.baro.sample(truth)
+            if baro is not None:
+                nav.fuse_baro(baro, t)
+            airspeed = self.airspeed.sample(truth)
+            if airspeed is not None:
+                nav.fuse_airspeed(airspeed, t)
+                self._airspeed_m_s = airspeed.airspeed_m_s
         if gps is not None and self.gnss_enabled():
             nav.fuse_gnss(gps, t)
         tick = t % SCORE_PERIOD_NS == 0
@@ -206,22 +213,22 @@ class OnboardNav:
         roll, pitch, yaw = self._euler
         alt = est.alt_amsl_m - v[2] * dt
         tas = self._airspeed_m_s if self._airspeed_m_s > 0.0 else truth.airspeed_m_s
-        return VehicleState(
-            sim_time_ns=t,
-            lat_deg=est.lat_deg,
-            lon_deg=est.lon_deg,
-            alt_amsl_m=alt,
-            alt_agl_m=alt - self.home.alt_amsl_m,
-            pos_ned_m=pos,
-            q_body_to_ned_wxyz=est.q_body_to_ned_wxyz,
-            roll_rad=roll,
-            pitch_rad=pitch,
-            yaw_rad=yaw,
-            vel_ned_m_s=v,
-            rate_frd_rad_s=(g[0] - bg[0], g[1] - bg[1], g[2] - bg[2]),
-            specific_force_frd_m_s2=(f[0] - ba[0], f[1] - ba[1], f[2] - ba[2]),
-            airspeed_m_s=tas,
-            on_ground=truth.on_ground,  # weight on wheels: a switch, not an estimate
+        return vehicle_state(  # positional, in VehicleState's field order (a 200 Hz path)
+            t,
+            est.lat_deg,
+            est.lon_deg,
+            alt,
+            alt - self.home.alt_amsl_m,
+            pos,
+            est.q_body_to_ned_wxyz,
+            roll,
+            pitch,
+            yaw,
+            v,
+            (g[0] - bg[0], g[1] - bg[1], g[2] - bg[2]),  # body rates
+            (f[0] - ba[0], f[1] - ba[1], f[2] - ba[2]),  # specific force
+            tas,
+            truth.on_ground,  # weight on wheels: a switch, not an estimate
         )
 
     @property

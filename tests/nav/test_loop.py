@@ -113,6 +113,24 @@ def test_with_gnss_the_autopilot_flies_on_an_estimate_within_3_m() -> None:
     assert any(math.hypot(*error_ne(s)) > 0.01 for s in trace[2:])
 
 
+def test_every_extra_sensor_reading_reaches_the_filter() -> None:
+    # The loop asks the barometer (20 Hz), airspeed sensor and compass (10 Hz) only at
+    # multiples of their common period: not one reading may be skipped.
+    flight = flight_of()
+    times: list[int] = []
+
+    def keep(sample: SimSample) -> bool:
+        times.append(sample.state.sim_time_ns)
+        return False
+
+    flight.run(stop=keep, max_sim_time_ns=10 * NS)
+    assert flight.nav is not None
+    f = flight.nav.filter
+    counts = (f.baro.counters.received, f.airspeed.counters.received, f.mag.counters.received)
+    expected = tuple(sum(1 for t in times if t % (ms * 1_000_000) == 0) for ms in (50, 100, 100))
+    assert len(times) >= 1999 and counts == expected
+
+
 def test_nav_truth_reports_the_same_keys_without_errors() -> None:
     summary, trace = run(flight_of(nav="truth"), 20.0)
     assert summary["nav"] == {

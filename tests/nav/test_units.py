@@ -212,3 +212,18 @@ def test_estimated_state_for_the_autopilot() -> None:
     assert s.alt_agl_m == pytest.approx(HEIGHT_M, abs=0.5)
     assert s.yaw_rad == pytest.approx(0.0, abs=0.02)
     assert s.rate_frd_rad_s[0] == pytest.approx(0.01 - est.gyro_bias_rad_s[0])
+
+
+def test_vehicle_state_builder_is_the_dataclass() -> None:
+    """The 200 Hz builder (slots written directly) makes the object the dataclass makes: every
+    field by name to its own slot (a new or reordered field fails here)."""
+    from dataclasses import FrozenInstanceError, fields
+
+    from air_sitl.nav.vehicle import vehicle_state
+
+    values = {f.name: i + 0.25 for i, f in enumerate(fields(VehicleState))}  # all distinct
+    built = vehicle_state(**values)  # type: ignore[arg-type]
+    assert built == VehicleState(**values)
+    assert {f.name: getattr(built, f.name) for f in fields(built)} == values
+    with pytest.raises(FrozenInstanceError):
+        built.lat_deg = 0.0  # type: ignore[misc]
