@@ -10,13 +10,21 @@ occlude). A wall shows the map's colour at its foot, stretched.
 Speed: a coarse grid of rays (every ``STRIDE``-th pixel, half a stride beyond the image) is
 marched; the grid is refined by halving the stride down to 2 only in cells next to a sample
 where the parallax (pixels of lean) bends by more than ``EDGE_PX`` (roof edges, crowns,
-occlusion boundaries), marching the new rays over their cell's corners' altitude range;
-then every pixel of the remaining edge cells is marched on its own and the rest is
-interpolated bilinearly (exact for a plane to far below a pixel). Then one remap from the
+occlusion boundaries); then every pixel of the remaining edge cells is solved on its own and
+the rest is interpolated bilinearly (exact for a plane to far below a pixel). A new ray
+inside a cell first tries the altitudes its cell's corners hit (:func:`settle`: one height
+sample each, then a secant step); only rays under the surface there (walls, things no corner
+saw), or not settling, are marched over the corners' altitude range. Then one remap from the
 map window. The samples sit half a pixel off the pixel grid, so the last step to full
-resolution is one ``cv2.resize``. Each march is a few large array operations: all its rays
-at once, in blocks of similar length, heights sampled by one ``cv2.remap`` over rows of
-4096 samples (a remap over thousands of short rows costs ten times more).
+resolution is one ``cv2.resize``. A march is a few large array operations: its rays at once
+as (steps, rays) arrays, heights sampled by one ``cv2.remap`` over rows of 4096 samples (a
+remap over thousands of short rows costs ten times more).
+
+Cost (bench_camera.py part 4, this 2-core machine under load): 7-14x the flat render for
+urban, 9-25x over the rough forest canopy, where nearly every cell is an edge. The work left
+is NumPy call overhead over tens of thousands of rays per frame; the 3x target needs an
+O(1)-per-pixel occlusion pass (prefix maxima along the radial lines through the nadir, in
+polar coordinates) or a compiled march.
 """
 
 from __future__ import annotations
@@ -334,7 +342,15 @@ def settle(
     found = np.ones(m, dtype=bool)
     rest = np.flatnonzero(~on)
     if rest.size:
+        # The ray was above the surface at the candidate before k (by more than TOL_M): the
+        # march starts there (or 1 m over the highest corner) and ends at k (or under the
+        # lowest corner, as in _range, where the ray was above at every one).
         top, bot = _range(corners[:, rest], window, cam_z)
+        kr, cr = k[rest], cand[:, rest]
+        cols = np.arange(rest.size)
+        above_prev = np.where(kr > 0, cr[np.maximum(kr - 1, 0), cols], top)
+        top = np.minimum(top, above_prev)
+        bot = np.where(na[kr, rest], np.maximum(bot, cr[kr, cols] - tol), bot)
         z_hit[rest], found[rest] = march(window, cx, cy, cam_z, ax[rest], ay[rest], top, bot)
     return z_hit, found
 
