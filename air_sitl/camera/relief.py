@@ -45,6 +45,7 @@ MAX_STEPS = 160
 REFINE = 4  # bisection steps after the march, before the secant
 TOL_M = 1.0  # a ray this close to the surface at a corner's hit altitude may settle there (m)
 SETTLED_M = 0.05  # ... if after the secant step it is this close (m)
+FLAT_M = 0.25  # a 2-pixel cell whose corners' hits differ by less is interpolated (m)
 BLOCK_STEPS = (16, MAX_STEPS)  # rays are marched in blocks of up to these many steps
 _MIN_DOWN = 1e-6
 _COLS = 4096  # samples per remap row (cv2.remap wants fewer than 32767 rows and columns)
@@ -269,8 +270,12 @@ def ground_maps(
     size = (2 * coarse.shape[1], 2 * coarse.shape[0])
     full: F32 = cv2.resize(coarse, size, interpolation=cv2.INTER_LINEAR)  # type: ignore[assignment]
     maps = full[pad : pad + height, pad : pad + width]  # a view: remap takes it
+    zr = grid[:, :, 2]
+    # A 2-pixel cell whose corners hit one height (within FLAT_M) holds no edge: interpolated.
+    span = np.maximum(np.maximum(zr[:-1, :-1], zr[:-1, 1:]), np.maximum(zr[1:, :-1], zr[1:, 1:]))
+    span -= np.minimum(np.minimum(zr[:-1, :-1], zr[:-1, 1:]), np.minimum(zr[1:, :-1], zr[1:, 1:]))
+    edge &= span > np.float32(FLAT_M)
     if edge.any():
-        zr = grid[:, :, 2]
         ej, ei = np.nonzero(edge)
         # The cell's four pixels (none is a sample: they sit half a pixel off).
         py = (ej[:, None] * 2 - pad + _CELL[1]).ravel()
