@@ -112,6 +112,7 @@ class NavLink:
         """Connect to the flight's filter and parameters; register handlers and streams."""
         self.nav = nav
         self.params = params
+        nav.status_wanted = True  # ESTIMATOR_STATUS reads nav.last_status
         nav.gnss_enabled = lambda: int(params.get("EKF2_GPS_CTRL")) & 1 == 1
         if self.aid:
             for name in ("VISION_POSITION_ESTIMATE", "ODOMETRY", "GPS_INPUT"):

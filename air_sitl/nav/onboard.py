@@ -151,6 +151,7 @@ class OnboardNav:
         # Fuse the receiver's fixes (EKF2_GPS_CTRL bit 0 over MAVLink; read at every fix).
         self.gnss_enabled: Callable[[], bool] = lambda: True
         self.last_status: NavStatus | None = None  # at 5 Hz, for ESTIMATOR_STATUS
+        self.status_wanted = False  # set by a reader of last_status (the MAVLink endpoint)
         self._ticks = 0
         self._t0: int | None = None
         self._flown: Vec3 = (0.0, 0.0, 0.0)  # the position flown on at the last 50 Hz tick
@@ -206,7 +207,7 @@ class OnboardNav:
             self._score(truth, pos)
             self._watch(t, est)
             self._ticks += 1
-            if self._ticks % 10 == 0:
+            if self.status_wanted and self._ticks % 10 == 0:
                 self.last_status = nav.status()
         g, bg = imu.gyro_frd_rad_s, est.gyro_bias_rad_s
         f, ba = imu.accel_frd_m_s2, est.accel_bias_m_s2

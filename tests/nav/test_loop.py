@@ -6,6 +6,7 @@ reads the truth of the flight it aids (truth + offset + noise), so each case is 
 
 from __future__ import annotations
 
+import itertools
 import math
 import statistics
 from dataclasses import dataclass, field
@@ -129,6 +130,27 @@ def test_every_extra_sensor_reading_reaches_the_filter() -> None:
     counts = (f.baro.counters.received, f.airspeed.counters.received, f.mag.counters.received)
     expected = tuple(sum(1 for t in times if t % (ms * 1_000_000) == 0) for ms in (50, 100, 100))
     assert len(times) >= 1999 and counts == expected
+
+
+@pytest.mark.parametrize("wanted", [False, True])
+def test_status_snapshots_at_5_hz_only_for_a_reader(wanted: bool) -> None:
+    flight = flight_of()
+    assert flight.nav is not None
+    flight.nav.status_wanted = wanted  # what the MAVLink endpoint sets (ESTIMATOR_STATUS)
+    seen: set[int] = set()
+
+    def keep(sample: SimSample) -> bool:
+        status = flight.nav.last_status if flight.nav is not None else None
+        if status is not None:
+            seen.add(status.sim_time_ns)
+        return False
+
+    flight.run(stop=keep, max_sim_time_ns=3 * NS)
+    if not wanted:
+        assert seen == set()
+    else:
+        times = sorted(seen)
+        assert len(times) >= 10 and {b - a for a, b in itertools.pairwise(times)} == {NS // 5}
 
 
 def test_nav_truth_reports_the_same_keys_without_errors() -> None:
