@@ -57,8 +57,6 @@ Image = npt.NDArray[np.uint8]
 
 FILL_BGR: tuple[int, int, int] = FILL_BGRX[:3]
 _COARSE_MAP = 0.5  # warn when a map pixel spans more than 2 image pixels
-# ... from this height up: lower (a camera on for an aid during take-off) every map is coarse.
-_COARSE_WARN_MIN_HEIGHT_M = 10.0
 _NOISE_BANK_FACTOR = 2
 _STRIP_BYTES = 320 * 1024  # 4-channel warp output per strip: well inside a core's L2 cache
 _STRIP_SOURCE_BYTES = 640 * 1024  # largest map window copied for one strip (see _strip_source)
@@ -121,8 +119,9 @@ class Renderer:
         self._jacobians[key] = jac
         return jac
 
-    def geometry(self, state: VehicleState) -> FrameGeometry:
-        """The frame's homography and pyramid level for a pose.
+    def geometry(self, state: VehicleState, *, warn: bool = True) -> FrameGeometry:
+        """The frame's homography and pyramid level for a pose (``warn``: say once when the
+        map is much coarser than the camera; not for frames outside the capture window).
 
         Scalar arithmetic on 3x3 tuples: a frame needs a few dozen products, for which
         NumPy's per-call overhead would cost more than the arithmetic (this runs 50 times a
@@ -161,8 +160,7 @@ class Renderer:
             )
             effective = math.sqrt(centre_step * widest)
             level = self.map.level_for_gsd(effective * self.map.georef.gsd_m)
-            coarse = effective < _COARSE_MAP and height >= _COARSE_WARN_MIN_HEIGHT_M
-            if coarse and not self._warned_gsd:
+            if effective < _COARSE_MAP and warn and not self._warned_gsd:
                 self._warn_coarse(effective, height)
         g = FrameGeometry(to_mat(h), level, centre_px, sees_horizon, height)
         if self._remap is not None and self.surface is not None and centre_px is not None:
@@ -382,9 +380,11 @@ class Renderer:
             raise RuntimeError(msg)
         return bytes(buf)
 
-    def frame_jpeg(self, state: VehicleState, index: int) -> tuple[bytes, tuple[int, int]]:
+    def frame_jpeg(
+        self, state: VehicleState, index: int, *, warn: bool = True
+    ) -> tuple[bytes, tuple[int, int]]:
         """Render, add noise, encode: (jpeg, MapX/MapY rounded; (-1, -1) without ground)."""
-        g = self.geometry(state)
+        g = self.geometry(state, warn=warn)
         img = self.render(state, g, noise_index=index)
         c = g.center_map_px
         xy = (-1, -1) if c is None else (round(c[0]), round(c[1]))
@@ -392,8 +392,13 @@ class Renderer:
 
 
 def render_camera_frame(renderer: Renderer, sample: SimSample, index: int) -> CameraFrame:
-    """One CameraFrame for a physics sample, synchronously (``render``, remote bridges)."""
-    jpeg, xy = renderer.frame_jpeg(sample.state, index)
+    """One CameraFrame for a physics sample, synchronously (``render``, remote bridges).
+
+    A frame outside the capture window (a camera on for an aid: take-off, landing) does not
+    warn of a coarse map: close to the ground every map is coarse."""
+    tick = sample.camera
+    in_window = tick is None or tick.capture_index is not None
+    jpeg, xy = renderer.frame_jpeg(sample.state, index, warn=in_window)
     return CameraFrame(
         index=index,
         sim_time_ns=sample.state.sim_time_ns,

@@ -3,6 +3,7 @@ block hides what is behind it, DEM files of any CRS with nodata holes, the built
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -17,13 +18,13 @@ from rasterio.transform import Affine
 from rasterio.warp import Resampling, calculate_default_transform, reproject
 
 from air_sitl.camera.model import CameraModel
-from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.camera.render import Renderer, pose_state, render_camera_frame
 from air_sitl.maps.array import ArrayMap
 from air_sitl.maps.geotiff import GeoTiffDem
 from air_sitl.maps.open import open_map, open_surface
 from air_sitl.maps.procedural import ProceduralMap
 from air_sitl.maps.procedural.surface import ProceduralSurface
-from air_sitl.state import VehicleState
+from air_sitl.state import CameraTick, VehicleState, mission_sample
 
 GSD = 1.0
 HALF = 1000.0
@@ -235,6 +236,21 @@ def test_a_map_much_coarser_than_the_camera_is_named_once(
     err = capsys.readouterr().err
     assert err.count("coarser than the camera") == 1
     assert "2.00 m pixels are 5.8x coarser than the camera's 0.34 m at 200 m" in err
+
+
+@pytest.mark.parametrize(("capture_index", "warnings"), [(None, 0), (0, 1)])
+def test_only_frames_of_the_capture_window_name_a_coarse_map(
+    capsys: pytest.CaptureFixture[str], capture_index: int | None, warnings: int
+) -> None:
+    # A camera on for an aid renders take-off and landing too: there every map is coarse.
+    crs, transform, size = utm_grid(HOME, 2.0, 1000.0)
+    image = np.full((size, size, 3), 90, dtype=np.uint8)
+    m = ArrayMap(image, crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m)
+    r = Renderer(m, CameraModel(noise_sigma=0.0))
+    tick = CameraTick(index=0, capture_index=capture_index)
+    sample = dataclasses.replace(mission_sample(_pose(HOME.alt_amsl_m + 20.0)), camera=tick)
+    render_camera_frame(r, sample, 0)
+    assert capsys.readouterr().err.count("coarser than the camera") == warnings
 
 
 def test_lens_distortion_over_relief_is_undone_by_camera_yaml(
