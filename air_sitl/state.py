@@ -232,3 +232,5 @@ class CameraFrame:
     height_px: int
     sample: SimSample  # the physics sample at the exposure instant
     map_xy_px: tuple[int, int]  # where the image-centre ray meets the map, in map pixels
+    # Share of the image showing the map's nodata or ground off the map (0.0: none).
+    nodata_fraction: float = 0.0

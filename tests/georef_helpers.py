@@ -63,8 +63,10 @@ def write_tif(
     bgr: npt.NDArray[np.uint8],
     crs: str,
     transform: tuple[float, float, float, float, float, float],
+    *,
+    nodata: float | None = None,
 ) -> Path:
-    """A lossless tiled GeoTIFF of a BGR image, written by rasterio."""
+    """A lossless tiled GeoTIFF of a BGR image, written by rasterio (``nodata``: its tag)."""
     t0, t1, t2, t3, t4, t5 = transform
     h, w = bgr.shape[:2]
     with rasterio.open(
@@ -81,6 +83,7 @@ def write_tif(
         blockxsize=256,
         blockysize=256,
         compress="deflate",
+        nodata=nodata,
     ) as dst:
         dst.write(np.ascontiguousarray(bgr[:, :, ::-1].transpose(2, 0, 1)))
     return path

@@ -200,8 +200,10 @@ class RemapPaths:
             borderValue=FILL_BGRX,
         )  # fmt: skip
         cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR, dst=out)
-        if g.sees_horizon:
-            out[self._owner._sky(state)] = FILL_BGR
+        sky = self._owner._sky(state) if g.sees_horizon else None
+        if sky is not None:
+            out[sky] = FILL_BGR
+        self._owner._note_nodata(warped, sky)
         if noise is not None:
             self._owner._noised(out, noise, 0, cam.height_px)
         return out

@@ -9,6 +9,9 @@ and free of aliasing. One level per frame: at extreme attitudes (horizon in view
 ground aliases. Rays that miss the ground, or meet it beyond MAX_MOSAIC_HALF_PX level pixels
 from the image centre, get the fill colour (black), as does ground outside a bounded map.
 A frame is a pure function of (map, camera, state, frame index, seed).
+The alpha of the sampled map pixels (0 where a GeoTIFF has nodata, and off the map) tells
+how much of a frame shows either (``nodata_fraction``), counted only when the frame's map
+window has such pixels: fully covered ground costs one check per new window.
 Relief and camera effects are rendered by ``remap`` (a part the Renderer owns); the 3x3
 homography arithmetic and FrameGeometry are in ``homography``.
 """
@@ -18,6 +21,7 @@ from __future__ import annotations
 import math
 import sys
 import threading
+from typing import Any
 
 import cv2
 import numpy as np
@@ -60,6 +64,8 @@ _COARSE_MAP = 0.5  # warn when a map pixel spans more than 2 image pixels
 _NOISE_BANK_FACTOR = 2
 _STRIP_BYTES = 320 * 1024  # 4-channel warp output per strip: well inside a core's L2 cache
 _STRIP_SOURCE_BYTES = 640 * 1024  # largest map window copied for one strip (see _strip_source)
+# Beyond the mosaic (ground clipped far from the centre): the fill colour, but not nodata.
+_WARP_BORDER = (*FILL_BGR, 255)
 
 
 class Renderer:
@@ -202,6 +208,7 @@ class Renderer:
         """
         cam = self.camera
         g = geometry if geometry is not None else self.geometry(state)
+        self._local.nodata_px = 0
         out = np.empty((cam.height_px, cam.width_px, 3), dtype=np.uint8)
         noise = self._noise_of(noise_index, out.shape) if noise_index is not None else None
         if g.height_m <= 0:
@@ -237,12 +244,13 @@ class Renderer:
                 dst=scratch[: v1 - v0],
                 flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                 borderMode=cv2.BORDER_CONSTANT,
-                borderValue=FILL_BGRX,
+                borderValue=_WARP_BORDER,
             )
             part = out[v0:v1]
             cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR, dst=part)
             if sky is not None:
                 part[sky[v0:v1]] = FILL_BGR
+            self._note_nodata(warped, None if sky is None else sky[v0:v1])
             if noise is not None:
                 self._noised(part, noise, v0, v1)
         return out
@@ -304,7 +312,25 @@ class Renderer:
             return last[1], ax0, ay0
         img = self.map.read_level(level, ax0, ay0, ax1 - ax0, ay1 - ay0)
         self._local.mosaic = (key, img)
+        self._local.holes = bool(img[:, :, 3].min() < 255)
         return img, ax0, ay0
+
+    def _note_nodata(self, warped: npt.NDArray[Any], sky: npt.NDArray[np.bool_] | None) -> None:
+        """Count pixels of a 4-channel warp output sampled mostly (alpha below 128) from the
+        map's nodata or from off the map, when this thread's mosaic has any (else nothing to
+        count: the cost stays off fully covered maps); the sky is not ground."""
+        if not self._local.holes:
+            return
+        low = warped[:, :, 3] < 128
+        if sky is not None:
+            low &= ~sky
+        self._local.nodata_px += int(np.count_nonzero(low))
+
+    def nodata_fraction(self) -> float:
+        """Share of the last frame this thread rendered that shows the map's nodata or
+        ground off the map (0.0 with camera effects: not measured there)."""
+        px: int = getattr(self._local, "nodata_px", 0)
+        return px / (self.camera.width_px * self.camera.height_px)
 
     def _footprint(self, h_lvl: Mat9, g: FrameGeometry) -> tuple[int, int, int, int]:
         """Bounding box (inclusive, level pixels, 1 px margin) of the image on the map.
@@ -407,6 +433,7 @@ def render_camera_frame(renderer: Renderer, sample: SimSample, index: int) -> Ca
         height_px=renderer.camera.height_px,
         sample=sample,
         map_xy_px=xy,
+        nodata_fraction=renderer.nodata_fraction(),
     )
 
 

@@ -8,6 +8,8 @@ level-0 pixels [i * 2**L, (i + 1) * 2**L), hence ``x0 = 2**L * xL + (2**L - 1) /
 
 Pixels are 4-channel BGRx uint8 (OpenCV's vectorised warp path is about 3x faster on 4
 channels than on 3, SPEC section 4). Areas outside a bounded map read as :data:`FILL_BGRX`.
+The fourth channel is the coverage: 255 where the map has data, 0 outside a bounded map and
+where a GeoTIFF says nodata (its nodata value, alpha band or mask); the colours stay as read.
 """
 
 from __future__ import annotations

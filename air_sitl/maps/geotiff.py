@@ -26,6 +26,7 @@ import numpy.typing as npt
 os.environ.setdefault("GDAL_CACHEMAX", "64")
 
 import rasterio  # after GDAL_CACHEMAX on purpose
+from rasterio.enums import MaskFlags
 from rasterio.errors import NotGeoreferencedWarning, RasterioError
 from rasterio.shutil import copy as rio_copy
 from rasterio.transform import Affine
@@ -101,6 +102,8 @@ class GeoTiffMap(TiledMap):
         }
         self._crs_text = crs_text
         self._sha256: str | None = None
+        # Nodata value, alpha band or mask: such pixels get alpha 0 (as off the map).
+        self._masked = any(flags != [MaskFlags.all_valid] for flags in src.mask_flag_enums)
 
     def _latlon_to_crs(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
         if self._zone is not None:
@@ -126,7 +129,11 @@ class GeoTiffMap(TiledMap):
             tile[:h, :w, 0] = data[2]
             tile[:h, :w, 1] = data[1]
             tile[:h, :w, 2] = data[0]
-        tile[:h, :w, 3] = 255
+        if self._masked:
+            with self._lock:
+                tile[:h, :w, 3] = src.dataset_mask(window=Window(x0, y0, w, h))
+        else:
+            tile[:h, :w, 3] = 255
         return tile
 
     def _make_tile(self, tx: int, ty: int) -> Image:
