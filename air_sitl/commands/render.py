@@ -98,6 +98,12 @@ def run(args: argparse.Namespace) -> int:
         yaw_rad=math.radians(args.yaw),
     )
     img = renderer.render(state, noise_index=args.frame_index)
+    if (share := renderer.nodata_fraction()) > 0.0:
+        print(
+            f"air-sitl: warning: map {map_source.name}: {share * 100:.1f} % of the frame shows "
+            "nodata or ground off the map",
+            file=sys.stderr,
+        )
     if out.suffix.lower() == ".png":
         _ok, buf = cv2.imencode(".png", img)
         data = bytes(buf)

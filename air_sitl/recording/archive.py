@@ -21,6 +21,7 @@ from typing import Any
 
 from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
 from air_sitl.bus.hookup import BusHookup
+from air_sitl.camera.coverage import NodataFrames
 from air_sitl.camera.options import close_map
 from air_sitl.clock import NS_PER_S
 from air_sitl.dataset.air_schema import (
@@ -165,6 +166,7 @@ def record_flight(
     sinks: list[Sink] = []
     camera_source: FrameSource | None = None
     writer: DatasetWriter | None = None
+    nodata: NodataFrames | None = None
     if setup.camera is not None:
         assert setup.plan is not None, "record_flight: an archive needs the plan file"
         map_source = open_setup_map(setup)
@@ -177,6 +179,8 @@ def record_flight(
             close_map(map_source)
             raise
         camera_source = open_camera(setup, map_source)
+        nodata = NodataFrames(map_source.name)
+        sinks.append(nodata)
     elif resuming:
         msg = f"{out}: --resume needs a camera archive (without --no-camera)"
         raise DatasetError(msg)
@@ -231,6 +235,9 @@ def record_flight(
         summary["frames_written"] = writer.next_index
         if first_frame:
             summary["resumed_from_frame"] = first_frame
+        if nodata is not None and (record := nodata.record()) is not None:
+            summary["frames_with_nodata"] = record
+            print(nodata.message(), file=sys.stderr, flush=True)
         manifest = writer.finish(summary)
         if request.bus is not None:
             _add_estimates(out, request.bus)

@@ -9,6 +9,7 @@ stripe's share of it follows from the geometry alone.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from georef_helpers import HOME, latlon_to_px, marks_image, utm_grid, write_tif
 
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.cli import main
 from air_sitl.frames import ned2geodetic
 from air_sitl.maps.geotiff import GeoTiffMap
 
@@ -102,3 +104,21 @@ def test_the_nodata_tag_changes_no_byte_of_the_frames(maps: tuple[Path, Path, fl
         assert a == b
         assert with_tag.nodata_fraction() > 0.0
         assert without.nodata_fraction() == 0.0  # untagged black is just black
+
+
+def test_render_says_the_share_of_its_frame(
+    maps: tuple[Path, Path, float], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    tagged, plain, _edge = maps
+    for tif, said in ((tagged, True), (plain, False)):
+        out = tmp_path / f"{tif.stem}.jpg"
+        code = main(["render", "--map", str(tif), "--lat", str(HOME.lat_deg), "--lon",
+                     str(HOME.lon_deg), "--alt-agl", str(ALT_M), "--out", str(out)])  # fmt: skip
+        err = capsys.readouterr().err
+        assert code == 0 and out.is_file()
+        found = re.search(rf"map {tif.name}: ([0-9.]+) % of the frame shows nodata or ground "
+                          "off the map", err)  # fmt: skip
+        assert (found is not None) == said and ("nodata" in err) == said, err
+        if found is not None:
+            share = float(found.group(1)) / 100.0
+            assert share == pytest.approx(_expected_share(0.0, *STRIPE_M), abs=TOL + 0.0005)
