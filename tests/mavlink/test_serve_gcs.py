@@ -19,6 +19,7 @@ from pymavlink import mavutil
 
 from air_sitl.camera.info import camera_yaml_for
 from air_sitl.camera.model import CameraModel
+from air_sitl.frames import ned2geodetic
 from air_sitl.mavlink.codec import (
     Encoder,
     ParseCounters,
@@ -30,7 +31,7 @@ from air_sitl.mavlink.messages import MissionItemMessage
 from air_sitl.mavlink.mission_protocol import same_items
 from air_sitl.mavlink.telemetry import custom_mode
 from air_sitl.mission.items import MavCmd, MissionItem
-from air_sitl.mission.plan_file import load_mission
+from air_sitl.mission.plan_file import load_mission, write_plan
 from air_sitl.state import FlightMode
 
 REPO = Path(__file__).resolve().parents[2]
@@ -253,8 +254,31 @@ def _fly_to_end(gcs: Gcs) -> list[int]:
             return reached
 
 
-def test_the_preloaded_mission_flies_twice_without_restart() -> None:
-    with serve("--mavlink", "udpin:127.0.0.1:0", "--plan", str(UC200), "--speed", "150") as s:
+def write_short_circle_plan(path: Path) -> Path:
+    """UC-200's items (take-off, speed, two waypoints, capture start, one loiter turn, capture
+    stop, RTL) on a 2.8 km course instead of 7.5 km: the same sequence in 40 % of the flight."""
+    uc200 = load_mission(UC200)
+    home = uc200.planned_home
+    assert home is not None
+
+    def north_east(item: MissionItem, north_m: float, east_m: float, alt_m: float) -> MissionItem:
+        lat, lon, _ = ned2geodetic(north_m, east_m, 0.0, home.lat_deg, home.lon_deg, 0.0)
+        return dataclasses.replace(item, lat_deg=lat, lon_deg=lon, alt_m=alt_m)
+
+    takeoff, speed, wp1, wp2, start, circle, stop, rtl = uc200.items
+    assert circle.command == MavCmd.NAV_LOITER_TURNS and rtl.command == MavCmd.NAV_RETURN_TO_LAUNCH
+    items = (
+        north_east(takeoff, 500.0, 0.0, 80.0), speed,
+        north_east(wp1, 800.0, 0.0, 80.0), north_east(wp2, 1000.0, 0.0, 80.0), start,
+        dataclasses.replace(north_east(circle, 1000.0, 100.0, 80.0), param3=100.0), stop, rtl,
+    )  # fmt: skip
+    write_plan(dataclasses.replace(uc200, items=items), path)
+    return path
+
+
+def test_the_preloaded_mission_flies_twice_without_restart(tmp_path: Path) -> None:
+    plan = write_short_circle_plan(tmp_path / "short-circle.plan")
+    with serve("--mavlink", "udpin:127.0.0.1:0", "--plan", str(plan), "--speed", "150") as s:
         gcs = Gcs(f"udpout:127.0.0.1:{s.ports[0]}")
         gcs.connect()
         assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
