@@ -20,11 +20,12 @@ resolution is one ``cv2.resize``. A march is a few large array operations: its r
 as (steps, rays) arrays, heights sampled by one ``cv2.remap`` over rows of 4096 samples (a
 remap over thousands of short rows costs ten times more).
 
-Cost (bench_camera.py part 4, this 2-core machine under load): 7-14x the flat render for
-urban, 9-25x over the rough forest canopy, where nearly every cell is an edge. The work left
-is NumPy call overhead over tens of thousands of rays per frame; the 3x target needs an
-O(1)-per-pixel occlusion pass (prefix maxima along the radial lines through the nadir, in
-polar coordinates) or a compiled march.
+Cost (bench_camera.py part 4, this 2-core machine under load): 8-13x the flat render over
+the built-in urban surface, 6-12x over it as a 1.2 m GeoTIFF DSM, 11-20x over the rough
+forest canopy, where nearly every cell is an edge (10-27x before the settle pass). What is
+left is NumPy work and call overhead over 6,000-70,000 rays per frame; the 3x target needs
+a compiled march (a polar prefix-maximum pass in NumPy/OpenCV measured no cheaper: its
+resampling and prefix maxima alone cost 3-4 ms a frame).
 """
 
 from __future__ import annotations
