@@ -328,11 +328,8 @@ class GeoTiffDem(TiledSurface):
         values = np.asarray(data.filled(np.nan), dtype=np.float32)
         missing = ~valid
         if missing.any():
-            if not inside.all():
-                self.warn(
-                    f"--dem {self.path}: the DEM does not cover the flown area "
-                    "(heights there extended from its edge)"
-                )
+            # Ground beyond the extent is said where the flight meets it (camera.coverage):
+            # a tile read around the flight often reaches past an edge nothing flies over.
             if (missing & inside).any():
                 self.warn(f"--dem {self.path}: nodata holes in the DEM, filled from the neighbours")
             values = _fill_from_neighbours(values, valid)
@@ -344,6 +341,25 @@ class GeoTiffDem(TiledSurface):
             borderMode=cv2.BORDER_REPLICATE,
         )
         return heights
+
+    def coverage_at(self, lat_deg: float, lon_deg: float) -> str | None:
+        """None where the DEM has a height; ``"outside"`` beyond its extent, ``"nodata"`` in
+        one of its holes (heights there are extended or filled, see :meth:`_make_tile`)."""
+        if self._same_crs:
+            x, y = self.map.georef.px_to_crs(*self.map.latlon_to_map_px(lat_deg, lon_deg))
+        else:
+            xs, ys = warp_transform("EPSG:4326", self._dem_crs, [lon_deg], [lat_deg])
+            x, y = float(xs[0]), float(ys[0])
+        a, b, c, d, e, f = self._inv
+        col, row = math.floor(a * x + b * y + c), math.floor(d * x + e * y + f)
+        src = self._src
+        if not (0 <= col < src.width and 0 <= row < src.height):
+            return "outside"
+        with self._lock:
+            value = src.read(1, window=Window(col, row, 1, 1), masked=True)
+        if np.ma.getmaskarray(value).any() or not np.isfinite(value.filled(np.nan)).all():
+            return "nodata"
+        return None
 
     def describe(self) -> dict[str, Any]:
         """Provenance: file name, SHA-256, CRS."""

@@ -21,7 +21,7 @@ from typing import Any
 
 from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
 from air_sitl.bus.hookup import BusHookup
-from air_sitl.camera.coverage import NodataFrames
+from air_sitl.camera.coverage import DemCoverage, DemExtent, NodataFrames
 from air_sitl.camera.options import close_map
 from air_sitl.clock import NS_PER_S
 from air_sitl.dataset.air_schema import (
@@ -167,6 +167,7 @@ def record_flight(
     camera_source: FrameSource | None = None
     writer: DatasetWriter | None = None
     nodata: NodataFrames | None = None
+    dem: DemCoverage | None = None
     if setup.camera is not None:
         assert setup.plan is not None, "record_flight: an archive needs the plan file"
         map_source = open_setup_map(setup)
@@ -181,6 +182,9 @@ def record_flight(
         camera_source = open_camera(setup, map_source)
         nodata = NodataFrames(map_source.name)
         sinks.append(nodata)
+        if isinstance(camera_source.renderer.surface, DemExtent):
+            dem = DemCoverage(camera_source.renderer.surface, setup.camera)
+            sinks.append(dem)
     elif resuming:
         msg = f"{out}: --resume needs a camera archive (without --no-camera)"
         raise DatasetError(msg)
@@ -238,6 +242,8 @@ def record_flight(
         if nodata is not None and (record := nodata.record()) is not None:
             summary["frames_with_nodata"] = record
             print(nodata.message(), file=sys.stderr, flush=True)
+        for line in dem.messages() if dem is not None else []:
+            print(line, file=sys.stderr, flush=True)
         manifest = writer.finish(summary)
         if request.bus is not None:
             _add_estimates(out, request.bus)

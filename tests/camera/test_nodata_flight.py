@@ -10,16 +10,20 @@ archive's JPEGs (black pixels), independently of the renderer's count.
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+import rasterio
 from georef_helpers import HOME, latlon_to_px, marks_image, utm_grid, write_tif
+from rasterio.transform import Affine
 from short_plans import write_short_plan
 
 from air_sitl.cli import main
+from air_sitl.maps.utm import latlon2utm, utm_zone_of
 
 pytestmark = pytest.mark.integration
 
@@ -92,3 +96,81 @@ def test_a_fully_covered_flight_says_nothing(
     assert "frames_with_nodata" not in summary
     assert "nodata" not in err and "off the map" not in err
     assert max(_dark_shares(out)) > 0.04  # the same black stripe, but it is data here
+
+
+# A flat DEM (2 m pixels, the map's UTM CRS) from 100 m west to 120 m east of home and from
+# 100 m south to 450 m north, with a nodata hole at 30-60 m east, 250-350 m north: the
+# capture leg (300 m north, east from 0 to 100 m, then on to 160 m) crosses the hole and
+# leaves the DEM at 120 m east.
+DEM_WEST_M, DEM_EAST_M, DEM_SOUTH_M, DEM_NORTH_M = -100.0, 120.0, -100.0, 450.0
+HOLE_M = (30.0, 60.0, 250.0, 350.0)  # east from, to; north from, to
+
+
+def _write_dem(path: Path, *, hole: bool, east_m: float) -> tuple[Path, float, float]:
+    """The DEM; (UTM easting, northing) of home."""
+    zone = utm_zone_of(HOME.lat_deg, HOME.lon_deg)
+    e_home, n_home = latlon2utm(HOME.lat_deg, HOME.lon_deg, zone)
+    cols, rows = round((east_m - DEM_WEST_M) / 2), round((DEM_NORTH_M - DEM_SOUTH_M) / 2)
+    heights = np.full((rows, cols), HOME.alt_amsl_m, dtype=np.float32)
+    if hole:
+        e0, e1, n0, n1 = HOLE_M
+        heights[round((DEM_NORTH_M - n1) / 2) : round((DEM_NORTH_M - n0) / 2),
+                round((e0 - DEM_WEST_M) / 2) : round((e1 - DEM_WEST_M) / 2)] = -9999.0  # fmt: skip
+    transform = Affine(2.0, 0.0, e_home + DEM_WEST_M, 0.0, -2.0, n_home + DEM_NORTH_M)
+    with rasterio.open(path, "w", driver="GTiff", width=cols, height=rows, count=1,
+                       dtype="float32", crs=f"EPSG:{zone.epsg}", transform=transform,
+                       nodata=-9999.0) as dst:  # fmt: skip
+        dst.write(heights, 1)
+    return path, e_home, n_home
+
+
+def _fly_dem(tmp_path: Path, tif: Path, dem: Path) -> Path:
+    plan = write_short_plan(tmp_path / "D-200.plan", HOME, leg_m=100.0, alt_m=200.0)
+    out = tmp_path / "out"
+    code = main(["fly", str(plan), "--map", str(tif), "--dem", str(dem), "--out", str(out),
+                 "--quiet", "--air-start", "--nav", "truth", "--render-workers", "1"])  # fmt: skip
+    assert code == 0
+    return out
+
+
+def test_a_dem_short_of_the_flight_and_its_holes_are_said(
+    tmp_path: Path, maps: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    dem, e_home, n_home = _write_dem(tmp_path / "dem.tif", hole=True, east_m=DEM_EAST_M)
+    out = _fly_dem(tmp_path, maps["plain"], dem)
+    err = capsys.readouterr().err
+    # Truth at whole seconds from trajectory.csv, placed on the DEM's UTM grid.
+    zone = utm_zone_of(HOME.lat_deg, HOME.lon_deg)
+    with (out / "trajectory.csv").open() as f:
+        rows = [r for r in csv.DictReader(f) if int(r["sim_time_ns"]) % 1_000_000_000 == 0]
+    beyond, over_hole = [], []
+    for r in rows:
+        e, n = latlon2utm(float(r["lat_deg"]), float(r["lon_deg"]), zone)
+        e, n = e - e_home, n - n_home
+        if e >= DEM_EAST_M:
+            beyond.append(r)
+        elif HOLE_M[0] <= e < HOLE_M[1] and HOLE_M[2] <= n < HOLE_M[3]:
+            over_hole.append(r)
+    assert beyond and over_hole  # the flight does both
+    for what, found in (
+        ("flew beyond the DEM", beyond),
+        ("flew over nodata in the DEM", over_hole),
+    ):
+        first = found[0]
+        line = (
+            f"--dem {dem.name}: the aircraft {what} for {len(found)} of {len(rows)} s (first at "
+            f"{int(first['sim_time_ns']) / 1e9:.0f} s, {float(first['lat_deg']):.6f}, "
+            f"{float(first['lon_deg']):.6f})"
+        )
+        assert line in err, err
+    # The frames' ground reaches past the east edge 82 m before the aircraft does.
+    assert f"--dem {dem.name}: frames saw ground beyond the DEM for " in err
+
+
+def test_a_dem_covering_the_flight_says_nothing(
+    tmp_path: Path, maps: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    dem, _, _ = _write_dem(tmp_path / "dem.tif", hole=False, east_m=400.0)
+    _fly_dem(tmp_path, maps["plain"], dem)
+    err = capsys.readouterr().err
+    assert "--dem" not in err and "nodata" not in err, err
