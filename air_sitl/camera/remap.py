@@ -324,7 +324,7 @@ class RemapPaths:
                 )
             else:
                 maps = self._pose_maps(self._at_time(state, t), g.level, pu, pv)
-            acc += self._sample_maps(g.level, maps)
+            acc += self._sample_maps(g.level, maps, count_nodata=k == 0)
         img = acc * np.float32(1.0 / count)
         if fx.on("haze"):
             img = self._haze(state, g, img, fx)
@@ -344,8 +344,11 @@ class RemapPaths:
             self._owner._noised(out, noise, 0, cam.height_px)
         return out
 
-    def _sample_maps(self, level: int, maps: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
-        """Colours (float BGR) at absolute level-pixel coordinates, from one mosaic."""
+    def _sample_maps(
+        self, level: int, maps: npt.NDArray[np.float32], *, count_nodata: bool = False
+    ) -> npt.NDArray[np.float32]:
+        """Colours (float BGR) at absolute level-pixel coordinates, from one mosaic
+        (``count_nodata``: the frame's map nodata, once per frame, sky rays aside)."""
         ok = maps[:, :, 0] > -1e6
         if not ok.any():
             return np.zeros((*maps.shape[:2], 3), dtype=np.float32)
@@ -360,6 +363,8 @@ class RemapPaths:
         rel = maps - np.array([mx, my], dtype=np.float32)
         warped = cv2.remap(mosaic, rel, None, cv2.INTER_LINEAR,  # type: ignore[call-overload]
                            borderMode=cv2.BORDER_CONSTANT, borderValue=FILL_BGRX)  # fmt: skip
+        if count_nodata:
+            self._owner._note_nodata(warped, ~ok)
         colour: npt.NDArray[np.float32] = warped[:, :, :3].astype(np.float32)
         return colour
 

@@ -328,7 +328,7 @@ class Renderer:
 
     def nodata_fraction(self) -> float:
         """Share of the last frame this thread rendered that shows the map's nodata or
-        ground off the map (0.0 with camera effects: not measured there)."""
+        ground off the map (with camera effects: at the first sub-exposure)."""
         px: int = getattr(self._local, "nodata_px", 0)
         return px / (self.camera.width_px * self.camera.height_px)
 

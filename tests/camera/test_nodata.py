@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from georef_helpers import HOME, latlon_to_px, marks_image, utm_grid, write_tif
 
+from air_sitl.camera.effects import CameraEffects
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
 from air_sitl.cli import main
@@ -122,3 +123,17 @@ def test_render_says_the_share_of_its_frame(
         if found is not None:
             share = float(found.group(1)) / 100.0
             assert share == pytest.approx(_expected_share(0.0, *STRIPE_M), abs=TOL + 0.0005)
+
+
+@pytest.mark.parametrize("names", [("vignette",), ("distortion", "blur")])
+def test_frames_with_camera_effects_are_measured_too(
+    maps: tuple[Path, Path, float], names: tuple[str, ...]
+) -> None:
+    tagged, _plain, _edge = maps
+    camera = CameraModel(effects=CameraEffects(enabled=names))
+    r = Renderer(GeoTiffMap(tagged, ground_elevation_m=HOME.alt_amsl_m), camera, seed=3)
+    r.render(_pose(0.0))  # type: ignore[arg-type]
+    # Distortion (about 8 px at the corners) moves the stripe's edges by a pixel or two.
+    assert r.nodata_fraction() == pytest.approx(_expected_share(0.0, *STRIPE_M), abs=2 * TOL)
+    r.render(_pose(-120.0))  # type: ignore[arg-type]
+    assert r.nodata_fraction() == 0.0
