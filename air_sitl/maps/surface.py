@@ -85,6 +85,9 @@ class SurfaceModel(Protocol):
         ...
 
 
+_WARNED: set[str] = set()  # warnings said (TiledSurface.warn)
+
+
 class TiledSurface:
     """Base of every surface: float32 tiles per (level, tx, ty) of the map grid, cached."""
 
@@ -93,7 +96,6 @@ class TiledSurface:
     def __init__(self, map_source: MapSource, cache_bytes: int = SURFACE_CACHE_BYTES) -> None:
         self.map = map_source
         self._cache = TileCache(cache_bytes)
-        self._warned: set[str] = set()
         self._block: HeightBlock | None = None  # around the last point sampled
 
     def _make_tile(self, level: int, tx: int, ty: int) -> Heights:
@@ -105,9 +107,11 @@ class TiledSurface:
         raise NotImplementedError
 
     def warn(self, text: str) -> None:
-        """One line on stderr, once per distinct text (the library configures no logging)."""
-        if text not in self._warned:
-            self._warned.add(text)
+        """One line on stderr, once per distinct text in the process (a flight opens its DEM
+        more than once: home's ground, the flight's terrain, the camera's surface; the
+        library configures no logging)."""
+        if text not in _WARNED:
+            _WARNED.add(text)
             print(f"air-sitl: warning: {text}", file=sys.stderr, flush=True)
 
     def tile(self, level: int, tx: int, ty: int) -> Heights:

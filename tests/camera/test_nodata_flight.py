@@ -163,6 +163,8 @@ def test_a_dem_short_of_the_flight_and_its_holes_are_said(
             f"{float(first['lon_deg']):.6f})"
         )
         assert line in err, err
+    # The DEM's holes, once, though the flight opens the file three times.
+    assert err.count(f"--dem {dem}: nodata holes in the DEM, filled from the neighbours") == 1
     # The frames' ground reaches past the east edge 82 m before the aircraft does.
     assert f"--dem {dem.name}: frames saw ground beyond the DEM for " in err
 
