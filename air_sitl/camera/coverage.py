@@ -56,13 +56,16 @@ class NodataFrames(NullSink):
         """Count the frame if it shows any nodata."""
         tick = frame.sample.camera
         index = frame.index if tick is None else tick.capture_index
-        if index is None:
-            return
+        if index is not None:
+            self.add(index, frame.nodata_fraction)
+
+    def add(self, index: int, fraction: float) -> None:
+        """Archive frame ``index`` showed ``fraction`` of nodata (frames come in order)."""
         self.frames += 1
-        if frame.nodata_fraction <= 0.0:
+        if fraction <= 0.0:
             return
         self.count += 1
-        self.max_fraction = max(self.max_fraction, frame.nodata_fraction)
+        self.max_fraction = max(self.max_fraction, fraction)
         if self.ranges and self.ranges[-1][1] == index - 1:
             self.ranges[-1][1] = index
         else:

@@ -16,6 +16,7 @@ from typing import Any
 
 from air_sitl.autopilot.autopilot import Autopilot
 from air_sitl.builder import FlightSetup
+from air_sitl.camera.coverage import NodataFrames
 from air_sitl.camera.info import camera_yaml_for
 from air_sitl.clock import CAMERA_PERIOD_NS
 from air_sitl.dataset.writer import ArchiveInfo, DatasetWriter
@@ -43,6 +44,7 @@ class _Window:
     folder: Path
     writer: DatasetWriter
     first_tick: int
+    nodata: NodataFrames
     end_tick: int | None = None  # set when capture stops
     next_frame: int = 0
     distance_m: float = 0.0
@@ -89,7 +91,10 @@ class CaptureRecorder:
             agl_column=sample.state.surface_amsl_m is not None,
         )
         writer = DatasetWriter(folder, info)
-        self._window = _Window(folder, writer, self._ticks, start_ns=sample.state.sim_time_ns)
+        nodata = NodataFrames(self.manifest["map"])
+        self._window = _Window(
+            folder, writer, self._ticks, nodata, start_ns=sample.state.sim_time_ns
+        )
         print(f"air-sitl serve: recording into {folder}", flush=True)
 
     def on_sample(self, sample: SimSample) -> None:
@@ -134,6 +139,7 @@ class CaptureRecorder:
             return
         try:
             w.writer.on_frame(dataclasses.replace(frame, index=index - w.first_tick))
+            w.nodata.add(index - w.first_tick, frame.nodata_fraction)
             w.next_frame = index - w.first_tick + 1
             if w.end_tick is not None and w.next_frame >= w.end_tick - w.first_tick:
                 self._seal()
@@ -149,13 +155,16 @@ class CaptureRecorder:
         t = last.state.sim_time_ns if last is not None else 0
         completed = bool(last.autopilot.mission_completed) if last is not None else False
         w.writer.close(FlightResult(mission_completed=completed, sim_time_ns=t, wall_time_s=0.0))
-        summary = {
+        summary: dict[str, Any] = {
             "capture_distance_m": round(w.distance_m, 2),
             "capture_frames": w.next_frame,
             "capture_start_s": w.start_ns / 1e9,
             "mission_completed": completed,
             "sim_time_s": t / 1e9,
         }
+        if (record := w.nodata.record()) is not None:
+            summary["frames_with_nodata"] = record
+            print(f"{w.nodata.message()} (in {w.folder})", file=sys.stderr, flush=True)
         w.writer.finish(summary)
         self.archives.append(w.folder)
         print(f"air-sitl serve: recorded {w.next_frame} frames into {w.folder}", flush=True)

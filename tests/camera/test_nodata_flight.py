@@ -22,8 +22,13 @@ from georef_helpers import HOME, latlon_to_px, marks_image, utm_grid, write_tif
 from rasterio.transform import Affine
 from short_plans import write_short_plan
 
+from air_sitl.builder import build_flight, load_setup, open_camera, open_setup_map
+from air_sitl.camera.model import CameraModel
 from air_sitl.cli import main
+from air_sitl.clock import NS_PER_S
 from air_sitl.maps.utm import latlon2utm, utm_zone_of
+from air_sitl.options import FlightOptions, MapChoice
+from air_sitl.recording import CaptureRecorder
 
 pytestmark = pytest.mark.integration
 
@@ -176,3 +181,29 @@ def test_a_dem_covering_the_flight_says_nothing(
     _fly_dem(tmp_path, maps["plain"], dem)
     err = capsys.readouterr().err
     assert "--dem" not in err and "nodata" not in err, err
+
+
+def test_serve_recordings_name_the_frames_too(
+    tmp_path: Path, maps: dict[str, Path], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``serve --out``'s recorder (one archive per capture window), on the same flight that
+    ``fly`` records above, flown here without a MAVLink client (the mission starts itself)."""
+    plan = write_short_plan(tmp_path / "S-200.plan", HOME, leg_m=100.0, alt_m=200.0)
+    setup = load_setup(
+        plan,
+        FlightOptions(air_start=True, nav="truth"),
+        camera=CameraModel(),
+        map=MapChoice(spec=str(maps["tagged"])),
+        render_workers=1,
+    )
+    recorder = CaptureRecorder(tmp_path / "served", setup)
+    flight = build_flight(setup, sinks=[recorder], camera=open_camera(setup, open_setup_map(setup)))
+    flight.run(stop=lambda s: s.autopilot.mission_completed, max_sim_time_ns=120 * NS_PER_S)
+    (tmp_path / "fly").mkdir()
+    flown, _, _ = _fly(tmp_path / "fly", maps["tagged"])
+    [folder] = recorder.archives
+    summary = json.loads((folder / "summary.json").read_text())
+    assert summary["frames_with_nodata"] == flown["frames_with_nodata"]
+    assert f"show nodata or ground off the map: up to 6.1 % of the frame (in {folder})" in (
+        capsys.readouterr().err
+    )
