@@ -15,6 +15,7 @@ from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+from mavsdk_wait import finished_within
 
 from air_sitl.mission.items import MissionType
 from air_sitl.mission.plan_file import load_mission
@@ -115,21 +116,7 @@ async def _fly(
 
         await asyncio.wait_for(follow(), timeout=SAFETY_S)  # mission progress is the event
 
-        async def finished_within(positions: int) -> bool:
-            # MAVSDK reports (total, total) on MISSION_ITEM_REACHED and "finished" on the
-            # MISSION_CURRENT (state COMPLETE) sent right after it, as PX4 orders them: a
-            # position message or two later it must say so.
-            if await mission.is_mission_finished():
-                return True
-            async for _ in telemetry.subscribe_position():
-                if await mission.is_mission_finished():
-                    return True
-                positions -= 1
-                if positions == 0:
-                    return False
-            return False
-
-        assert await asyncio.wait_for(finished_within(10), timeout=SAFETY_S)
+        assert await asyncio.wait_for(finished_within(mission, telemetry), timeout=SAFETY_S)
         for task in tasks:
             task.cancel()
         assert progress_seen[-1] == (len(items), len(items))

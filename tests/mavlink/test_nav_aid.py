@@ -233,6 +233,8 @@ def test_a_companion_aids_a_denied_flight_that_mavsdk_sees_finish(tmp_path: Path
     from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
     from mavsdk.asyncio.plugins.action import ActionAsync
     from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
+    from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
+    from mavsdk_wait import finished_within
 
     plan = write_short_plan(tmp_path / "AID.plan", HOME, leg_m=1200.0)
 
@@ -244,6 +246,7 @@ def test_a_companion_aids_a_denied_flight_that_mavsdk_sees_finish(tmp_path: Path
             assert system is not None
             mission = MissionRawAsync(system)
             action = ActionAsync(system)
+            telemetry = TelemetryAsync(system)
             imported = await mission.import_qgroundcontrol_mission(str(plan))
             await mission.upload_mission(imported.mission_items)
             await action.arm()
@@ -253,7 +256,7 @@ def test_a_companion_aids_a_denied_flight_that_mavsdk_sees_finish(tmp_path: Path
                 seen.append((progress.current, progress.total))
                 if progress.total > 0 and progress.current == progress.total:
                     break
-            assert await mission.is_mission_finished()
+            assert await finished_within(mission, telemetry)
             return seen
 
     with (
