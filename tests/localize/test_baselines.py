@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import csv
 import math
-import shutil
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -105,17 +105,23 @@ def test_same_seed_same_bytes_other_seed_other_bytes(flight: Path) -> None:
 
 
 def test_the_command_writes_a_valid_archive_and_refuses_a_zip(flight: Path, tmp_path: Path) -> None:
+    # The command's job (write, manifest, check) is the method's no matter which: the cheap one
+    # (VO over the same frames is checked in process above).
     run = subprocess.run(
-        cli("localize", str(flight), "--method", "vo", "--name", "vo_cli"),
+        cli("localize", str(flight), "--method", "deadreckon", "--name", "dr_cli"),
         capture_output=True, text=True, timeout=600, check=False,
     )  # fmt: skip
     assert run.returncode == 0, run.stderr
-    assert "estimates/vo_cli.csv" in run.stdout
+    assert "estimates/dr_cli.csv" in run.stdout
     check = subprocess.run(
         cli("check", str(flight), "--no-images"), capture_output=True, text=True, check=False
     )
     assert check.returncode == 0, check.stdout[-2000:]
-    zipped = Path(shutil.make_archive(str(tmp_path / "uc"), "zip", flight))
+    zipped = tmp_path / "uc.zip"  # the archive zipped, but its 3400 JPEGs (zipping them: 9 s)
+    with zipfile.ZipFile(zipped, "w") as z:
+        for path in sorted(flight.iterdir()):
+            if path.is_file() and path.suffix != ".jpg":
+                z.write(path, path.name)
     bad = subprocess.run(
         cli("localize", str(zipped), "--method", "vo"),
         capture_output=True, text=True, timeout=60, check=False,
