@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 from air_sitl.state import BatteryState
 
@@ -43,6 +44,27 @@ class BatterySpec:
             v_empty_cell=min(get("BAT1_V_EMPTY"), get("BAT1_V_CHARGED")),
             r_internal_ohm=max(0.0, get("BAT1_R_INTERNAL")),
         )
+
+
+class VersionedParams(Protocol):
+    """A parameter store whose ``version`` changes on every change (ParamStore)."""
+
+    version: int
+
+    def get(self, name: str) -> float: ...
+
+
+def live_spec(params: VersionedParams) -> Callable[[], BatterySpec]:
+    """The pack as the parameters say now, rebuilt only when they change (read every step)."""
+    cached: tuple[int, BatterySpec] | None = None
+
+    def spec() -> BatterySpec:
+        nonlocal cached
+        if cached is None or cached[0] != params.version:
+            cached = (params.version, BatterySpec.from_params(params.get))
+        return cached[1]
+
+    return spec
 
 
 def electrical_power_w(throttle: float) -> float:
