@@ -114,7 +114,11 @@ def test_free_running_bridge_renders_truth_with_a_frame_index() -> None:
         pub = BusPublisher(sim, PublishOptions(keys=KEYS, publish_truth=True, home=HOME))
         assert wait_until(lambda: pub._truth is not None and pub._truth.matched)
         assert wait_until(lambda: pub._status.matched)
-        samples = [make_sample(i * 5_000_000, east_m=0.075 * i) for i in range(40)]
+        # 200 Hz physics, a camera exposure every 4th step (50 Hz): frames 0..9.
+        samples = [
+            make_sample(i * 5_000_000, east_m=0.075 * i, frame=i // 4 if i % 4 == 0 else None)
+            for i in range(40)
+        ]
         for s in samples:
             pub.on_sample(s)
         ok = wait_until(lambda: len(got) == 10, timeout_s=10.0)
