@@ -15,6 +15,13 @@ accuracy, and costs three FFTs.
 The match measures where the image centre ray meets the ground; with the attitude the
 aircraft position follows, through the same homography (an attitude error of d radians moves
 the fix by about height x d: the floor of this method, see :data:`ATTITUDE_SIGMA_RAD`).
+
+Same inputs, same bits, wherever the arrays sit in memory: ``cv2.magnitude`` (its IPP path)
+rounds differently with the alignment of its output buffer, which numpy places after whatever
+was allocated before (in an online localizer: whatever its zenoh threads did meanwhile), so
+the same frame gave fixes and covariances a few ppm apart from run to run and a lockstep
+aided flight diverged. The gradient magnitude is therefore numpy's (correctly rounded
+products, sum and square root); the other OpenCV calls here were measured alignment-proof.
 """
 
 from __future__ import annotations
@@ -89,7 +96,7 @@ def _orientation(gray: Image, valid: Image) -> npt.NDArray[np.float32]:
     outside ``valid``."""
     gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3)
     gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3)
-    mag = cv2.magnitude(gx, gy)
+    mag = np.sqrt(gx * gx + gy * gy)  # not cv2.magnitude: see the module docstring
     # A small floor keeps flat, noisy areas from voting with random orientations at full
     # weight, while any real edge counts as a unit vector whatever its contrast.
     inv = 1.0 / (mag + np.float32(2.0))

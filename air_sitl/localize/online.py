@@ -1,16 +1,17 @@
 """Online driver: the same method objects on the zenoh bus, one estimate per frame.
 
 Joins the bus like ``bridges/example_localizer.py``: reads ``camera/info`` and the home of
-``mission/status`` with a query, subscribes to ``imu``, ``gps``, ``mission/status`` and
-``camera/image``, and publishes every frame's answer on ``estimate/<name>`` (no position
-when the method cannot tell: lockstep counts it as an answer). Zenoh threads only queue what
+``mission/status`` with a query, reads ``imu``, ``gps``, ``mission/status`` and
+``camera/image`` through one subscription (so in the order they were published), and
+publishes every frame's answer on ``estimate/<name>`` (no position when the method cannot
+tell: lockstep counts it as an answer). Zenoh threads only queue what
 arrives; the method runs on the caller's thread, frames in order.
 
 What the observations hold, and how that differs from the offline driver:
 
 - IMU and AHRS: the ``imu`` samples since the previous frame; the attitude at a frame is the
-  last sample at or before its exposure (the driver waits a moment for it: it comes on
-  another subscriber's thread);
+  last sample at or before its exposure (published before the frame, so already there; the
+  driver still waits a moment for it);
 - GNSS: the last ``gps`` fix at or before the first frame, and no other (``gnss="all"``: every
   new fix, the bus being silent inside denial windows);
 - barometer and airspeed: the bus publishes neither, so both are ``None``; the methods then
@@ -173,9 +174,19 @@ class BusLocalizer:
         self._last_fix_t_ns: int | None = None
         self.step_s = 0.0  # wall time spent in the method
 
-        bus.subscribe(keys.imu, self._on_imu)
-        bus.subscribe(keys.gps, self._on_gps)
-        bus.subscribe(keys.mission_status, self._on_status)
+        # One subscription for the whole key space, not one per key: zenoh-python runs each
+        # subscriber's callbacks on a thread of its own, so the ``gps`` fix of an exposure
+        # could come after the frame (and after later IMU samples) and be given to a later
+        # frame, from run to run a different one. On one subscriber the samples keep the
+        # order the simulator published them in: the frame of ``t`` after the IMU and GNSS of
+        # ``t``, so a frame finds all of its inputs (by simulated time) already there.
+        self._handlers: dict[str, Callable[[Message], None]] = {
+            keys.imu: self._on_imu,
+            keys.gps: self._on_gps,
+            keys.mission_status: self._on_status,
+            keys.image: self._on_image,  # queued until :meth:`run`
+        }
+        bus.subscribe(f"{keys.root}/**", self._on_message)
         info = codec.decode_camera_info(ask(bus, keys.info, wait_s).payload)
         status = ask(bus, keys.mission_status, wait_s)
         self._on_status(status)
@@ -199,9 +210,13 @@ class BusLocalizer:
         method.reset(self.context)
         feed_latest(bus, {keys.gps: self._on_gps, keys.imu: self._on_imu})
         self._out = bus.publisher(self.key_out, encoding=codec.JSON_ENCODING, block=True)
-        bus.subscribe(keys.image, self._on_image)
 
     # -- zenoh threads: decode and queue, nothing else ------------------------------------
+
+    def _on_message(self, message: Message) -> None:
+        handler = self._handlers.get(message.key)
+        if handler is not None:
+            handler(message)
 
     def _on_imu(self, message: Message) -> None:
         reading = codec.decode_imu(message.payload)

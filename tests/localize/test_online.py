@@ -69,7 +69,9 @@ class FakeBus:
         return self.out
 
     def send(self, key: str, payload: bytes, attachment: bytes | None = None) -> None:
-        self.subs[key](Message(key, payload, attachment))
+        """Deliver to the subscription of ``key``, or of the key space (``air/v/**``)."""
+        sub = self.subs.get(key) or self.subs[f"{KEYS.root}/**"]
+        sub(Message(key, payload, attachment))
 
 
 class Recorder:
