@@ -108,6 +108,30 @@ def cli(*args: str) -> list[str]:
     return [sys.executable, "-m", "air_sitl", *args]
 
 
+def fly_with_bus_localizer(localize: list[str], fly: list[str]) -> str:
+    """``air-sitl localize --bus LOCALIZE`` and ``air-sitl fly FLY`` as two processes on a free
+    endpoint (fly listens, the localizer connects); both must exit 0 (the localizer leaves by
+    itself when the flight ends). The localizer's stdout."""
+    endpoint = free_endpoint()
+    loc = subprocess.Popen(
+        cli("localize", "--bus", *localize, "--zenoh-connect", endpoint),
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        flown = subprocess.run(
+            cli("fly", *fly, "--zenoh-listen", endpoint),
+            capture_output=True, text=True, timeout=600, check=False,
+        )  # fmt: skip
+        assert flown.returncode == 0, flown.stderr
+        loc_out, loc_err = loc.communicate(timeout=60)
+    finally:
+        if loc.poll() is None:
+            loc.kill()
+            loc.communicate()
+    assert loc.returncode == 0, loc_err
+    return loc_out
+
+
 def start(cmd: list[str], **kwargs: object) -> subprocess.Popen[str]:
     """Start a process with captured text output."""
     env = dict(os.environ, PYTHONUNBUFFERED="1")

@@ -16,7 +16,6 @@ from __future__ import annotations
 import csv
 import math
 import subprocess
-import sys
 import zipfile
 from pathlib import Path
 
@@ -29,23 +28,12 @@ from air_sitl.dataset.manifest import read_manifest, sha256_file
 from air_sitl.localize import localize_archive
 from air_sitl.localize.archive import run_archive
 from air_sitl.state import GeoPoint
+from tests.bus.helpers import cli, fly_with_bus_localizer
 
 pytestmark = pytest.mark.integration
 
 REPO = Path(__file__).resolve().parents[2]
 HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
-
-
-def cli(*args: str) -> list[str]:
-    return [sys.executable, "-m", "air_sitl", *args]
-
-
-def free_endpoint() -> str:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 @pytest.fixture(scope="module")
@@ -140,25 +128,11 @@ def test_vo_on_the_bus_answers_every_frame_like_offline(tmp_path: Path) -> None:
     """fly --wait-for vo and localize --bus as two processes; then the same offline."""
     plan = write_short_plan(tmp_path / "short.plan", HOME, leg_m=150.0)
     out = tmp_path / "bus"
-    endpoint = free_endpoint()
-    loc = subprocess.Popen(
-        cli("localize", "--bus", "--method", "vo", "--name", "vo", "--zenoh-connect", endpoint),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
-    try:
-        fly = subprocess.run(
-            cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out), "--zenoh",
-                "--zenoh-listen", endpoint, "--wait-for", "vo"),
-            capture_output=True, text=True, timeout=600, check=False,
-        )  # fmt: skip
-        assert fly.returncode == 0, fly.stderr
-        # The localizer leaves by itself once the capture window is over.
-        loc_out, loc_err = loc.communicate(timeout=60)
-    finally:
-        if loc.poll() is None:
-            loc.kill()
-            loc.communicate()
-    assert loc.returncode == 0, loc_err
+    # The localizer leaves by itself once the capture window is over.
+    loc_out = fly_with_bus_localizer(
+        ["--method", "vo", "--name", "vo"],
+        [str(plan), "--air-start", "--quiet", "--out", str(out), "--zenoh", "--wait-for", "vo"],
+    )
     online = out / "estimates" / "vo.csv"
     err, distance = errors(out, online)
     frames = len(err)

@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import csv
 import json
-import subprocess
 from pathlib import Path
 
 import pytest
 from short_plans import write_short_plan
 
-from tests.bus.helpers import HOME, cli, free_endpoint
+from tests.bus.helpers import HOME, fly_with_bus_localizer
 
 pytestmark = pytest.mark.integration
 
@@ -31,27 +30,11 @@ def plan(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def aided_by_mapmatch(plan: Path, out: Path) -> str:
     """Fly ``plan`` into ``out`` aided by the online map-matcher; its closing line."""
-    endpoint = free_endpoint()
-    loc = subprocess.Popen(
-        cli("localize", "--bus", "--method", "mapmatch", "--name", "mm", "--gnss", "all",
-            "--reference-map", "urban", "--zenoh-connect", endpoint),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    return fly_with_bus_localizer(
+        ["--method", "mapmatch", "--name", "mm", "--gnss", "all", "--reference-map", "urban"],
+        [str(plan), "--air-start", "--quiet", "--out", str(out), "--gps-denied-after", "2",
+         "--wind", "5@270", "--nav-aid", "mm", "--wait-for", "mm"],
     )  # fmt: skip
-    try:
-        fly = subprocess.run(
-            cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out),
-                "--gps-denied-after", "2", "--wind", "5@270", "--zenoh-listen", endpoint,
-                "--nav-aid", "mm", "--wait-for", "mm"),
-            capture_output=True, text=True, timeout=600, check=False,
-        )  # fmt: skip
-        assert fly.returncode == 0, fly.stderr
-        loc_out, loc_err = loc.communicate(timeout=60)
-    finally:
-        if loc.poll() is None:
-            loc.kill()
-            loc.communicate()
-    assert loc.returncode == 0, loc_err
-    return loc_out
 
 
 def test_the_online_mapmatcher_as_a_lockstep_aid_is_deterministic(
