@@ -5,7 +5,7 @@ from __future__ import annotations
 import contextlib
 import queue
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 from air_sitl.mavlink.links import parse_link
@@ -20,16 +20,20 @@ from air_sitl.state import FlightMode, GeoPoint, SimSample, VehicleState
 class TruthSink(NullSink):
     """Every truth state by simulated millisecond, and every flight mode the autopilot was in
     (in order, however briefly: the wall-clock heartbeat can miss a mode that lasts less than a
-    second of wall time)."""
+    second of wall time). ``listeners`` are called with each state on the simulation thread:
+    a test's peer that must follow simulated time (a companion computer) rides on them."""
 
     def __init__(self) -> None:
         self.by_ms: dict[int, VehicleState] = {}
         self.states: list[VehicleState] = []
         self.modes: list[FlightMode] = []
+        self.listeners: list[Callable[[VehicleState], None]] = []
 
     def on_sample(self, sample: SimSample) -> None:
         self.by_ms[sample.state.sim_time_ns // 1_000_000] = sample.state
         self.states.append(sample.state)
+        for listener in tuple(self.listeners):
+            listener(sample.state)
         mode = sample.autopilot.mode
         if not self.modes or self.modes[-1] is not mode:
             self.modes.append(mode)

@@ -13,7 +13,6 @@ import contextlib
 import math
 import queue
 import threading
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,7 +32,7 @@ from air_sitl.mission.plan_file import load_mission
 from air_sitl.nav.types import AidFrame
 from air_sitl.options import OPEN_END_NS, FlightOptions
 from air_sitl.runner import Flight, InboxItem, assemble_flight
-from air_sitl.state import GeoPoint
+from air_sitl.state import GeoPoint, VehicleState
 
 HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
 NS = 1_000_000_000
@@ -178,7 +177,9 @@ def served_with_aid(plan: Path, *, deny_after_s: float, speed: float) -> Iterato
 
 class Companion:
     """A pymavlink companion computer (1/197) sending the truth as VISION_POSITION_ESTIMATE at
-    ``rate_hz`` of simulated time, from ``start_s``, plus ``east_bias_m``."""
+    ``rate_hz`` of simulated time, from ``start_s``. It follows simulated time exactly: it
+    sends from the truth sink's listener, on the simulation thread, one message a slot, so a
+    busy machine changes nothing about what it sends or when (in simulated time)."""
 
     def __init__(self, served: Served, *, start_s: float, rate_hz: float = 20.0) -> None:
         self.served = served
@@ -193,40 +194,31 @@ class Companion:
         self.sent = 0
         # Messages to send instead of the good ones, one per slot (None: the good one).
         self.extra: list[Any] = []
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._last_slot = -1
 
     def __enter__(self) -> Companion:
-        self._thread.start()
+        self.served.truth.listeners.append(self._on_state)
         return self
 
     def __exit__(self, *_exc: object) -> None:
-        self._stop.set()
-        self._thread.join(timeout=5)
+        self.served.truth.listeners.remove(self._on_state)
         self.conn.close()
 
-    def _run(self) -> None:
-        last = -1
-        while not self._stop.is_set():
-            states = self.served.truth.states
-            if not states:
-                time.sleep(0.002)
-                continue
-            s = states[-1]
-            t = s.sim_time_ns
-            slot = t // self.period_ns
-            if t >= self.start_ns and slot != last:
-                last = slot
-                bad = self.extra.pop(0) if self.extra else None
-                if bad is not None:
-                    bad(self.mav, t)  # instead of this slot's good position
-                else:
-                    n, e, d = s.pos_ned_m
-                    self.mav.vision_position_estimate_send(
-                        t // 1000, n, e, d, 0.0, 0.0, 0.0, _cov21(9.0, 9.0)
-                    )
-                    self.sent += 1
-            time.sleep(0.001)
+    def _on_state(self, s: VehicleState) -> None:
+        t = s.sim_time_ns
+        slot = t // self.period_ns
+        if t < self.start_ns or slot == self._last_slot:
+            return
+        self._last_slot = slot
+        bad = self.extra.pop(0) if self.extra else None
+        if bad is not None:
+            bad(self.mav, t)  # instead of this slot's good position
+            return
+        n, e, d = s.pos_ned_m
+        self.mav.vision_position_estimate_send(
+            t // 1000, n, e, d, 0.0, 0.0, 0.0, _cov21(9.0, 9.0)
+        )
+        self.sent += 1
 
 
 def test_a_companion_aids_a_denied_flight_that_mavsdk_sees_finish(tmp_path: Path) -> None:
