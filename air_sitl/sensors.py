@@ -52,8 +52,9 @@ class SensorNoise:
         )
 
 
-class _Normals:
-    """Rows of standard normal draws served one at a time from pre-drawn blocks (fast, seeded)."""
+class NormalRows:
+    """Rows of standard normal draws served one at a time from pre-drawn blocks (fast, seeded;
+    the stream does not depend on the block size)."""
 
     __slots__ = ("_block", "_i", "_rng", "_width")
 
@@ -95,8 +96,8 @@ class SensorSuite:
         self._gyro_bias = [v * n.gyro_bias_rad_s for v in b[:3]]
         self._accel_bias = [v * n.accel_bias_m_s2 for v in b[3:]]
         # Per step: bias walk (3), gyro noise (3), accel noise (3), AHRS drift (3), jitter (3).
-        self._step_noise = _Normals(np.random.default_rng(step_seq), 15)
-        self._gps = _Normals(np.random.default_rng(gps_seq), 6)
+        self._step_noise = NormalRows(np.random.default_rng(step_seq), 15)
+        self._gps = NormalRows(np.random.default_rng(gps_seq), 6)
         self._ahrs_drift = [0.0, 0.0, 0.0]
         sqrt_dt = math.sqrt(self.step_s)
         self._walk_scale = n.gyro_bias_walk_rad_s_sqrt_s * sqrt_dt

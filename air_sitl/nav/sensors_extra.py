@@ -9,37 +9,46 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Generic, TypeVar
 
 import numpy as np
 
+from air_sitl.clock import NS_PER_S
 from air_sitl.frames import wrap_pi
 from air_sitl.nav.types import AirspeedSample, BaroSample, HeadingSample
+from air_sitl.sensors import NormalRows
 from air_sitl.state import VehicleState
 
-NS_PER_S = 1_000_000_000
+R = TypeVar("R")  # a sensor's reading
 
 
-class _Draws:
-    """Standard normal rows from pre-drawn blocks of a seeded PCG64 (fast and deterministic)."""
+def _draws(seed: int, salt: int, width: int) -> NormalRows:
+    """The normal rows of one sensor: its own stream of the flight's seed."""
+    return NormalRows(np.random.default_rng(np.random.SeedSequence([seed, salt])), width)
 
-    __slots__ = ("_block", "_i", "_rng", "_width")
 
-    def __init__(self, seed: int, salt: int, width: int) -> None:
-        self._rng = np.random.default_rng(np.random.SeedSequence([seed, salt]))
-        self._width = width
-        self._block: list[list[float]] = []
-        self._i = 0
+class _DriftingSensor(Generic[R]):
+    """A reading every ``period_ns``: truth with an error of a turn-on offset (drawn once), a
+    random walk and white noise (two normal draws a reading)."""
 
-    def first(self) -> list[float]:
-        """One row drawn before the per-sample stream (turn-on offsets)."""
-        return self.row()
+    def __init__(
+        self, seed: int, salt: int, rate_hz: float, offset: float, drift_sqrt_s: float, noise: float
+    ) -> None:
+        self.period_ns = round(NS_PER_S / rate_hz)
+        self._draws = _draws(seed, salt, 2)
+        self.drift = self._draws.row()[0] * offset
+        self._walk = drift_sqrt_s * math.sqrt(self.period_ns / NS_PER_S)
+        self._noise = noise
 
-    def row(self) -> list[float]:
-        if self._i >= len(self._block):
-            self._block = self._rng.standard_normal((1024, self._width)).tolist()
-            self._i = 0
-        self._i += 1
-        return self._block[self._i - 1]
+    def sample(self, state: VehicleState) -> R | None:
+        if state.sim_time_ns % self.period_ns:
+            return None
+        z = self._draws.row()
+        self.drift += z[0] * self._walk
+        return self._reading(state, self.drift, z[1] * self._noise)
+
+    def _reading(self, state: VehicleState, drift: float, white: float) -> R:
+        raise NotImplementedError
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -52,25 +61,16 @@ class BaroNoise:
     drift_m_sqrt_s: float = 0.02  # slow random walk (temperature, weather)
 
 
-class Barometer:
+class Barometer(_DriftingSensor[BaroSample]):
     """Pressure altitude AMSL = truth + turn-on offset + random-walk drift + white noise."""
 
     def __init__(self, *, seed: int, noise: BaroNoise | None = None) -> None:
-        self.noise = noise or BaroNoise()
-        self.period_ns = round(NS_PER_S / self.noise.rate_hz)
-        self._draws = _Draws(seed, 0xBA50, 2)
-        self.drift_m = self._draws.first()[0] * self.noise.offset_m
-        self._walk = self.noise.drift_m_sqrt_s * math.sqrt(self.period_ns / NS_PER_S)
+        self.noise = n = noise or BaroNoise()
+        super().__init__(seed, 0xBA50, n.rate_hz, n.offset_m, n.drift_m_sqrt_s, n.noise_m)
 
-    def sample(self, state: VehicleState) -> BaroSample | None:
-        if state.sim_time_ns % self.period_ns:
-            return None
-        z = self._draws.row()
-        self.drift_m += z[0] * self._walk
-        return BaroSample(
-            sim_time_ns=state.sim_time_ns,
-            alt_amsl_m=state.alt_amsl_m + self.drift_m + z[1] * self.noise.noise_m,
-        )
+    def _reading(self, state: VehicleState, drift: float, white: float) -> BaroSample:
+        alt_m = state.alt_amsl_m + drift + white
+        return BaroSample(sim_time_ns=state.sim_time_ns, alt_amsl_m=alt_m)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -88,8 +88,8 @@ class AirspeedSensor:
     def __init__(self, *, seed: int, noise: AirspeedNoise | None = None) -> None:
         self.noise = noise or AirspeedNoise()
         self.period_ns = round(NS_PER_S / self.noise.rate_hz)
-        self._draws = _Draws(seed, 0xA125, 1)
-        self.scale = 1.0 + self._draws.first()[0] * self.noise.scale_error
+        self._draws = _draws(seed, 0xA125, 1)
+        self.scale = 1.0 + self._draws.row()[0] * self.noise.scale_error
 
     def sample(self, state: VehicleState) -> AirspeedSample | None:
         if state.sim_time_ns % self.period_ns:
@@ -110,21 +110,13 @@ class MagNoise:
     declination_rad: float = 0.0  # magnetic north east of true north
 
 
-class Magnetometer:
+class Magnetometer(_DriftingSensor[HeadingSample]):
     """Magnetic heading = truth yaw - declination + offset + drift + white noise, wrapped."""
 
     def __init__(self, *, seed: int, noise: MagNoise | None = None) -> None:
-        self.noise = noise or MagNoise()
-        self.period_ns = round(NS_PER_S / self.noise.rate_hz)
-        self._draws = _Draws(seed, 0x3A6, 2)
-        self.error_rad = self._draws.first()[0] * self.noise.offset_rad
-        self._walk = self.noise.drift_rad_sqrt_s * math.sqrt(self.period_ns / NS_PER_S)
+        self.noise = n = noise or MagNoise()
+        super().__init__(seed, 0x3A6, n.rate_hz, n.offset_rad, n.drift_rad_sqrt_s, n.noise_rad)
 
-    def sample(self, state: VehicleState) -> HeadingSample | None:
-        if state.sim_time_ns % self.period_ns:
-            return None
-        z = self._draws.row()
-        self.error_rad += z[0] * self._walk
-        n = self.noise
-        heading = state.yaw_rad - n.declination_rad + self.error_rad + z[1] * n.noise_rad
+    def _reading(self, state: VehicleState, drift: float, white: float) -> HeadingSample:
+        heading = state.yaw_rad - self.noise.declination_rad + drift + white
         return HeadingSample(sim_time_ns=state.sim_time_ns, heading_rad=wrap_pi(heading))
