@@ -30,18 +30,11 @@ class AirspeedControl:
         self.beta_ratio = 0.0
 
     def push(self, sample: AirspeedSample, now_ns: int, horizon_start_ns: int) -> bool:
-        c = self.counters
-        c.received += 1
-        if not (math.isfinite(sample.airspeed_m_s) and sample.airspeed_m_s >= 0.0):
-            c.reject("invalid")
-            return False
-        if not horizon_start_ns <= sample.sim_time_ns <= now_ns:
-            c.reject("time")
-            return False
-        if not self.buffer.push(sample.sim_time_ns, sample.airspeed_m_s):
-            c.reject("rate")
-            return False
-        return True
+        tas = sample.airspeed_m_s
+        window = (horizon_start_ns, now_ns)
+        return self.counters.admit(
+            self.buffer, sample.sim_time_ns, tas, math.isfinite(tas) and tas >= 0.0, window
+        )
 
     def fuse_due(self, ekf: ErrorStateEkf, t_ns: int, velocity_valid: bool) -> None:
         p = self.params

@@ -38,18 +38,9 @@ class BaroControl:
         self.ratio = 0.0
 
     def push(self, sample: BaroSample, now_ns: int, horizon_start_ns: int) -> bool:
-        c = self.counters
-        c.received += 1
-        if not math.isfinite(sample.alt_amsl_m):
-            c.reject("invalid")
-            return False
-        if not horizon_start_ns <= sample.sim_time_ns <= now_ns:
-            c.reject("time")
-            return False
-        if not self.buffer.push(sample.sim_time_ns, sample.alt_amsl_m):
-            c.reject("rate")
-            return False
-        return True
+        alt = sample.alt_amsl_m
+        window = (horizon_start_ns, now_ns)
+        return self.counters.admit(self.buffer, sample.sim_time_ns, alt, math.isfinite(alt), window)
 
     def fusing(self, t_ns: int) -> bool:
         last = self.last_fused_ns

@@ -30,19 +30,14 @@ class MagControl:
         self.ratio = 0.0
 
     def push(self, sample: HeadingSample, now_ns: int, horizon_start_ns: int) -> bool:
-        c = self.counters
-        c.received += 1
-        if not math.isfinite(sample.heading_rad):
-            c.reject("invalid")
-            return False
-        if not horizon_start_ns <= sample.sim_time_ns <= now_ns:
-            c.reject("time")
-            return False
-        if not self.buffer.push(sample.sim_time_ns, sample.heading_rad):
-            c.reject("rate")
-            return False
-        self.last_heading_rad = sample.heading_rad
-        return True
+        heading = sample.heading_rad
+        window = (horizon_start_ns, now_ns)
+        admitted = self.counters.admit(
+            self.buffer, sample.sim_time_ns, heading, math.isfinite(heading), window
+        )
+        if admitted:
+            self.last_heading_rad = heading
+        return admitted
 
     def fuse_due(self, ekf: ErrorStateEkf, t_ns: int) -> None:
         p = self.params

@@ -8,9 +8,12 @@ ESTIMATOR_STATUS reports (flags, test ratios, accuracies).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import Any, TypeVar
 
+from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.state import NavFlags
+
+T = TypeVar("T")
 
 
 @dataclass(slots=True)
@@ -28,6 +31,24 @@ class SourceCounters:
     def reject(self, reason: str) -> None:
         self.rejected += 1
         self.reasons[reason] = self.reasons.get(reason, 0) + 1
+
+    def admit(
+        self, buffer: TimedBuffer[T], t_ns: int, item: T, valid: bool, window: tuple[int, int]
+    ) -> bool:
+        """Count one received measurement taken at ``t_ns`` and buffer it; False, counted by
+        reason, when it is not ``valid``, outside ``window`` (the delayed horizon's start, the
+        arrival time) or the buffer refuses it (full, out of order)."""
+        self.received += 1
+        if not valid:
+            self.reject("invalid")
+            return False
+        if not window[0] <= t_ns <= window[1]:
+            self.reject("time")
+            return False
+        if not buffer.push(t_ns, item):
+            self.reject("rate")
+            return False
+        return True
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
