@@ -1,5 +1,5 @@
 """Atomic file writes (a temporary name beside the target, then a rename), UTF-8 text and JSON
-objects read back, deterministic zips.
+objects and YAML mappings read back, a file's SHA-256, deterministic zips.
 
 A reader (or a crash) never sees half a file: the target holds the old content or the new one.
 Every writer of an archive file (JPEG frames, camera.yaml, summary and manifest JSON, the
@@ -9,11 +9,14 @@ rewritten ``metadata.csv``) goes through here; so does packing an archive as a z
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import zipfile
 from pathlib import Path
 from typing import Any
+
+import yaml
 
 from air_sitl.errors import AirSitlError, DatasetError
 
@@ -75,9 +78,31 @@ def parse_json_object(data: bytes | str, where: str, error: type[AirSitlError]) 
     return value
 
 
+def parse_yaml_mapping(text: str, where: str, error: type[AirSitlError]) -> dict[str, Any]:
+    """One YAML mapping; ``error`` naming ``where`` when ``text`` is not one."""
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        msg = f"{where}: not YAML ({err})"
+        raise error(msg) from None
+    if not isinstance(value, dict):
+        msg = f"{where}: expected a mapping, got {type(value).__name__}"
+        raise error(msg)
+    return value
+
+
 def write_json_atomic(path: Path, content: Any) -> None:
     """Write ``content`` as indented JSON, synced to disk, atomically (DatasetError on failure)."""
     write_bytes_atomic(path, (json.dumps(content, indent=2) + "\n").encode("utf-8"), fsync=True)
+
+
+def sha256_file(path: Path) -> str:
+    """Hex SHA-256 of a file, read in 1 MiB blocks."""
+    h = hashlib.sha256()
+    with path.open("rb") as f:
+        while block := f.read(1 << 20):
+            h.update(block)
+    return h.hexdigest()
 
 
 def zip_folder(folder: Path, out: Path) -> None:

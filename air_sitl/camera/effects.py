@@ -30,9 +30,9 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import yaml
 
 from air_sitl.errors import CameraError
+from air_sitl.files import parse_yaml_mapping
 
 NAMES = ("blur", "rolling-shutter", "vignette", "exposure", "haze", "distortion")
 DEFAULT_DISTORTION = (-0.05, 0.01, 0.0, 0.0, 0.0)
@@ -125,13 +125,11 @@ def effects_from_options(profile: str | None, names: str | None) -> CameraEffect
     if profile is not None:
         path = Path(profile)
         try:
-            data = yaml.safe_load(path.read_text())
-        except (OSError, yaml.YAMLError) as err:
+            text = path.read_text()
+        except OSError as err:
             msg = f"--camera-profile {path}: cannot read it ({err})"
             raise CameraError(msg) from None
-        if not isinstance(data, dict):
-            msg = f"--camera-profile {path}: expected a mapping of effect parameters"
-            raise CameraError(msg)
+        data = parse_yaml_mapping(text, f"--camera-profile {path}", CameraError)
         try:
             effects = effects_from_settings(data)
         except (TypeError, ValueError) as err:

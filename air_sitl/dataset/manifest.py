@@ -20,7 +20,7 @@ from air_sitl.dataset.air_schema import (
     SUMMARY_JSON,
 )
 from air_sitl.errors import DatasetError
-from air_sitl.files import TMP_SUFFIX, parse_json_object, write_json_atomic
+from air_sitl.files import TMP_SUFFIX, parse_json_object, sha256_file, write_json_atomic
 from air_sitl.state import GeoPoint
 
 MANIFEST_FORMAT = "air-sitl-archive"
@@ -31,15 +31,6 @@ WALL_CLOCK_FILES = (SUMMARY_JSON,)
 def sha256_bytes(data: bytes) -> str:
     """Hex SHA-256 of ``data``."""
     return hashlib.sha256(data).hexdigest()
-
-
-def sha256_file(path: Path) -> str:
-    """Hex SHA-256 of a file, read in 1 MiB blocks."""
-    h = hashlib.sha256()
-    with path.open("rb") as f:
-        while block := f.read(1 << 20):
-            h.update(block)
-    return h.hexdigest()
 
 
 def archive_files(folder: Path) -> list[str]:

@@ -8,7 +8,6 @@ fast (pure maths), others through GDAL's transform, geographic CRSs included.
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 import threading
@@ -33,6 +32,7 @@ from rasterio.transform import Affine
 from rasterio.warp import transform as warp_transform
 from rasterio.windows import Window
 
+from air_sitl.files import sha256_file
 from air_sitl.maps.array import num_levels_for, utm_zone_of_crs
 from air_sitl.maps.base import (
     DEFAULT_CACHE_BYTES,
@@ -156,11 +156,7 @@ class GeoTiffMap(TiledMap):
     def describe(self) -> dict[str, Any]:
         """Provenance: file name, SHA-256 (computed once), CRS and size."""
         if self._sha256 is None:
-            digest = hashlib.sha256()
-            with self.path.open("rb") as f:
-                for chunk in iter(lambda: f.read(1 << 20), b""):
-                    digest.update(chunk)
-            self._sha256 = digest.hexdigest()
+            self._sha256 = sha256_file(self.path)
         return {
             "source": "geotiff",
             "path": str(self.path),
@@ -364,11 +360,7 @@ class GeoTiffDem(TiledSurface):
     def describe(self) -> dict[str, Any]:
         """Provenance: file name, SHA-256, CRS."""
         if self._sha256 is None:
-            digest = hashlib.sha256()
-            with self.path.open("rb") as fh:
-                for chunk in iter(lambda: fh.read(1 << 20), b""):
-                    digest.update(chunk)
-            self._sha256 = digest.hexdigest()
+            self._sha256 = sha256_file(self.path)
         return {
             "source": "geotiff-dem",
             "path": str(self.path),

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from air_sitl.errors import MapError
+from air_sitl.files import parse_json_object
 
 ELEVATION = ("3dep", "cop-dem", "dem", "srtm", "nasadem", "elevation")
 BBox = tuple[float, float, float, float]
@@ -71,16 +72,13 @@ def _load(href: str) -> dict[str, Any]:
     try:
         if urllib.parse.urlparse(href).scheme in ("http", "https"):
             with urllib.request.urlopen(href, timeout=60) as resp:
-                data = json.load(resp)
+                data = resp.read()
         else:
-            data = json.loads(Path(href).read_text())
-    except (OSError, ValueError) as err:
+            data = Path(href).read_bytes()
+    except OSError as err:
         msg = f"--stac {href}: cannot read it ({err})"
         raise MapError(msg) from None
-    if not isinstance(data, dict):
-        msg = f"--stac {href}: not a STAC JSON object"
-        raise MapError(msg)
-    return data
+    return parse_json_object(data, f"--stac {href}", MapError)
 
 
 def _join(base: str, href: str) -> str:

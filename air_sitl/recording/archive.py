@@ -31,10 +31,10 @@ from air_sitl.dataset.air_schema import (
     TRAJECTORY_CSV,
 )
 from air_sitl.dataset.estimates import fill_svo_columns
-from air_sitl.dataset.manifest import read_manifest, refresh_manifest, sha256_file
+from air_sitl.dataset.manifest import read_manifest, refresh_manifest
 from air_sitl.dataset.writer import DatasetWriter, read_run_key, recover_partial
 from air_sitl.errors import DatasetError, OptionError
-from air_sitl.files import write_json_atomic
+from air_sitl.files import sha256_file, write_json_atomic
 from air_sitl.flightlog import NavTrajectoryWriter, TrajectoryWriter
 from air_sitl.mission.items import Mission
 from air_sitl.recording.inputs import GPS_DENIAL_JSON, archive_info_for, gps_denial_record

@@ -24,7 +24,8 @@ import pytest
 from short_plans import write_short_plan
 
 from air_sitl.dataset.estimates import read_estimates
-from air_sitl.dataset.manifest import read_manifest, sha256_file
+from air_sitl.dataset.manifest import read_manifest
+from air_sitl.files import sha256_file
 from air_sitl.localize import localize_archive
 from air_sitl.localize.archive import run_archive
 from air_sitl.state import GeoPoint
