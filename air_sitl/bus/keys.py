@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import overload
 
 from air_sitl.errors import OptionError
 
@@ -27,11 +28,46 @@ def check_chunk(what: str, value: str) -> str:
     return value
 
 
+class _Key:
+    """A key below ``air/<vehicle>``: read on a :class:`KeySpace`, the whole key."""
+
+    __slots__ = ("suffix",)
+
+    def __init__(self, suffix: str) -> None:
+        self.suffix = suffix
+
+    @overload
+    def __get__(self, keys: None, owner: type[KeySpace]) -> _Key: ...
+    @overload
+    def __get__(self, keys: KeySpace, owner: type[KeySpace]) -> str: ...
+    def __get__(self, keys: KeySpace | None, owner: type[KeySpace]) -> _Key | str:
+        return self if keys is None else f"{keys.root}/{self.suffix}"
+
+
 @dataclass(frozen=True, slots=True)
 class KeySpace:
     """Keys of one vehicle, ``air/<vehicle>/...``."""
 
     vehicle: str = DEFAULT_VEHICLE
+
+    # JPEG frames; attachment: JSON frame index and simulation time.
+    image = _Key("camera/image")
+    # Camera intrinsics, resolution, FOV, mounting (published once, and a queryable).
+    info = _Key("camera/info")
+    # Queryable of a camera bridge: truth pose in, JPEG frame out (remote camera).
+    render = _Key("camera/render")
+    # Gyro, accelerometer, AHRS quaternion.
+    imu = _Key("imu")
+    # Noisy GNSS fix; silent while GNSS is denied.
+    gps = _Key("gps")
+    # Ground-truth pose and velocity (only with ``--publish-truth``).
+    truth = _Key("truth")
+    # Autopilot mode, mission item, capture window, home.
+    mission_status = _Key("mission/status")
+    # Simulation time.
+    clock = _Key("clock")
+    # Every estimator of this vehicle (a wildcard for subscribers).
+    estimates = _Key("estimate/*")
 
     def __post_init__(self) -> None:
         check_chunk("--vehicle", self.vehicle)
@@ -41,51 +77,6 @@ class KeySpace:
         """``air/<vehicle>``."""
         return f"air/{self.vehicle}"
 
-    @property
-    def image(self) -> str:
-        """JPEG frames; attachment: JSON frame index and simulation time."""
-        return f"{self.root}/camera/image"
-
-    @property
-    def info(self) -> str:
-        """Camera intrinsics, resolution, FOV, mounting (published once, and a queryable)."""
-        return f"{self.root}/camera/info"
-
-    @property
-    def render(self) -> str:
-        """Queryable of a camera bridge: truth pose in, JPEG frame out (remote camera)."""
-        return f"{self.root}/camera/render"
-
-    @property
-    def imu(self) -> str:
-        """Gyro, accelerometer, AHRS quaternion."""
-        return f"{self.root}/imu"
-
-    @property
-    def gps(self) -> str:
-        """Noisy GNSS fix; silent while GNSS is denied."""
-        return f"{self.root}/gps"
-
-    @property
-    def truth(self) -> str:
-        """Ground-truth pose and velocity (only with ``--publish-truth``)."""
-        return f"{self.root}/truth"
-
-    @property
-    def mission_status(self) -> str:
-        """Autopilot mode, mission item, capture window, home."""
-        return f"{self.root}/mission/status"
-
-    @property
-    def clock(self) -> str:
-        """Simulation time."""
-        return f"{self.root}/clock"
-
     def estimate(self, name: str) -> str:
         """Where the estimator ``name`` publishes its estimates."""
         return f"{self.root}/estimate/{check_chunk('estimator name', name)}"
-
-    @property
-    def estimates(self) -> str:
-        """Every estimator of this vehicle (a wildcard for subscribers)."""
-        return f"{self.root}/estimate/*"
