@@ -1,46 +1,51 @@
-"""``air-sitl bench``: rank localization methods over the AIR scenarios.
+"""``air-sitl bench``: rank localization methods over the AIR scenarios; a preset of sweep.
 
     config = BenchConfig(scenarios=("UC-200",), methods=("deadreckon", "vo"), out=Path("b"), ...)
     board = run_bench(config)          # writes b/leaderboard.md, .json and b/error_boxes.png
 
 Steps: the archives (made once with ``air-sitl dataset`` over the flight date, reused while
-their inputs are unchanged), each built-in method localized and scored per archive on a pool
-of ``jobs`` processes (:mod:`~air_sitl.bench.tasks`), each external localizer flown in
-lockstep on the bus per scenario, then the leaderboard (:mod:`~air_sitl.bench.leaderboard`)
-and the box plots (:mod:`~air_sitl.bench.plots`). Every measurement is saved as it finishes
-(:mod:`~air_sitl.bench.results`), so an interrupted bench resumes where it stopped.
+their inputs are unchanged); then a sweep (:mod:`air_sitl.sweep`) of one run per scenario, the
+equivalent SPEC written to ``b/bench.yaml``, whose tasks point at those archives instead of
+flying: each runs the built-in methods and the external localizers (in lockstep on the bus)
+and scores them, on the sweep's executors (``-j N`` processes, or Ray), one row per scenario
+in ``b/results.jsonl``. Every (scenario, entry) measurement is saved as it finishes
+(:mod:`air_sitl.sweep.measurements`, ``b/reports/``), so an interrupted bench resumes where it
+stopped. Last the leaderboard (:mod:`~air_sitl.bench.leaderboard`) and the box plots
+(:mod:`~air_sitl.bench.plots`).
 """
 
 from __future__ import annotations
 
-import contextlib
 import json
-import multiprocessing
-import queue
+import shlex
 import subprocess
 import sys
-from collections.abc import Callable
-from concurrent.futures import Future, ProcessPoolExecutor
+from dataclasses import replace
 from typing import IO, Any
+
+import yaml
 
 from air_sitl.bench.config import BenchConfig, ExternalLocalizer, parse_localizer, parse_methods
 from air_sitl.bench.leaderboard import Leaderboard, build
-from air_sitl.bench.results import EntryResult, load_errors
-from air_sitl.bench.tasks import MethodsTask, run_external, run_methods
 from air_sitl.dataset.air_schema import MANIFEST_JSON
 from air_sitl.errors import DatasetError
 from air_sitl.files import write_bytes_atomic, write_json_atomic
+from air_sitl.sweep import Executor, PoolExecutor, RayExecutor, make_tasks, run_tasks
+from air_sitl.sweep.measurements import EntryResult, archive_id, load_errors, read
+from air_sitl.sweep.run import RunTask
+from air_sitl.sweep.spec import SweepSpec, parse_spec
 
 __all__ = [
     "BenchConfig",
     "ExternalLocalizer",
     "Leaderboard",
+    "bench_spec",
     "parse_localizer",
     "parse_methods",
     "run_bench",
 ]
 
-_QUEUE: Any = None  # the progress queue of a pool worker
+BENCH_SPEC = "bench.yaml"  # the sweep SPEC a bench is, written beside its results
 
 
 class Progress:
@@ -85,7 +90,6 @@ def make_archives(config: BenchConfig) -> None:
         "--seed", str(config.seed),
         "-j", str(config.jobs),
         "--resume",
-        *config.extra_dataset_args,
     ]  # fmt: skip
     if config.quiet:
         cmd.append("--quiet")
@@ -118,40 +122,66 @@ def check_archive_inputs(config: BenchConfig, scenario: str) -> None:
             raise DatasetError(msg)
 
 
-def _init_worker(progress: Any) -> None:
-    global _QUEUE  # noqa: PLW0603  (one queue per worker process)
-    _QUEUE = progress
+def bench_spec(config: BenchConfig) -> dict[str, Any]:
+    """The sweep SPEC a bench is: one run per scenario, flown as ``dataset`` flies it (the map
+    date and seed of the bench), scored with the bench's methods and localizers."""
+    spec: dict[str, Any] = {
+        "runs": [
+            {"scenario": s, "map-date": config.flight_date, "seed": config.seed}
+            for s in config.scenarios
+        ],
+        "methods": list(config.methods),
+    }
+    if config.localizers:
+        spec["localizers"] = {loc.name: shlex.join(loc.argv) for loc in config.localizers}
+    spec["align"] = config.align
+    return spec
 
 
-def _pool_task(task: MethodsTask) -> list[EntryResult]:
-    return run_methods(task, notify=_QUEUE.put if _QUEUE is not None else None)
+def _tasks(config: BenchConfig, spec: SweepSpec) -> list[RunTask]:
+    """The sweep's tasks, each pointing at its scenario's archive and keeping measurements."""
+    tasks = make_tasks(spec, config.out)
+    scenario_of = {run.id: run.options["scenario"] for run in spec.runs}
+    return [
+        replace(
+            task,
+            archive=str((config.archives / scenario_of[task.id]).resolve()),
+            archive_label=f"{config.archives.name}/{scenario_of[task.id]}",
+            reuse=True,
+            measurements=str(config.reports.resolve()),
+            reference_date=config.reference_date,
+        )
+        for task in tasks
+    ]
 
 
-def _run_method_tasks(
-    tasks: list[MethodsTask], jobs: int, notify: Callable[[EntryResult], None]
-) -> list[EntryResult]:
-    if jobs <= 1 or len(tasks) <= 1:
-        return [r for task in tasks for r in run_methods(task, notify=notify)]
-    ctx = multiprocessing.get_context("spawn")  # see commands/dataset: forked workers can hang
-    progress = ctx.Queue()
-    results: list[EntryResult] = []
-    with ProcessPoolExecutor(
-        max_workers=jobs, mp_context=ctx, initializer=_init_worker, initargs=(progress,)
-    ) as pool:
-        futures: list[Future[list[EntryResult]]] = [pool.submit(_pool_task, t) for t in tasks]
-        pending = set(futures)
-        while pending:
-            with contextlib.suppress(queue.Empty):
-                notify(progress.get(timeout=0.2))
-            for fut in [f for f in pending if f.done()]:
-                pending.discard(fut)
-                results.extend(fut.result())
-        while True:  # what arrived after the last future finished
-            try:
-                notify(progress.get_nowait())
-            except queue.Empty:
-                break
-    return results
+def _row_results(task: RunTask, row: dict[str, Any]) -> list[EntryResult]:
+    """A sweep row as the leaderboard's cells (what the progress line shows)."""
+    reports = row.get("eval") or {}
+    names = [*task.methods, *(loc.name for loc in task.localizers)]
+    return [
+        EntryResult(
+            scenario=task.scenario,
+            entry=name,
+            report=reports.get(name),
+            error=None if reports.get(name) is not None else (row.get("error") or "not run"),
+        )
+        for name in names
+    ]
+
+
+def _measured(config: BenchConfig, scenario: str, entry: str) -> EntryResult:
+    ident = archive_id(config.archives / scenario)
+    found = read(config.reports, scenario, entry, ident)
+    if found is None:
+        return EntryResult(scenario=scenario, entry=entry, report=None, error="not run")
+    return found
+
+
+def _executor(config: BenchConfig) -> Executor:
+    if config.ray is not None:
+        return RayExecutor(config.ray or None)
+    return PoolExecutor(config.jobs)
 
 
 def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard:
@@ -165,26 +195,24 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
         raise DatasetError(msg)
     for scenario in config.scenarios:
         check_archive_inputs(config, scenario)
-    total = len(config.scenarios) * len(config.entries)
-    progress = Progress(total, stream, config.quiet)
-    tasks = [
-        MethodsTask(
-            scenario=s,
-            archive=config.archives / s,
-            methods=config.methods,
-            reports=config.reports,
-            align=config.align,
-            reference_date=config.reference_date,
-            seed=config.seed,
-        )
-        for s in config.scenarios
-    ]
-    results = _run_method_tasks(tasks, config.jobs, progress.update) if config.methods else []
-    for localizer in config.localizers:
-        for s in config.scenarios:
-            result = run_external(config, s, config.archives / s, localizer)
-            progress.update(result)
-            results.append(result)
+    data = bench_spec(config)
+    spec_path = config.out / BENCH_SPEC
+    spec = parse_spec(data, spec_path, missions=config.missions)
+    write_bytes_atomic(spec_path, yaml.safe_dump(data, sort_keys=False).encode("utf-8"))
+    cells = [(s, e) for s in config.scenarios for e in config.entries]
+    measured = {cell for cell in cells if _measured(config, *cell).error is None}
+    progress = Progress(len(cells), stream, config.quiet)
+    progress.done = len(measured)
+
+    def on_row(task: RunTask, row: dict[str, Any]) -> None:
+        for result in _row_results(task, row):
+            if (result.scenario, result.entry) not in measured:
+                progress.update(result)
+
+    outcome = run_tasks(spec, _tasks(config, spec), config.out, _executor(config), on_row=on_row)
+    if outcome.interrupted:
+        raise KeyboardInterrupt
+    results = [_measured(config, *cell) for cell in cells]
     board = build(config.entries, config.scenarios, results)
     write_json_atomic(config.out / "leaderboard.json", board.to_json())
     write_bytes_atomic(config.out / "leaderboard.md", board.to_markdown().encode("utf-8"))

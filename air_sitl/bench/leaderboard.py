@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from air_sitl.bench.results import EntryResult
+from air_sitl.sweep.measurements import EntryResult
 
 # (leaderboard key, path into the SPEC report, markdown title, format, better)
 FIGURES: tuple[tuple[str, tuple[str, ...], str, str, str], ...] = (

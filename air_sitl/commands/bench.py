@@ -1,9 +1,10 @@
 """``air-sitl bench``: localization methods x AIR scenarios -> a leaderboard.
 
-Makes (or reuses) the archives over the flight date, runs each built-in method offline and
-each external localizer command on the bus in lockstep, scores everything with ``eval`` and
-writes ``DIR/leaderboard.md``, ``DIR/leaderboard.json`` and ``DIR/error_boxes.png``. An
-interrupted bench resumes from what it had measured.
+Makes (or reuses) the archives over the flight date, then sweeps them (a preset of ``air-sitl
+sweep``: one run per scenario, on ``-j N`` processes or ``--ray``) running each built-in method
+offline and each external localizer command on the bus in lockstep, scores everything with
+``eval`` and writes ``DIR/leaderboard.md``, ``DIR/leaderboard.json`` and
+``DIR/error_boxes.png``. An interrupted bench resumes from what it had measured.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from pathlib import Path
 
 from air_sitl.bench import BenchConfig, parse_localizer, parse_methods, run_bench
 from air_sitl.bench.config import FLIGHT_DATE, REFERENCE_DATE
+from air_sitl.commands.sweep import add_executor_arguments
 from air_sitl.dataset.scenarios import missions_dir, parse_scenarios
 from air_sitl.errors import OptionError
 from air_sitl.eval import ALIGNMENTS
@@ -43,7 +45,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "estimate/NAME; repeatable",
     )
     parser.add_argument("--out", metavar="DIR", required=True, help="bench folder")
-    parser.add_argument("-j", "--jobs", default="1", metavar="N", help="processes (default 1)")
+    add_executor_arguments(parser, note="; the bench folder at the same path on every node")
     parser.add_argument("--missions", default=None, help="folder of the scenario plans")
     parser.add_argument(
         "--map-date",
@@ -78,6 +80,7 @@ def config_from_args(args: argparse.Namespace) -> BenchConfig:
         localizers=localizers,
         out=Path(args.out),
         jobs=int_in_range("-j", args.jobs, 1, 64),
+        ray=args.ray,
         missions=folder,
         flight_date=int_in_range("--map-date", args.map_date, 0, 99),
         reference_date=int_in_range("--reference-date", args.reference_date, 0, 99),

@@ -29,19 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("dir", nargs="?", metavar="DIR", help="sweep folder (with 'report')")
     parser.add_argument("--out", default=None, metavar="DIR", help="sweep folder (created)")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument(
-        "-j", "--jobs", default="1", metavar="N", help="worker processes (default 1)"
-    )
-    where.add_argument(
-        "--ray",
-        nargs="?",
-        const="",
-        default=None,
-        metavar="ADDRESS",
-        help="run on Ray: alone, a local Ray; with ADDRESS (auto, HOST:6379, ray://HOST:10001), "
-        "that cluster (pip install 'air-sitl[ray]')",
-    )
+    add_executor_arguments(parser)
     parser.add_argument(
         "--keep",
         choices=("all", "frames", "none"),
@@ -56,6 +44,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--missions", default=None, metavar="DIR", help="folder of the plans 'scenario' names"
     )
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def add_executor_arguments(parser: argparse.ArgumentParser, *, note: str = "") -> None:
+    """``-j N`` or ``--ray [ADDRESS]``: where the runs execute (sweep, and bench its preset)."""
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "-j", "--jobs", default="1", metavar="N", help="worker processes (default 1)"
+    )
+    where.add_argument(
+        "--ray",
+        nargs="?",
+        const="",
+        default=None,
+        metavar="ADDRESS",
+        help="run on Ray: alone, a local Ray; with ADDRESS (auto, HOST:6379, ray://HOST:10001), "
+        f"that cluster (pip install 'air-sitl[ray]'){note}",
+    )
 
 
 def run(args: argparse.Namespace) -> int:

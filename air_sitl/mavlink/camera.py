@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from air_sitl.mavlink import telemetry as tm
 from air_sitl.mavlink.codec import Encoder, Message, mav
+from air_sitl.mavlink.commands import run_then_ack
 from air_sitl.mavlink.interfaces import AutopilotLike, outcome, whole
 from air_sitl.mavlink.links import Channel, Link
 
@@ -77,17 +78,8 @@ class CameraComponent:
             self._ack(ch, msg, mav.MAV_RESULT_UNSUPPORTED)
 
     def _capture(self, ch: Channel, msg: Message, *, start: bool) -> None:
-        ep = self._ep
-        if ep.autopilot is None:
-            self._ack(ch, msg, mav.MAV_RESULT_TEMPORARILY_REJECTED)
-            return
+        def capture(ap: AutopilotLike) -> tuple[int, str]:
+            ok, _reason = outcome(ap.start_capture() if start else ap.stop_capture())
+            return (mav.MAV_RESULT_ACCEPTED if ok else mav.MAV_RESULT_DENIED), ""
 
-        def job(ap: AutopilotLike) -> None:
-            try:
-                ok, _reason = outcome(ap.start_capture() if start else ap.stop_capture())
-            except Exception:  # the ACK must go out whatever happens
-                ok = False
-            result = mav.MAV_RESULT_ACCEPTED if ok else mav.MAV_RESULT_DENIED
-            ep.to_io(lambda: self._ack(ch, msg, result))
-
-        ep.post(job)
+        run_then_ack(self._ep, capture, lambda result, _text: self._ack(ch, msg, result))

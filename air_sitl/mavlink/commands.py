@@ -18,6 +18,7 @@ from air_sitl.mavlink.interfaces import (
     SEVERITY_CRITICAL,
     SEVERITY_INFO,
     AutopilotLike,
+    EndpointPart,
     Handler,
     outcome,
     whole,
@@ -25,20 +26,37 @@ from air_sitl.mavlink.interfaces import (
 from air_sitl.mavlink.links import Channel
 from air_sitl.mission.items import MissionType
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the endpoint is made of parts like this one: a real cycle
     from air_sitl.mavlink.vehicle import VehicleEndpoint
 
-SimCommand = Callable[[AutopilotLike], tuple[int, str]]
+SimCommand = Callable[[AutopilotLike], tuple[int, str]]  # -> (MAV_RESULT, STATUSTEXT or "")
 
 
-class Commands:
+def run_then_ack(ep: VehicleEndpoint, fn: SimCommand, ack: Callable[[int, str], None]) -> None:
+    """Run an autopilot command on the simulation thread, then ``ack(result, text)`` on the I/O
+    thread: TEMPORARILY_REJECTED at once without an autopilot, DENIED when the command raises
+    an AirSitlError, FAILED (and the traceback on stderr) when it raises anything else."""
+    if ep.autopilot is None:
+        ack(mav.MAV_RESULT_TEMPORARILY_REJECTED, "")
+        return
+
+    def job(ap: AutopilotLike) -> None:
+        try:
+            result, text = fn(ap)
+        except AirSitlError as err:
+            result, text = mav.MAV_RESULT_DENIED, str(err)
+        except Exception as err:  # a bug in the autopilot: keep the vehicle serving
+            traceback.print_exc(file=sys.stderr)
+            result, text = mav.MAV_RESULT_FAILED, f"{type(err).__name__}: {err}"
+        ep.to_io(lambda: ack(result, text))
+
+    ep.post(job)
+
+
+class Commands(EndpointPart):
     """Handlers of the commands and control messages of one endpoint."""
 
-    def __init__(self, ep: VehicleEndpoint) -> None:
-        self._ep = ep
-
     def handlers(self) -> dict[str, Handler]:
-        """The messages this part answers."""
         return {
             "COMMAND_LONG": self.on_command,
             "COMMAND_INT": self.on_command,
@@ -60,22 +78,7 @@ class Commands:
 
     def on_sim(self, ch: Channel, msg: Message, fn: SimCommand) -> None:
         """Run an autopilot command on the simulation thread, then ACK it from here."""
-        ep = self._ep
-        if ep.autopilot is None:
-            self.ack(ch, msg, mav.MAV_RESULT_TEMPORARILY_REJECTED)
-            return
-
-        def job(ap: AutopilotLike) -> None:
-            try:
-                result, text = fn(ap)
-            except AirSitlError as err:
-                result, text = mav.MAV_RESULT_DENIED, str(err)
-            except Exception as err:  # a bug in the autopilot: keep the vehicle serving
-                traceback.print_exc(file=sys.stderr)
-                result, text = mav.MAV_RESULT_FAILED, f"{type(err).__name__}: {err}"
-            ep.to_io(lambda: self.ack(ch, msg, result, text))
-
-        ep.post(job)
+        run_then_ack(self._ep, fn, lambda result, text: self.ack(ch, msg, result, text))
 
     def on_command(self, ch: Channel, msg: Message) -> None:
         """Every COMMAND_LONG/INT gets a COMMAND_ACK, even when handling it fails."""

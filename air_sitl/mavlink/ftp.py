@@ -12,14 +12,10 @@ an opcode we do not know; ACK for TerminateSession and ResetSessions. The reply'
 from __future__ import annotations
 
 import struct
-from typing import TYPE_CHECKING
 
 from air_sitl.mavlink.codec import Message, mav
-from air_sitl.mavlink.interfaces import Handler
+from air_sitl.mavlink.interfaces import EndpointPart, Handler
 from air_sitl.mavlink.links import Channel
-
-if TYPE_CHECKING:
-    from air_sitl.mavlink.vehicle import VehicleEndpoint
 
 # Header: seq_number u16, session u8, opcode u8, size u8, req_opcode u8, burst_complete u8,
 # padding u8, offset u32; then up to 239 bytes of data.
@@ -71,14 +67,10 @@ def _reply(seq: int, session: int, opcode: int, req_opcode: int, offset: int, da
     return (header + data).ljust(PAYLOAD_BYTES, b"\0")
 
 
-class Ftp:
+class Ftp(EndpointPart):
     """FILE_TRANSFER_PROTOCOL handler of an endpoint."""
 
-    def __init__(self, ep: VehicleEndpoint) -> None:
-        self._ep = ep
-
     def handlers(self) -> dict[str, Handler]:
-        """The messages this part answers."""
         return {"FILE_TRANSFER_PROTOCOL": self.on_ftp}
 
     def on_ftp(self, ch: Channel, msg: Message) -> None:

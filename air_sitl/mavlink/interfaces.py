@@ -1,17 +1,21 @@
 """What the parts of the MAVLink vehicle share: the autopilot and parameter protocols they
-drive, the job and handler types, STATUSTEXT severities and small parameter helpers.
+drive, the job and handler types, their base class, STATUSTEXT severities and small parameter
+helpers.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from air_sitl.mavlink.codec import Message
 from air_sitl.mavlink.links import Channel
 from air_sitl.mission.items import Mission
 from air_sitl.state import FlightMode
+
+if TYPE_CHECKING:  # the endpoint is made of the parts below: a real cycle
+    from air_sitl.mavlink.vehicle import VehicleEndpoint
 
 NS_PER_S = 1_000_000_000
 SEVERITY_CRITICAL, SEVERITY_WARNING, SEVERITY_INFO = 2, 4, 6
@@ -48,6 +52,17 @@ Job = Callable[[AutopilotLike], None]  # runs on the simulation thread
 PostFn = Callable[[Job], None]
 # An incoming-message handler, run on the I/O thread: (the peer's channel, the message).
 Handler = Callable[[Channel, Message], None]
+
+
+class EndpointPart:
+    """One part of a vehicle endpoint (commands, parameters, FTP): the messages it answers."""
+
+    def __init__(self, ep: VehicleEndpoint) -> None:
+        self._ep = ep
+
+    def handlers(self) -> dict[str, Handler]:
+        """Message type -> its handler, for every message this part answers."""
+        raise NotImplementedError
 
 
 def whole(value: float) -> int:

@@ -10,15 +10,18 @@ PARAM_ERROR (a newer message of the development dialect), and neither do we.
 from __future__ import annotations
 
 import struct
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from air_sitl.errors import AirSitlError
 from air_sitl.mavlink.codec import Message, mav
-from air_sitl.mavlink.interfaces import SEVERITY_INFO, SEVERITY_WARNING, AutopilotLike, Handler
+from air_sitl.mavlink.interfaces import (
+    SEVERITY_INFO,
+    SEVERITY_WARNING,
+    AutopilotLike,
+    EndpointPart,
+    Handler,
+)
 from air_sitl.mavlink.links import Channel
-
-if TYPE_CHECKING:
-    from air_sitl.mavlink.vehicle import VehicleEndpoint
 
 
 def param_name(raw: Any) -> str:
@@ -28,14 +31,10 @@ def param_name(raw: Any) -> str:
     return str(raw).rstrip("\x00")
 
 
-class ParamProtocol:
+class ParamProtocol(EndpointPart):
     """Serves the endpoint's parameter store."""
 
-    def __init__(self, ep: VehicleEndpoint) -> None:
-        self._ep = ep
-
     def handlers(self) -> dict[str, Handler]:
-        """The messages this part answers."""
         return {
             "PARAM_REQUEST_LIST": self.on_request_list,
             "PARAM_REQUEST_READ": self.on_request_read,

@@ -8,13 +8,16 @@ One concern per module: :mod:`.spec` (the SPEC and each run's options, checked b
 parser), :mod:`.run` (the work of one run in a worker), :mod:`.executors` (process pool, Ray),
 :mod:`.results` (``results.jsonl``: whole lines, resume), :mod:`.report` (tables and plots).
 The driver here turns runs into tasks, skips the done ones, and writes each row as it comes.
+``air-sitl bench`` is a preset of it (:mod:`air_sitl.bench`): one run per AIR scenario, the tasks
+pointing at the archives ``dataset`` made, each entry's measurement kept
+(:mod:`.measurements`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import socket
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any, Protocol
@@ -22,6 +25,7 @@ from typing import IO, Any, Protocol
 from air_sitl.files import write_json_atomic
 from air_sitl.sweep.errors import SweepError
 from air_sitl.sweep.executors import PoolExecutor, RayExecutor
+from air_sitl.sweep.measurements import archive_id, load
 from air_sitl.sweep.results import RESULTS, ResultsFile, latest_rows
 from air_sitl.sweep.run import RunTask
 from air_sitl.sweep.spec import KEEP, SweepSpec, describe, load_spec, needs_camera
@@ -36,6 +40,7 @@ __all__ = [
     "make_tasks",
     "print_outcome",
     "run_sweep",
+    "run_tasks",
 ]
 
 SWEEP_JSON = "sweep.json"  # what the sweep folder holds: the SPEC, its axes and methods
@@ -132,12 +137,26 @@ class _Progress:
         self.stream.flush()
 
 
-def _is_done(row: dict[str, Any] | None, spec: SweepSpec, retry_failed: bool) -> bool:
+def _all_measured(task: RunTask) -> bool:
+    """Every entry of a task that keeps measurements is measured, on the archive its folder
+    holds now (a failed entry is not: it is tried again)."""
+    assert task.measurements is not None
+    try:
+        ident = archive_id(Path(task.archive))
+    except (OSError, ValueError, KeyError):
+        return False
+    names = [*task.methods, *(loc.name for loc in task.localizers)]
+    return all(load(Path(task.measurements), task.scenario, n, ident) is not None for n in names)
+
+
+def _is_done(task: RunTask, row: dict[str, Any] | None, retry_failed: bool) -> bool:
+    if task.measurements is not None:
+        return _all_measured(task)
     if row is None:
         return False
     if row.get("error") and retry_failed:
         return False
-    wanted = {*spec.methods, *(loc.name for loc in spec.localizers)}
+    wanted = {*task.methods, *(loc.name for loc in task.localizers)}
     return row.get("error") is not None or wanted <= set(row.get("eval") or {})
 
 
@@ -157,10 +176,26 @@ def run_sweep(
     """
     needs_camera(spec)
     tasks = make_tasks(spec, out, keep)
+    return run_tasks(spec, tasks, out, executor, retry_failed=retry_failed, stream=stream)
+
+
+def run_tasks(
+    spec: SweepSpec,
+    tasks: Sequence[RunTask],
+    out: Path,
+    executor: Executor,
+    *,
+    retry_failed: bool = False,
+    stream: IO[str] | None = None,
+    on_row: Callable[[RunTask, dict[str, Any]], None] | None = None,
+) -> SweepOutcome:
+    """Run the tasks of ``spec`` (:func:`make_tasks`, perhaps adjusted: bench's point at
+    archives) not done yet in ``out``; each row into ``out/results.jsonl``, then to ``on_row``
+    with its task."""
     out.mkdir(parents=True, exist_ok=True)
     results_path = out / RESULTS
     rows = latest_rows(results_path)
-    todo = [t for t in tasks if not _is_done(rows.get(t.id), spec, retry_failed)]
+    todo = [t for t in tasks if not _is_done(t, rows.get(t.id), retry_failed)]
     write_json_atomic(
         out / SWEEP_JSON,
         {
@@ -173,13 +208,14 @@ def run_sweep(
         },
     )
     by_id = {run.id: run for run in spec.runs}
+    task_of = {t.id: t for t in tasks}
     progress = _Progress(len(tasks), len(tasks) - len(todo), stream, spec.axes)
     failed = 0
     hosts: dict[str, int] = {}
     interrupted = False
     with ResultsFile(results_path) as results:
 
-        def on_row(row: dict[str, Any]) -> None:
+        def take_row(row: dict[str, Any]) -> None:
             nonlocal failed
             results.append(row)
             failed += bool(row.get("error"))
@@ -187,10 +223,12 @@ def run_sweep(
             hosts[host] = hosts.get(host, 0) + 1
             run = by_id[row["id"]]
             progress.update(row, f"{row['id']} {describe(run, spec.axes)}")
+            if on_row is not None:
+                on_row(task_of[row["id"]], row)
 
         try:
             if todo:
-                executor.run(todo, on_row)
+                executor.run(todo, take_row)
         except KeyboardInterrupt:
             interrupted = True
     rows = latest_rows(results_path)

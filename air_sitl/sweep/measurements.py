@@ -1,10 +1,12 @@
-"""Where a bench keeps what it measured: one small JSON per (scenario, entry), written last.
+"""Per-entry measurements of a run, each saved as it finishes (what ``air-sitl bench`` keeps).
 
-``reports/<scenario>/<entry>.json`` holds the eval report (SPEC section 5), the archive it was
-scored against (identified by the SHA-256 of its ``frames.csv``, which no localizer touches),
-the localization wall time, and the per-frame horizontal errors the box plots need
-(``<entry>.errors.npy``). A file that exists and names the same archive is a finished
-measurement: an interrupted bench resumes from there.
+A run whose task names a measurements folder (``RunTask.measurements``: bench's ``reports/``)
+saves, for each method or localizer it scores, ``<folder>/<scenario>/<entry>.json``: the eval
+report (SPEC section 5), the archive it was scored against (identified by the SHA-256 of its
+``frames.csv``, which no localizer touches), the localization wall time, and the per-frame
+horizontal errors box plots need (``<entry>.errors.npy``). A file that exists, names the same
+archive and holds no error is a finished measurement: the entry is not measured again, so an
+interrupted bench resumes entry by entry.
 """
 
 from __future__ import annotations
@@ -65,24 +67,31 @@ def save(reports: Path, result: EntryResult, archive: str, errors_m: F64 | None)
     write_json_atomic(path, content)
 
 
-def load(reports: Path, scenario: str, entry: str, archive: str | None) -> EntryResult | None:
-    """A finished measurement of this archive, or None (missing, failed, or another flight)."""
+def read(reports: Path, scenario: str, entry: str, archive: str) -> EntryResult | None:
+    """What was measured of this archive, failures included; None when nothing was (or
+    another flight was)."""
     path = result_path(reports, scenario, entry)
     try:
         content = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    if content.get("error") is not None:
-        return None  # failures are tried again
-    if archive is not None and content.get("archive_id") != archive:
+    if not isinstance(content, dict) or content.get("archive_id") != archive:
         return None
     return EntryResult(
         scenario=scenario,
         entry=entry,
         report=content.get("report"),
+        error=content.get("error"),
         localize_wall_s=content.get("localize_wall_s"),
         frames_per_s=content.get("frames_per_s"),
     )
+
+
+def load(reports: Path, scenario: str, entry: str, archive: str) -> EntryResult | None:
+    """A finished measurement of this archive, or None (missing, failed, or another flight):
+    failures are tried again."""
+    result = read(reports, scenario, entry, archive)
+    return None if result is None or result.error is not None else result
 
 
 def load_errors(reports: Path, scenario: str, entry: str) -> F64 | None:

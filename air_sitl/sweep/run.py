@@ -6,7 +6,10 @@ a worker on another host needs no copy of the SPEC's folder) and returns the row
 worker's filesystem. A run's failure is its row's one-line ``error``, never an exception:
 the sweep goes on. Wall-clock figures of ``summary.json`` (``wall_time_s``,
 ``realtime_factor``) stay in the archive and out of the row, which is the same on every
-executor but for ``wall_s`` and ``host``.
+executor but for ``wall_s`` and ``host``. A task with ``reuse`` flies nothing and scores the
+archive already in its folder (``air-sitl bench``: a sweep over the archives ``dataset`` made);
+one with ``measurements`` saves each entry's measurement as it finishes
+(:mod:`~air_sitl.sweep.measurements`) and skips the entries measured before.
 
 Per worker process: a procedural map is opened once and kept for every later run over the
 same map (:data:`_MAPS`); BLAS and OpenCV run one thread (:func:`pin_threads`).
@@ -33,9 +36,9 @@ from air_sitl.builder import load_setup
 from air_sitl.bus.hookup import bus_sinks_from_args
 from air_sitl.camera.options import camera_from_args, map_choice_from_args, open_chosen_map
 from air_sitl.dataset.air_schema import ESTIMATES_DIR, SUMMARY_JSON
-from air_sitl.errors import AirSitlError
-from air_sitl.eval import evaluate_many
-from air_sitl.localize.archive import run_archive
+from air_sitl.errors import AirSitlError, DatasetError
+from air_sitl.eval import Scored, score_sources
+from air_sitl.localize.archive import LocalizeRun, run_archive
 from air_sitl.localize.external import (
     ExternalLocalizer,
     adopt_estimates,
@@ -47,6 +50,7 @@ from air_sitl.maps.open import default_map_for_plan
 from air_sitl.maps.procedural import KINDS
 from air_sitl.options import flight_options_from_args, int_in_range
 from air_sitl.recording import RecordingRequest, record_flight
+from air_sitl.sweep.measurements import EntryResult, archive_id, load, save
 from air_sitl.sweep.spec import fly_parser
 
 WALL_CLOCK_SUMMARY_KEYS = ("wall_time_s", "realtime_factor")
@@ -73,6 +77,16 @@ class RunTask:
     localizers: tuple[ExternalLocalizer, ...] = ()
     align: str = "none"
     keep: str = "all"
+    reference_date: int | None = None  # map-matching methods' reference map date (None: theirs)
+    # The folder holds this run's flight already (an archive ``air-sitl dataset`` made, which
+    # bench scores): nothing flies, the methods and localizers run over it.
+    reuse: bool = False
+    measurements: str | None = None  # per-entry measurements saved here (sweep.measurements)
+
+    @property
+    def scenario(self) -> str:
+        """The plan file's stem: AIR's scenario name (``UC-200``), what measurements file under."""
+        return Path(self.plan_name).stem
 
 
 def pin_threads() -> None:
@@ -144,7 +158,15 @@ def _fly(task: RunTask, plan: Path, out: Path) -> dict[str, Any]:
     request = RecordingRequest(setup=setup, out=out, bus=bus_sinks_from_args(args))
     with request.bus or contextlib.nullcontext():
         record_flight(request)
-    summary: dict[str, Any] = json.loads((out / SUMMARY_JSON).read_text(encoding="utf-8"))
+    return _read_summary(out)
+
+
+def _read_summary(out: Path) -> dict[str, Any]:
+    try:
+        summary: dict[str, Any] = json.loads((out / SUMMARY_JSON).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        msg = f"{out}: no {SUMMARY_JSON}: not a finished flight"
+        raise DatasetError(msg) from None
     return summary
 
 
@@ -154,35 +176,60 @@ def _row_summary(summary: dict[str, Any], plan_label: str) -> dict[str, Any]:
     return dict(sorted(kept.items()))
 
 
-def _localize(task: RunTask, out: Path) -> tuple[dict[str, Any], str | None]:
-    """Each method over the archive, then every estimate scored; (reports, first error)."""
+def _measure(
+    task: RunTask, out: Path, entry: str | ExternalLocalizer
+) -> tuple[Scored | None, str | None, LocalizeRun | None]:
+    """One method over the archive, or one localizer program in lockstep, then its estimate
+    scored: (the score, why it failed, the method's run)."""
+    name = entry if isinstance(entry, str) else entry.name
+    run = None
+    if isinstance(entry, str):
+        try:
+            run = run_archive(
+                out, entry, name=entry, reference_date=task.reference_date, seed=task.seed
+            )
+        except AirSitlError as err:
+            return None, f"localize {entry}: {_one_line(err)}", None
+    else:
+        why = _run_external(task, out, entry)
+        if why is not None:
+            return None, f"localizer {name}: {why}", None
+    try:
+        scored = score_sources(out, [name], task.align)[0]
+    except AirSitlError as err:
+        return None, f"eval: {_one_line(err)}", run
+    scored.report["archive"] = task.archive_label
+    return scored, None, run
 
-    scored: list[str] = []
+
+def _localize(task: RunTask, out: Path) -> tuple[dict[str, Any], str | None]:
+    """Each entry measured in turn (and saved as it finishes when the task keeps
+    measurements; those measured before are not measured again); (reports, first error)."""
+    folder = None if task.measurements is None else Path(task.measurements)
+    ident = "" if folder is None else archive_id(out)
     reports: dict[str, Any] = {}
     error: str | None = None
-    for method in task.methods:
-        try:
-            run_archive(out, method, name=method, seed=task.seed)
-            scored.append(method)
-        except AirSitlError as err:
-            reports[method] = None
-            error = error or f"localize {method}: {_one_line(err)}"
-    for localizer in task.localizers:
-        why = _run_external(task, out, localizer)
-        if why is None:
-            scored.append(localizer.name)
-        else:
-            reports[localizer.name] = None
-            error = error or f"localizer {localizer.name}: {why}"
-    if scored:
-        try:
-            for name, report in zip(scored, evaluate_many(out, scored, task.align), strict=True):
-                report["archive"] = task.archive_label
-                reports[name] = report
-        except AirSitlError as err:
-            error = error or f"eval: {_one_line(err)}"
-    order = [*task.methods, *(loc.name for loc in task.localizers)]
-    return {name: reports.get(name) for name in order}, error
+    entries: list[str | ExternalLocalizer] = [*task.methods, *task.localizers]
+    for entry in entries:
+        name = entry if isinstance(entry, str) else entry.name
+        done = None if folder is None else load(folder, task.scenario, name, ident)
+        if done is not None:  # measured by an earlier, interrupted run
+            reports[name] = done.report
+            continue
+        scored, why, run = _measure(task, out, entry)
+        reports[name] = None if scored is None else scored.report
+        error = error or why
+        if folder is not None:
+            result = EntryResult(
+                scenario=task.scenario,
+                entry=name,
+                report=reports[name],
+                error=why,
+                localize_wall_s=None if run is None else round(run.wall_s, 3),
+                frames_per_s=None if run is None else round(run.frames_per_s, 1),
+            )
+            save(folder, result, ident, None if scored is None else scored.h_err_m)
+    return reports, error
 
 
 def _run_external(task: RunTask, out: Path, localizer: ExternalLocalizer) -> str | None:
@@ -228,13 +275,16 @@ def execute(task: RunTask) -> dict[str, Any]:
     reports: dict[str, Any] = {}
     error: str | None = None
     try:
-        if out.exists():  # what a killed sweep left of this run: done again from the start
-            shutil.rmtree(out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(prefix=f"sweep-{task.id}-") as tmp:
-            plan = Path(tmp) / task.plan_name
-            plan.write_bytes(task.plan_text)
-            summary = _row_summary(_fly(task, plan, out), task.plan_label)
+        if task.reuse:
+            summary = _row_summary(_read_summary(out), task.plan_label)
+        else:
+            if out.exists():  # what a killed sweep left of this run: done again from the start
+                shutil.rmtree(out)
+            out.parent.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryDirectory(prefix=f"sweep-{task.id}-") as tmp:
+                plan = Path(tmp) / task.plan_name
+                plan.write_bytes(task.plan_text)
+                summary = _row_summary(_fly(task, plan, out), task.plan_label)
         if task.methods or task.localizers:
             reports, error = _localize(task, out)
         _keep(out, task.keep)

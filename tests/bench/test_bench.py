@@ -4,16 +4,20 @@ localizer as an external program on the bus in lockstep; resume; bad options."""
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import sys
 from pathlib import Path
 
 import pytest
 import short_plans
+import yaml
 
 from air_sitl.bench.config import parse_localizer
 from air_sitl.cli import main
 from air_sitl.localize.external import localizer_argv
 from air_sitl.state import GeoPoint
+from air_sitl.sweep.results import RESULTS, read_rows
 
 pytestmark = pytest.mark.integration
 
@@ -120,3 +124,40 @@ def test_archives_of_another_flight_are_refused_not_reused(
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert "manifest.json: seed 0, but this bench flies seed 1" in err, err
+
+
+def test_a_bench_is_a_sweep_with_its_spec_and_rows(bench: Path) -> None:
+    spec = yaml.safe_load((bench / "bench.yaml").read_text())
+    assert spec["runs"] == [{"scenario": "UT-200", "map-date": 1, "seed": 0}]
+    assert spec["methods"] == ["deadreckon", "vo"] and list(spec["localizers"]) == ["ex"]
+    (row,) = read_rows(bench / RESULTS)
+    assert row["error"] is None and row["archive"] == "archives/UT-200"
+    assert list(row["eval"]) == ["deadreckon", "vo", "ex"]
+    for name, report in row["eval"].items():
+        saved = json.loads((bench / "reports" / "UT-200" / f"{name}.json").read_text())
+        assert saved["report"] == report
+
+
+def test_the_same_leaderboard_on_a_local_ray(bench: Path, missions: Path, tmp_path: Path) -> None:
+    pytest.importorskip("ray", reason="ray is not installed (pip install 'air-sitl[ray]')")
+    out = tmp_path / "b"
+    # The same archive (hard links: nothing measured yet in this folder), measured on Ray.
+    shutil.copytree(
+        bench / "archives",
+        out / "archives",
+        copy_function=os.link,
+        ignore=shutil.ignore_patterns("estimates", "*.log"),
+    )
+    argv = [
+        "bench", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
+        str(missions), "--out", str(out), "--ray", "--quiet",
+    ]  # fmt: skip
+    assert main(argv) == 0
+    on_ray = json.loads((out / "leaderboard.json").read_text())
+    on_pool = json.loads((bench / "leaderboard.json").read_text())
+    speed = ("frames_per_s",)
+    for rows in (on_ray["rows"], on_pool["rows"]):
+        for row in rows:
+            for key in speed:
+                row.pop(key)
+    assert on_ray["rows"] == [r for r in on_pool["rows"] if r["method"] != "ex"]
