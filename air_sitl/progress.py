@@ -13,32 +13,44 @@ from air_sitl.runner import Flight
 from air_sitl.state import SimSample
 
 
-class ProgressBar:
-    """One line, rewritten in place: mission progress, simulated time, frames, speed."""
+class InPlaceLine:
+    """One terminal line rewritten in place: ``label [#####.....] text``."""
 
-    def __init__(self, mission: Mission, stream: IO[str], width: int = 30) -> None:
-        self.total = max(1, len(mission.items))
+    def __init__(self, label: str, stream: IO[str], *, label_width: int, width: int = 30) -> None:
+        self.label = label
         self.stream = stream
+        self.label_width = label_width
         self.width = width
-        self.label = mission.name or "flight"
 
-    def update(self, sample: SimSample, flight: Flight) -> None:
-        """Redraw from the latest sample."""
-        seq = max(0, sample.autopilot.current_seq)
-        frac = min(1.0, seq / self.total)
+    def draw(self, frac: float, text: str) -> None:
+        """Redraw the line with a bar ``frac`` full."""
         filled = int(frac * self.width)
-        t = sample.state.sim_time_ns / NS_PER_S
-        self.stream.write(
-            f"\r{self.label:>8} [{'#' * filled}{'.' * (self.width - filled)}] "
-            f"item {seq}/{self.total} sim {t:7.0f} s  {sample.autopilot.mode.value:<8} "
-            f"frames {flight.stats.capture_frames:6d}"
-        )
+        bar = "#" * filled + "." * (self.width - filled)
+        self.stream.write(f"\r{self.label:>{self.label_width}} [{bar}] {text}")
         self.stream.flush()
 
     def finish(self) -> None:
         """End the progress line."""
         self.stream.write("\n")
         self.stream.flush()
+
+
+class ProgressBar(InPlaceLine):
+    """A flight's line: mission progress, simulated time, mode, frames."""
+
+    def __init__(self, mission: Mission, stream: IO[str], width: int = 30) -> None:
+        super().__init__(mission.name or "flight", stream, label_width=8, width=width)
+        self.total = max(1, len(mission.items))
+
+    def update(self, sample: SimSample, flight: Flight) -> None:
+        """Redraw from the latest sample."""
+        seq = max(0, sample.autopilot.current_seq)
+        t = sample.state.sim_time_ns / NS_PER_S
+        self.draw(
+            min(1.0, seq / self.total),
+            f"item {seq}/{self.total} sim {t:7.0f} s  {sample.autopilot.mode.value:<8} "
+            f"frames {flight.stats.capture_frames:6d}",
+        )
 
 
 def _metres(value: object) -> str:

@@ -25,6 +25,7 @@ from air_sitl.errors import OptionError
 from air_sitl.localize.archive import run_archive
 from air_sitl.localize.methods import make_method
 from air_sitl.localize.online import BusLocalizer
+from air_sitl.progress import InPlaceLine
 
 HELP = "run a baseline localizer (deadreckon, vo, ...) over an archive or on the zenoh bus"
 
@@ -82,28 +83,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_connection_arguments(parser, serves=False)
 
 
-class _Progress:
-    """One line rewritten in place: frames done, rate."""
+class _Progress(InPlaceLine):
+    """A localizer's line: frames done, rate."""
 
-    def __init__(self, label: str, stream: IO[str], width: int = 30) -> None:
-        self.label = label
-        self.stream = stream
-        self.width = width
+    def __init__(self, label: str, stream: IO[str]) -> None:
+        super().__init__(label, stream, label_width=12)
         self.start = time.perf_counter()
 
     def __call__(self, done: int, total: int) -> None:
-        frac = done / total if total else 1.0
-        filled = int(frac * self.width)
         rate = done / max(time.perf_counter() - self.start, 1e-9)
-        self.stream.write(
-            f"\r{self.label:>12} [{'#' * filled}{'.' * (self.width - filled)}] "
-            f"frame {done}/{total}  {rate:5.0f} frames/s"
-        )
-        self.stream.flush()
-
-    def finish(self) -> None:
-        self.stream.write("\n")
-        self.stream.flush()
+        self.draw(done / total if total else 1.0, f"frame {done}/{total}  {rate:5.0f} frames/s")
 
 
 def run(args: argparse.Namespace) -> int:
