@@ -72,10 +72,7 @@ def parse_json_object(data: bytes | str, where: str, error: type[AirSitlError]) 
     except (UnicodeDecodeError, json.JSONDecodeError) as err:
         msg = f"{where}: not a JSON object ({err})"
         raise error(msg) from None
-    if not isinstance(value, dict):
-        msg = f"{where}: expected a JSON object, got {type(value).__name__}"
-        raise error(msg)
-    return value
+    return _mapping(value, "a JSON object", where, error)
 
 
 def parse_yaml_mapping(text: str, where: str, error: type[AirSitlError]) -> dict[str, Any]:
@@ -85,8 +82,13 @@ def parse_yaml_mapping(text: str, where: str, error: type[AirSitlError]) -> dict
     except yaml.YAMLError as err:
         msg = f"{where}: not YAML ({err})"
         raise error(msg) from None
+    return _mapping(value, "a mapping", where, error)
+
+
+def _mapping(value: Any, kind: str, where: str, error: type[AirSitlError]) -> dict[str, Any]:
+    """``value`` when it is a mapping; ``error`` naming ``where`` and what it is instead."""
     if not isinstance(value, dict):
-        msg = f"{where}: expected a mapping, got {type(value).__name__}"
+        msg = f"{where}: expected {kind}, got {type(value).__name__}"
         raise error(msg)
     return value
 

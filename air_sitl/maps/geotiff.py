@@ -50,6 +50,11 @@ from air_sitl.maps.utm import latlon2utm
 _METRES_PER_DEGREE = 111_319.49
 
 
+def _file_provenance(source: str, path: Path, sha256: str, crs: str) -> dict[str, Any]:
+    """Where a map or relief came from, as the manifest records it."""
+    return {"source": source, "path": str(path), "sha256": sha256, "crs": crs}
+
+
 class GeoTiffMap(TiledMap):
     """One georeferenced RGB/gray uint8 TIFF; windowed reads only."""
 
@@ -157,14 +162,9 @@ class GeoTiffMap(TiledMap):
         """Provenance: file name, SHA-256 (computed once), CRS and size."""
         if self._sha256 is None:
             self._sha256 = sha256_file(self.path)
-        return {
-            "source": "geotiff",
-            "path": str(self.path),
-            "sha256": self._sha256,
-            "crs": self._crs_text,
-            "size_px": [self.georef.width_px, self.georef.height_px],
-            "gsd_m": self.georef.gsd_m,
-        }
+        size_px = [self.georef.width_px, self.georef.height_px]
+        provenance = _file_provenance("geotiff", self.path, self._sha256, self._crs_text)
+        return {**provenance, "size_px": size_px, "gsd_m": self.georef.gsd_m}
 
     def close(self) -> None:
         """Close the file and its overview handles."""
@@ -361,12 +361,7 @@ class GeoTiffDem(TiledSurface):
         """Provenance: file name, SHA-256, CRS."""
         if self._sha256 is None:
             self._sha256 = sha256_file(self.path)
-        return {
-            "source": "geotiff-dem",
-            "path": str(self.path),
-            "sha256": self._sha256,
-            "crs": self._dem_crs,
-        }
+        return _file_provenance("geotiff-dem", self.path, self._sha256, self._dem_crs)
 
     def close(self) -> None:
         """Close the file."""
