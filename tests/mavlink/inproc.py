@@ -8,10 +8,12 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
+from air_sitl.clock import NS_PER_S
 from air_sitl.mavlink.links import parse_link
+from air_sitl.mavlink.nav_aid import NavLink
 from air_sitl.mavlink.vehicle import EndpointOptions, Job, VehicleEndpoint
 from air_sitl.mission.items import Mission
-from air_sitl.options import FlightOptions
+from air_sitl.options import OPEN_END_NS, FlightOptions
 from air_sitl.runner import Flight, InboxItem, assemble_flight
 from air_sitl.sinks import NullSink
 from air_sitl.state import FlightMode, GeoPoint, SimSample, VehicleState
@@ -58,8 +60,11 @@ def running_vehicle(
     speed: float,
     mission: Mission | None = None,
     options: EndpointOptions | None = None,
+    aided_denied_after_s: float | None = None,
 ) -> Iterator[Vehicle]:
-    """Serve a vehicle on ``links`` until the block ends."""
+    """Serve a vehicle on ``links`` until the block ends. ``aided_denied_after_s``: the flight
+    steers on the onboard filter, aided over MAVLink, with no GNSS from this simulated second
+    (``serve --nav ekf --nav-aid mavlink --gps-denied-after S``)."""
     mission = mission or Mission(items=(), source="test")
     inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
 
@@ -71,13 +76,24 @@ def running_vehicle(
     )
     endpoint.open()
     truth = TruthSink()
+    if aided_denied_after_s is None:
+        flight_options, aid_sinks = FlightOptions(speed=speed), []
+    else:
+        denied_ns = ((round(aided_denied_after_s * NS_PER_S), OPEN_END_NS),)
+        flight_options = FlightOptions(
+            speed=speed, nav="ekf", nav_aid="mavlink", gps_denied_ns=denied_ns
+        )
+        aid_sinks = [NavLink(endpoint, aid=True)]
     flight, _home, _ = assemble_flight(
         mission,
-        FlightOptions(speed=speed),
-        sinks=[endpoint.sink, truth],
+        flight_options,
+        sinks=[endpoint.sink, *aid_sinks, truth],
         home=home,
         auto_start=False,
     )
+    for nav_link in aid_sinks:
+        assert flight.nav is not None
+        nav_link.attach(flight.nav, flight.autopilot.params)
     endpoint.attach(flight.autopilot, flight.autopilot.params)
     endpoint.start()
     vehicle = Vehicle(endpoint, flight, truth)

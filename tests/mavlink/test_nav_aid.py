@@ -11,27 +11,20 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import math
-import queue
-import threading
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import pytest
 from gcs import Gcs, free_udp_port
-from inproc import TruthSink
+from inproc import Vehicle, running_vehicle
 from pymavlink import mavutil
 from short_plans import write_short_plan
 
 from air_sitl.mavlink.codec import mav
-from air_sitl.mavlink.links import parse_link
 from air_sitl.mavlink.nav_aid import EV_AID, GLOBAL_AID, NavLink
-from air_sitl.mavlink.vehicle import Job, VehicleEndpoint
 from air_sitl.mission.plan_file import load_mission
 from air_sitl.nav.types import AidFrame
-from air_sitl.options import OPEN_END_NS, FlightOptions
-from air_sitl.runner import Flight, InboxItem, assemble_flight
 from air_sitl.state import GeoPoint, VehicleState
 
 HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
@@ -121,58 +114,21 @@ def test_gps_input_and_global_position_sensor_are_lat_lon() -> None:
 # ------------------------------------------------------------------ a served flight
 
 
-@dataclass
-class Served:
-    endpoint: VehicleEndpoint
-    flight: Flight
-    truth: TruthSink
-    port: int
-    stop: threading.Event = field(default_factory=threading.Event)
-
-
 @contextlib.contextmanager
-def served_with_aid(plan: Path, *, deny_after_s: float, speed: float) -> Iterator[Served]:
-    """``serve --plan PLAN --nav-aid mavlink --gps-denied-after S`` in this process."""
-    mission = load_mission(plan)
-    inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
-
-    def post(job: Job) -> None:
-        inbox.put(lambda flight: job(flight.autopilot))
-
+def served_with_aid(
+    plan: Path, *, deny_after_s: float, speed: float
+) -> Iterator[tuple[Vehicle, int]]:
+    """``serve --plan PLAN --nav-aid mavlink --gps-denied-after S`` in this process; the
+    vehicle and the port of the ground station it sends to."""
     port = free_udp_port()
-    endpoint = VehicleEndpoint(
-        [parse_link(f"udpout:127.0.0.1:{port}")], home=HOME, mission=mission, post=post
-    )
-    endpoint.open()
-    truth = TruthSink()
-    nav_link = NavLink(endpoint, aid=True)
-    options = FlightOptions(
+    with running_vehicle(
+        [f"udpout:127.0.0.1:{port}"],
+        HOME,
         speed=speed,
-        nav="ekf",
-        nav_aid="mavlink",
-        gps_denied_ns=((round(deny_after_s * NS), OPEN_END_NS),),
-    )
-    flight, _home, _ = assemble_flight(
-        mission, options, sinks=[endpoint.sink, nav_link, truth], home=HOME, auto_start=False
-    )
-    assert flight.nav is not None
-    nav_link.attach(flight.nav, flight.autopilot.params)
-    endpoint.attach(flight.autopilot, flight.autopilot.params)
-    endpoint.start()
-    served = Served(endpoint, flight, truth, port)
-    thread = threading.Thread(
-        target=flight.run,
-        kwargs={"stop": lambda _s: served.stop.is_set(), "max_sim_time_ns": 10**15,
-                "inbox": inbox},
-        daemon=True,
-    )  # fmt: skip
-    thread.start()
-    try:
-        yield served
-    finally:
-        served.stop.set()
-        thread.join(timeout=10)
-        endpoint.close()
+        mission=load_mission(plan),
+        aided_denied_after_s=deny_after_s,
+    ) as vehicle:
+        yield vehicle, port
 
 
 class Companion:
@@ -181,7 +137,7 @@ class Companion:
     sends from the truth sink's listener, on the simulation thread, one message a slot, so a
     busy machine changes nothing about what it sends or when (in simulated time)."""
 
-    def __init__(self, served: Served, *, start_s: float, rate_hz: float = 20.0) -> None:
+    def __init__(self, served: Vehicle, *, start_s: float, rate_hz: float = 20.0) -> None:
         self.served = served
         self.start_ns = round(start_s * NS)
         self.period_ns = round(NS / rate_hz)
@@ -230,10 +186,10 @@ def test_a_companion_aids_a_denied_flight_that_mavsdk_sees_finish(tmp_path: Path
 
     plan = write_short_plan(tmp_path / "AID.plan", HOME, leg_m=1200.0)
 
-    async def fly(served: Served) -> list[tuple[int, int]]:
+    async def fly(port: int) -> list[tuple[int, int]]:
         config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
         async with Mavsdk(config) as sdk:
-            await sdk.add_any_connection(f"udpin://127.0.0.1:{served.port}")
+            await sdk.add_any_connection(f"udpin://127.0.0.1:{port}")
             system = await sdk.first_autopilot(timeout_s=15)
             assert system is not None
             mission = MissionRawAsync(system)
@@ -252,11 +208,11 @@ def test_a_companion_aids_a_denied_flight_that_mavsdk_sees_finish(tmp_path: Path
             return seen
 
     with (
-        served_with_aid(plan, deny_after_s=40.0, speed=8.0) as served,
+        served_with_aid(plan, deny_after_s=40.0, speed=8.0) as (served, port),
         Companion(served, start_s=35.0) as companion,
     ):
         companion.extra = bad_inputs()
-        seen = asyncio.run(asyncio.wait_for(fly(served), timeout=600))
+        seen = asyncio.run(asyncio.wait_for(fly(port), timeout=600))
         # A ground station connecting now sees the estimate's telemetry.
         gcs = Gcs(f"udpout:127.0.0.1:{served.endpoint.links[0].local_address[1]}")
         try:
