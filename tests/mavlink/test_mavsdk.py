@@ -11,11 +11,10 @@ import numpy as np
 import pytest
 from gcs import SAFETY_S, free_udp_port
 from inproc import Vehicle, running_vehicle
-from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
-from mavsdk_wait import finished_within
+from mavsdk_wait import finished_within, ground_station
 
 from air_sitl.mission.items import MissionType
 from air_sitl.mission.plan_file import load_mission
@@ -58,11 +57,7 @@ def _track_errors(vehicle: Vehicle, received: list[tuple[float, float, float, in
 async def _fly(
     plan: Path, port: int, vehicle: Vehicle, received: list[tuple[float, float, float, int]]
 ) -> dict[str, float]:
-    config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
-    async with Mavsdk(config) as sdk:
-        await sdk.add_any_connection(f"udpin://127.0.0.1:{port}")
-        system = await sdk.first_autopilot(timeout_s=SAFETY_S)
-        assert system is not None, "MAVSDK found no autopilot"
+    async with ground_station(port, timeout_s=SAFETY_S) as system:
         mission = MissionRawAsync(system)
         telemetry = TelemetryAsync(system)
         action = ActionAsync(system)

@@ -178,20 +178,15 @@ class Companion:
 
 
 def test_a_companion_aids_a_denied_flight_that_mavsdk_sees_finish(tmp_path: Path) -> None:
-    from mavsdk.asyncio import ComponentType, Configuration, Mavsdk
     from mavsdk.asyncio.plugins.action import ActionAsync
     from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
     from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
-    from mavsdk_wait import finished_within
+    from mavsdk_wait import finished_within, ground_station
 
     plan = write_short_plan(tmp_path / "AID.plan", HOME, leg_m=1200.0)
 
     async def fly(port: int) -> list[tuple[int, int]]:
-        config = Configuration.create_with_component_type(ComponentType.GROUND_STATION)
-        async with Mavsdk(config) as sdk:
-            await sdk.add_any_connection(f"udpin://127.0.0.1:{port}")
-            system = await sdk.first_autopilot(timeout_s=15)
-            assert system is not None
+        async with ground_station(port, timeout_s=15) as system:
             mission = MissionRawAsync(system)
             action = ActionAsync(system)
             telemetry = TelemetryAsync(system)
