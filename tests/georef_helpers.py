@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -58,25 +59,26 @@ def marks_image(
     return np.dstack([gray, gray, gray]), centres
 
 
-def write_tif(
+def write_geotiff(
     path: Path,
-    bgr: npt.NDArray[np.uint8],
+    bands: npt.NDArray[Any],
     crs: str,
     transform: tuple[float, float, float, float, float, float],
     *,
     nodata: float | None = None,
 ) -> Path:
-    """A lossless tiled GeoTIFF of a BGR image, written by rasterio (``nodata``: its tag)."""
+    """A lossless tiled GeoTIFF of ``bands`` (band, row, column), written by rasterio
+    (``transform``: GDAL's six numbers; ``nodata``: its tag)."""
     t0, t1, t2, t3, t4, t5 = transform
-    h, w = bgr.shape[:2]
+    count, h, w = bands.shape
     with rasterio.open(
         path,
         "w",
         driver="GTiff",
         width=w,
         height=h,
-        count=3,
-        dtype="uint8",
+        count=count,
+        dtype=bands.dtype.name,
         crs=crs,
         transform=Affine(t1, t2, t0, t4, t5, t3),
         tiled=True,
@@ -85,8 +87,32 @@ def write_tif(
         compress="deflate",
         nodata=nodata,
     ) as dst:
-        dst.write(np.ascontiguousarray(bgr[:, :, ::-1].transpose(2, 0, 1)))
+        dst.write(np.ascontiguousarray(bands))
     return path
+
+
+def write_tif(
+    path: Path,
+    bgr: npt.NDArray[np.uint8],
+    crs: str,
+    transform: tuple[float, float, float, float, float, float],
+    *,
+    nodata: float | None = None,
+) -> Path:
+    """A BGR image as an RGB GeoTIFF."""
+    return write_geotiff(path, bgr[:, :, ::-1].transpose(2, 0, 1), crs, transform, nodata=nodata)
+
+
+def write_dem(
+    path: Path,
+    heights: npt.NDArray[np.float32],
+    crs: str,
+    transform: tuple[float, float, float, float, float, float],
+    *,
+    nodata: float | None = None,
+) -> Path:
+    """Heights (metres AMSL) as a one-band float32 GeoTIFF."""
+    return write_geotiff(path, heights[np.newaxis], crs, transform, nodata=nodata)
 
 
 def px_to_latlon(

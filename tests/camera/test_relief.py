@@ -13,7 +13,7 @@ import numpy.typing as npt
 import pytest
 import rasterio
 import yaml
-from georef_helpers import HOME, marks_image, utm_grid
+from georef_helpers import HOME, marks_image, utm_grid, write_dem
 from rasterio.transform import Affine
 from rasterio.warp import Resampling, calculate_default_transform, reproject
 
@@ -31,28 +31,15 @@ HALF = 1000.0
 PLATEAU_M = 60.0  # above home's ground, 200 m square around home
 
 
-def write_dem(
-    path: Path,
-    heights: npt.NDArray[np.float32],
-    crs: str,
-    transform: tuple[float, float, float, float, float, float],
-    nodata: float | None = None,
+def plateau_dem(
+    path: Path, crs: str, transform: tuple[float, float, float, float, float, float]
 ) -> Path:
-    t0, t1, t2, t3, t4, t5 = transform
-    with rasterio.open(
-        path, "w", driver="GTiff", width=heights.shape[1], height=heights.shape[0], count=1,
-        dtype="float32", crs=crs, transform=Affine(t1, t2, t0, t4, t5, t3), nodata=nodata,
-        tiled=True, blockxsize=256, blockysize=256,
-    ) as dst:  # fmt: skip
-        dst.write(heights, 1)
-    return path
-
-
-def plateau_heights(size: int, top_m: float, half_px: int) -> npt.NDArray[np.float32]:
+    """A DEM on the marks map's grid: a plateau PLATEAU_M high, 200 m each way from home."""
+    size, half_px = round(2 * HALF / GSD), 200
     h = np.full((size, size), HOME.alt_amsl_m, dtype=np.float32)
     c = size // 2
-    h[c - half_px : c + half_px, c - half_px : c + half_px] = HOME.alt_amsl_m + top_m
-    return h
+    h[c - half_px : c + half_px, c - half_px : c + half_px] = HOME.alt_amsl_m + PLATEAU_M
+    return write_dem(path, h, crs, transform)
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +79,7 @@ def test_points_on_a_plateau_image_as_the_pinhole_at_the_reduced_height(
 ) -> None:
     m, crs, transform = marks_map
     size = round(2 * HALF / GSD)
-    dem = write_dem(tmp_path / "plateau.tif", plateau_heights(size, PLATEAU_M, 200), crs, transform)
+    dem = plateau_dem(tmp_path / "plateau.tif", crs, transform)
     camera = CameraModel(noise_sigma=0.0)
     relief = Renderer(m, camera, surface=GeoTiffDem(dem, m))
     state = _pose(HOME.alt_amsl_m + 250.0, roll_deg=4.0)
@@ -261,9 +248,7 @@ def test_lens_distortion_over_relief_is_undone_by_camera_yaml(
     from air_sitl.camera.info import camera_yaml_for
 
     m, crs, transform = marks_map
-    size = round(2 * HALF / GSD)
-    dem = write_dem(tmp_path / "plateau.tif", plateau_heights(size, PLATEAU_M, 200), crs, transform)
-    surface = GeoTiffDem(dem, m)
+    surface = GeoTiffDem(plateau_dem(tmp_path / "plateau.tif", crs, transform), m)
     state = _pose(HOME.alt_amsl_m + 250.0, roll_deg=4.0)
     lens = CameraModel(noise_sigma=0.0, effects=CameraEffects(enabled=("distortion",)))
     info = yaml.safe_load(camera_yaml_for(lens))
