@@ -59,17 +59,19 @@ def marks_image(
     return np.dstack([gray, gray, gray]), centres
 
 
-def write_geotiff(
+def write_tif(
     path: Path,
-    bands: npt.NDArray[Any],
+    raster: npt.NDArray[Any],
     crs: str,
     transform: tuple[float, float, float, float, float, float],
     *,
     nodata: float | None = None,
 ) -> Path:
-    """A lossless tiled GeoTIFF of ``bands`` (band, row, column), written by rasterio
-    (``transform``: GDAL's six numbers; ``nodata``: its tag)."""
+    """A lossless tiled GeoTIFF, written by rasterio: a BGR image (rows, columns, 3) as RGB,
+    or heights (rows, columns) as one band (``transform``: GDAL's six numbers; ``nodata``:
+    its tag)."""
     t0, t1, t2, t3, t4, t5 = transform
+    bands = raster[np.newaxis] if raster.ndim == 2 else raster[:, :, ::-1].transpose(2, 0, 1)
     count, h, w = bands.shape
     with rasterio.open(
         path,
@@ -89,30 +91,6 @@ def write_geotiff(
     ) as dst:
         dst.write(np.ascontiguousarray(bands))
     return path
-
-
-def write_tif(
-    path: Path,
-    bgr: npt.NDArray[np.uint8],
-    crs: str,
-    transform: tuple[float, float, float, float, float, float],
-    *,
-    nodata: float | None = None,
-) -> Path:
-    """A BGR image as an RGB GeoTIFF."""
-    return write_geotiff(path, bgr[:, :, ::-1].transpose(2, 0, 1), crs, transform, nodata=nodata)
-
-
-def write_dem(
-    path: Path,
-    heights: npt.NDArray[np.float32],
-    crs: str,
-    transform: tuple[float, float, float, float, float, float],
-    *,
-    nodata: float | None = None,
-) -> Path:
-    """Heights (metres AMSL) as a one-band float32 GeoTIFF."""
-    return write_geotiff(path, heights[np.newaxis], crs, transform, nodata=nodata)
 
 
 def px_to_latlon(

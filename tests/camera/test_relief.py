@@ -13,7 +13,7 @@ import numpy.typing as npt
 import pytest
 import rasterio
 import yaml
-from georef_helpers import HOME, marks_image, utm_grid, write_dem
+from georef_helpers import HOME, marks_image, utm_grid, write_tif
 from rasterio.transform import Affine
 from rasterio.warp import Resampling, calculate_default_transform, reproject
 
@@ -39,7 +39,7 @@ def plateau_dem(
     h = np.full((size, size), HOME.alt_amsl_m, dtype=np.float32)
     c = size // 2
     h[c - half_px : c + half_px, c - half_px : c + half_px] = HOME.alt_amsl_m + PLATEAU_M
-    return write_dem(path, h, crs, transform)
+    return write_tif(path, h, crs, transform)
 
 
 @pytest.fixture(scope="module")
@@ -110,7 +110,7 @@ def test_a_tall_block_leans_outward_and_hides_the_ground_behind_it(tmp_path: Pat
     heights[c - 10 : c + 10, c + 40 : c + 60] += 100.0
     image[c - 10 : c + 10, c + 65 : c + 85] = (0, 0, 255)
     m = ArrayMap(image, crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m)
-    dem = write_dem(tmp_path / "tower.tif", heights, crs, transform)
+    dem = write_tif(tmp_path / "tower.tif", heights, crs, transform)
     camera = CameraModel(noise_sigma=0.0)
     state = pose_state(
         HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m + 300.0, alt_agl_m=300.0, yaw_rad=0.0
@@ -146,7 +146,7 @@ def test_a_dem_in_another_crs_with_nodata_holes_is_filled_with_a_warning(
     size = round(2 * HALF / GSD)
     yy, xx = np.mgrid[0:size, 0:size].astype(np.float32)
     smooth = (HOME.alt_amsl_m + 30.0 * np.sin(xx / 300.0) * np.cos(yy / 250.0)).astype(np.float32)
-    utm = write_dem(tmp_path / "utm.tif", smooth, crs, transform)
+    utm = write_tif(tmp_path / "utm.tif", smooth, crs, transform)
     # The same relief in geographic coordinates, with a nodata hole.
     src_affine = Affine(transform[1], 0.0, transform[0], 0.0, transform[5], transform[3])
     bounds = rasterio.transform.array_bounds(size, size, src_affine)
