@@ -50,6 +50,23 @@ from air_sitl.maps.utm import latlon2utm
 _METRES_PER_DEGREE = 111_319.49
 
 
+def _open_georeferenced(path: Path, option: str) -> Any:
+    """``path`` opened by rasterio, with a CRS and a geotransform; else a one-line MapError
+    naming the file (after ``option``, e.g. ``"--dem: "``)."""
+    if not path.is_file():
+        raise map_error(str(path), f"{option}no such GeoTIFF file")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NotGeoreferencedWarning)
+            src = rasterio.open(path)
+    except RasterioError as err:
+        raise map_error(str(path), f"{option}not a readable GeoTIFF ({err})") from None
+    if src.crs is None or src.transform.is_identity:
+        src.close()
+        raise map_error(str(path), f"{option}not georeferenced (no CRS or no geotransform)")
+    return src
+
+
 def _file_provenance(source: str, path: Path, sha256: str, crs: str) -> dict[str, Any]:
     """Where a map or relief came from, as the manifest records it."""
     return {"source": source, "path": str(path), "sha256": sha256, "crs": crs}
@@ -68,20 +85,10 @@ class GeoTiffMap(TiledMap):
         super().__init__(cache_bytes)
         self.path = path
         self.name = path.name
-        if not path.is_file():
-            raise map_error(str(path), "no such GeoTIFF file")
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", NotGeoreferencedWarning)
-                src = rasterio.open(path)
-        except RasterioError as err:
-            raise map_error(str(path), f"not a readable GeoTIFF ({err})") from None
+        src = _open_georeferenced(path, "")
         self._src = src
         self._lock = threading.Lock()
         self._overviews: dict[int, Any] = {}
-        if src.crs is None or src.transform.is_identity:
-            src.close()
-            raise map_error(str(path), "not georeferenced (no CRS or no geotransform)")
         if src.count not in (1, 3, 4) or any(dt != "uint8" for dt in src.dtypes):
             src.close()
             msg = f"{src.count} band(s) of {src.dtypes[0]}: expected 1, 3 or 4 bands of uint8"
@@ -259,15 +266,7 @@ class GeoTiffDem(TiledSurface):
         super().__init__(map_source)
         self.path = path
         self.name = path.name
-        if not path.is_file():
-            raise map_error(str(path), "--dem: no such GeoTIFF file")
-        try:
-            src = rasterio.open(path)
-        except RasterioError as err:
-            raise map_error(str(path), f"--dem: not a readable GeoTIFF ({err})") from None
-        if src.crs is None or src.transform.is_identity:
-            src.close()
-            raise map_error(str(path), "--dem: not georeferenced (no CRS or no geotransform)")
+        src = _open_georeferenced(path, "--dem: ")
         self._src = src
         self._lock = threading.Lock()
         self._nodata = src.nodata
