@@ -397,7 +397,7 @@ class Controller:
                 throttle=0.0,
                 brake=1.0 if state.airspeed_m_s < g.rotate_airspeed_m_s else 0.3,
             )
-        height = state.alt_agl_m
+        height = state.alt_amsl_m - target.ground_amsl_m
         if height > g.flare_height_m:
             # Glide: pitch for the approach airspeed, throttle idle.
             speed_dem = _clamp(target.airspeed_m_s, g.min_airspeed_m_s, g.max_airspeed_m_s)

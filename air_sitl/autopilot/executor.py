@@ -92,7 +92,8 @@ class MissionExecutor(MissionSequencer):
             return True, ""
         # LAND
         self._in_mission = False
-        self._task = LandTask.ahead(self._tick_now(), self.home.alt_amsl_m)
+        t = self._tick_now()
+        self._task = LandTask.ahead(t, self.ground_below(t))
         self._set_mode(FlightMode.LAND)
         self._emit("Landing")
         return True, ""

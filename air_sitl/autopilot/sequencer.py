@@ -40,7 +40,7 @@ from air_sitl.autopilot.tasks import (
     Tick,
     WaitTask,
 )
-from air_sitl.autopilot.terrain import TerrainFollower
+from air_sitl.autopilot.terrain import TerrainFollower, ground_amsl
 from air_sitl.mission.geometry import (
     MAX_DO_STEPS,
     Point,
@@ -320,13 +320,18 @@ class MissionSequencer:
             if t.state.on_ground:
                 self._complete_item(seq)
                 return
-            ground = self.home.alt_amsl_m
             if math.isnan(self._points[seq][0]):
-                self._task = LandTask.ahead(t, self.home.alt_amsl_m)
+                self._task = LandTask.ahead(t, self.ground_below(t))
             else:
+                ground = ground_amsl(self._surface, self.home, item.lat_deg, item.lon_deg)
                 prev = self._prev_point if self._prev_point is not None else here
-                self._task = LandTask(prev, (n, e, max(ground, min(alt, ground + 1.0))))
+                td = (n, e, max(ground, min(alt, ground + 1.0)))
+                self._task = LandTask(prev, td, ground)
             self._emit("Landing")
+
+    def ground_below(self, t: Tick) -> float:
+        """The ground under the aircraft (where it flies on: the onboard estimate)."""
+        return ground_amsl(self._surface, self.home, t.state.lat_deg, t.state.lon_deg)
 
     def _implicit_takeoff(self, seq: int) -> None:
         """A mission started on the ground without a take-off item climbs out first."""

@@ -339,13 +339,18 @@ class LoiterTask(Task):
 
 
 class LandTask(Task):
-    """Approach along A->touchdown on the FW_LND_ANG glide slope, touch down, roll out."""
+    """Approach along A->touchdown on the FW_LND_ANG glide slope, touch down, roll out.
 
-    def __init__(self, a: Point, touchdown: Point) -> None:
+    ``ground_amsl_m`` is the ground at the touchdown point (the DEM's with ``--dem``, else
+    home's): the approach hands over to the flare, and the flare judges its height, above it.
+    """
+
+    def __init__(self, a: Point, touchdown: Point, ground_amsl_m: float) -> None:
         self.a = (a[0], a[1])
         self.alt_a = a[2]
         self.td = (touchdown[0], touchdown[1])
         self.td_alt = touchdown[2]
+        self.ground_m = ground_amsl_m
         self.touched = False
 
     @classmethod
@@ -355,7 +360,7 @@ class LandTask(Task):
         dist = max(50.0, agl / math.tan(t.p.land_angle_rad))
         c = t.course
         td = (t.pn + dist * math.cos(c), t.pe + dist * math.sin(c), ground_amsl_m)
-        return cls((t.pn, t.pe, t.alt), td)
+        return cls((t.pn, t.pe, t.alt), td, ground_amsl_m)
 
     def update(self, t: Tick) -> NavOutput:
         p = t.p
@@ -376,7 +381,8 @@ class LandTask(Task):
             bank = 0.0
         else:
             # TECS flies the glide slope down to flare height; the LAND law flares.
-            phase = ControlPhase.LAND if s.alt_agl_m < FLARE_PHASE_AGL_M else ControlPhase.CRUISE
+            height = s.alt_amsl_m - self.ground_m
+            phase = ControlPhase.LAND if height < FLARE_PHASE_AGL_M else ControlPhase.CRUISE
             bank = line.bank_rad
         on_slope = slope_alt <= self.alt_a + 1.0
         target = ControlTarget(
@@ -386,5 +392,6 @@ class LandTask(Task):
             airspeed_m_s=p.clamp_speed(p.land_airspeed_m_s) if on_slope else t.speed,
             heading_rad=line.course_rad,
             climb_rate_limit_m_s=p.sink_max_m_s,
+            ground_amsl_m=self.ground_m,
         )
         return NavOutput(target)

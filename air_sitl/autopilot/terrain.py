@@ -16,12 +16,19 @@ import math
 from air_sitl.autopilot.tasks import NavOutput, Tick
 from air_sitl.frames import WGS84_A_M
 from air_sitl.mission.geometry import SurfaceFn
+from air_sitl.state import GeoPoint
 
 LOOKAHEAD_S = 20.0  # how far ahead rising ground is looked for, in seconds of flight
 LOOKAHEAD_SAMPLES = 8
 LOOKAHEAD_EVERY = 10  # guidance updates between two looks ahead (50 Hz guidance: 5 Hz)
 CLIMB_SHARE = 0.6  # share of the maximum climb rate counted on to clear ground ahead
 MIN_LOOKAHEAD_SPEED_M_S = 10.0
+
+
+def ground_amsl(surface: SurfaceFn | None, home: GeoPoint, lat_deg: float, lon_deg: float) -> float:
+    """The ground at a point, where a landing there touches down: the DEM's (``--dem``), else
+    home's (PX4 without a terrain estimate lands on the home altitude)."""
+    return home.alt_amsl_m if surface is None else surface(lat_deg, lon_deg)
 
 
 class TerrainFollower:

@@ -184,3 +184,44 @@ def test_frames_csv_ends_with_the_height_above_the_surface(tmp_path: Path) -> No
         # RelativeAltitude stays above home (on the DEM: 150 m), not above the ground here.
         assert float(row["alt_rel_m"]) == pytest.approx(alt - BASE_M, abs=0.01)
     assert main(["check", str(out)]) == 0
+
+
+def terrace(dz_m: float) -> Relief:
+    """Home's ground (BASE_M) out to 1 km north, then ``dz_m`` higher or lower beyond 1.5 km."""
+
+    def relief(n: Any, e: Any) -> Any:
+        return BASE_M + dz_m * np.clip((n - 1000.0) / 500.0, 0.0, 1.0) + 0.0 * e
+
+    return relief
+
+
+@pytest.mark.parametrize("dz_m", [-30.0, 25.0], ids=["valley", "terrace"])
+def test_a_landing_away_from_home_flares_above_the_ground_there(
+    tmp_path: Path, dz_m: float
+) -> None:
+    # PX4 with a terrain estimate flares on the height above the ground under it; the DEM is
+    # ours: the touchdown is on the ground at the NAV_LAND point, 30 m below or 25 m above
+    # home's, not at home's altitude (in the air over a valley, or into a terrace).
+    relief = terrace(dz_m)
+    dem = write_dem(tmp_path / "terrace.tif", relief)
+    plan = write_plan(
+        tmp_path / "UL.plan",
+        [(22, 3, 0, 0, 40), (16, 3, 300, 0, 60), (16, 3, 600, 0, 60), (21, 3, 2600, 0, 0)],
+    )
+    code, s = fly(plan, dem, tmp_path / "out", "--no-camera")
+    assert code == 0 and s["crashed"] is None and s["landed"] is True, s
+    assert s["mission_completed"] is True
+    t = trajectory(tmp_path / "out")
+    n, e = north_east(t["lat_deg"], t["lon_deg"])
+    height = t["alt_amsl_m"] - relief(n, e)
+    # It came down on the terrace/valley floor, near the NAV_LAND point, and stopped there.
+    assert n[-1] > 1600.0 and abs(n[-1] - 2600.0) < 400.0, n[-1]
+    assert height[-1] < 2.0, height[-1]
+    # A flare, not a fall: the sink rate over the last 2 s before the wheels touched was gentle.
+    sink = -np.diff(t["alt_amsl_m"]) / (np.diff(t["sim_time_ns"]) * 1e-9)
+    air = np.flatnonzero(height[1:] > 1.0)
+    last_air = air[-1]
+    window = (t["sim_time_ns"][1:] > t["sim_time_ns"][last_air] - 2e9) & (
+        np.arange(len(sink)) <= last_air
+    )
+    assert sink[window].max() < 2.5, sink[window].max()
