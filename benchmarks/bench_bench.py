@@ -26,12 +26,16 @@ import numpy as np
 
 
 def link_archives(src: Path, dst: Path) -> list[str]:
-    """Hard-link every complete archive of ``src`` into ``dst`` without its estimates."""
+    """Hard-link every complete archive of ``src`` into ``dst`` without its estimates (and the
+    logs of external localizers)."""
     names = []
     for folder in sorted(p for p in src.iterdir() if (p / "manifest.json").is_file()):
         target = dst / folder.name
         shutil.copytree(
-            folder, target, copy_function=os.link, ignore=shutil.ignore_patterns("estimates")
+            folder,
+            target,
+            copy_function=os.link,
+            ignore=shutil.ignore_patterns("estimates", "*.log"),
         )
         names.append(folder.name)
     return names

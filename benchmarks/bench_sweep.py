@@ -9,7 +9,9 @@ folders, each timed from the call to the last row on disk, spawn start-up of the
 included:
 
 - ``-j 1`` and ``-j 2`` on the process pool: the ratio is the speed-up of a second worker
-  (2.0 at best on two cores);
+  (2.0 at best on two cores); the cores a worker used while in its runs (its CPU time over
+  its runs' wall time: 1.0 for a worker that is one thread, less when other processes take
+  the cores);
 - ``--ray`` (a local Ray of 2 CPUs): Ray's start (``ray.init``) is printed apart; the overhead
   per run is (Ray's wall without its start - the pool's ``-j 2`` wall) / runs. A floor is
   measured in the same run: the round trip of an empty Ray task.
@@ -114,10 +116,12 @@ def main() -> None:
         j2 = timed(spec, root / "j2", PoolExecutor(2))
         for jobs, wall in ((1, j1), (2, j2)):
             inside = run_seconds(root / f"j{jobs}")
+            cpu = CPU_S[f"j{jobs}"]
             print(
                 f"-j {jobs}: {wall:6.1f} s wall for {n} runs; runs took {inside:.1f} s in all, "
                 f"so the pool's own cost (start, spawn, rows) is {wall - inside / jobs:.2f} s; "
-                f"workers' CPU {CPU_S[f'j{jobs}']:.1f} s"
+                f"workers' CPU {cpu:.1f} s ({cpu / n:.2f} s per run, start-up included); "
+                f"a worker used {cpu / inside:.2f} cores while in its runs"
             )
         print(f"speed-up of -j 2 over -j 1: {j1 / j2:.2f}x (2.00x at best on two cores)")
         print(

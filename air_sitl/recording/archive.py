@@ -53,6 +53,10 @@ class RecordingRequest:
     out: Path
     resume: bool = False
     bus: BusHookup | None = None  # the zenoh bus side of the flight (air_sitl.bus.hookup)
+    # False: the archive's files are written on the simulation thread, not on an I/O thread of
+    # their own (a sweep worker is one core: a second thread only competes with it for the
+    # GIL). The bytes are the same.
+    io_thread: bool = True
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -175,7 +179,7 @@ def record_flight(
             info = archive_info_for(setup, map_source, plan_sha256=sha256_file(setup.plan))
             if resuming:
                 first_frame = _trim_for_resume(out, info.run_key)
-            writer = DatasetWriter(out, info, first_frame=first_frame)
+            writer = DatasetWriter(out, info, first_frame=first_frame, threaded=request.io_thread)
         except BaseException:
             close_map(map_source)
             raise

@@ -11,8 +11,11 @@ archive already in its folder (``air-sitl bench``: a sweep over the archives ``d
 one with ``measurements`` saves each entry's measurement as it finishes
 (:mod:`~air_sitl.sweep.measurements`) and skips the entries measured before.
 
-Per worker process: a procedural map is opened once and kept for every later run over the
-same map (:data:`_MAPS`); BLAS and OpenCV run one thread (:func:`pin_threads`).
+Per worker process, one core: a procedural map is opened once and kept for every later run
+over the same map (:data:`_MAPS`); BLAS and OpenCV run one thread (:func:`pin_threads`); the
+camera renders on the simulation thread (``--render-workers 0``) and the archive's files are
+written there too (no I/O thread: a second thread in a worker only competes for its core and
+the GIL).
 """
 
 from __future__ import annotations
@@ -155,7 +158,7 @@ def _fly(task: RunTask, plan: Path, out: Path) -> dict[str, Any]:
     )
     if setup.camera is not None:
         setup = replace(setup, map_source=_cached_map(setup))
-    request = RecordingRequest(setup=setup, out=out, bus=bus_sinks_from_args(args))
+    request = RecordingRequest(setup=setup, out=out, bus=bus_sinks_from_args(args), io_thread=False)
     with request.bus or contextlib.nullcontext():
         record_flight(request)
     return _read_summary(out)
