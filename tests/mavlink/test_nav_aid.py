@@ -171,9 +171,7 @@ class Companion:
             bad(self.mav, t)  # instead of this slot's good position
             return
         n, e, d = s.pos_ned_m
-        self.mav.vision_position_estimate_send(
-            t // 1000, n, e, d, 0.0, 0.0, 0.0, _cov21(9.0, 9.0)
-        )
+        self.mav.vision_position_estimate_send(t // 1000, n, e, d, 0.0, 0.0, 0.0, _cov21(9.0, 9.0))
         self.sent += 1
 
 
