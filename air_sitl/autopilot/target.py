@@ -27,8 +27,9 @@ class ControlTarget:
     airspeed_m_s: float = 15.0
     heading_rad: float = 0.0  # used on the ground (GROUND_ROLL) and for the roll-out
     climb_rate_limit_m_s: float = 3.0  # max climb / sink rate demanded by the height loop
-    # LAND: the ground the landing flares above (the DEM's at the touchdown point, else home's).
-    ground_amsl_m: float = 0.0
+    # LAND (required there): the ground the landing flares above (the DEM's at the touchdown
+    # point, else home's).
+    ground_amsl_m: float = math.nan
     # Pitch limits from the parameters (FW_P_LIM_MAX/MIN); the controller also keeps its own.
     pitch_max_rad: float = math.pi / 2
     pitch_min_rad: float = -math.pi / 2

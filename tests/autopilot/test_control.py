@@ -157,6 +157,7 @@ def test_land_glides_flares_touches_down_gently_and_stops() -> None:
         airspeed_m_s=13.0,
         heading_rad=0.0,
         altitude_amsl_m=HOME.alt_amsl_m,
+        ground_amsl_m=HOME.alt_amsl_m,
     )
     states = _fly(model, controller, state, lambda _s: target, 60.0)
     touchdown = next(i for i, s in enumerate(states) if s.on_ground)
@@ -227,6 +228,7 @@ def test_glide_slope_then_flare_touches_down_near_the_aim_point() -> None:
             altitude_amsl_m=slope_alt,
             airspeed_m_s=13.0,
             heading_rad=0.0,
+            ground_amsl_m=HOME.alt_amsl_m,
         )
         before = state
         state = model.step(controller.update(state, target))
