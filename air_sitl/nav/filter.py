@@ -28,6 +28,7 @@ from air_sitl.nav.types import (
     BaroSample,
     HeadingSample,
 )
+from air_sitl.nav.vehicle import nav_estimate
 from air_sitl.state import GeoPoint, GpsFix, ImuSample, NavEstimate, NavFlags
 
 MAX_AIDS = 16
@@ -302,23 +303,22 @@ class NavFilter:
                 out.g,
             )
         lat, lon, alt = self._local.to_geodetic(p[0], p[1], p[2])
-        P = ekf.P
-        a, b, c = float(P[0, 0]), float(P[0, 1]), float(P[1, 1])
+        (a, b), (_, c) = ekf.P[:2, :2].tolist()
         big = 0.5 * (a + c) + math.sqrt(max(0.0, 0.25 * (a - c) ** 2 + b * b))
-        return NavEstimate(
-            sim_time_ns=t,
-            pos_ned_m=p,
-            vel_ned_m_s=v,
-            q_body_to_ned_wxyz=q,
-            lat_deg=lat,
-            lon_deg=lon,
-            alt_amsl_m=alt,
-            std_h_m=math.sqrt(max(big, 0.0)),
-            std_v_m=math.sqrt(max(float(P[2, 2]), 0.0)),
-            wind_ned_m_s=ekf.wind,
-            gyro_bias_rad_s=ekf.bg,
-            accel_bias_m_s2=ekf.ba,
-            flags=self._flags(),
+        return nav_estimate(  # positional, in NavEstimate's field order (every filter period)
+            t,
+            p,
+            v,
+            q,
+            lat,
+            lon,
+            alt,
+            math.sqrt(max(big, 0.0)),
+            math.sqrt(max(ekf.P.item(2, 2), 0.0)),
+            ekf.wind,
+            ekf.bg,
+            ekf.ba,
+            self._flags(),
         )
 
     def status(self) -> NavStatus:

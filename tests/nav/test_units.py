@@ -14,7 +14,7 @@ from air_sitl.nav.ekf import ErrorStateEkf, integrate
 from air_sitl.nav.fusion import _inverse, fuse_direct, fuse_scalar
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.sensors_extra import AirspeedSensor, Barometer, Magnetometer
-from air_sitl.state import ImuSample, VehicleState
+from air_sitl.state import ImuSample, NavEstimate, VehicleState
 from tests.nav.synthetic import Straight
 
 
@@ -214,16 +214,20 @@ def test_estimated_state_for_the_autopilot() -> None:
     assert s.rate_frd_rad_s[0] == pytest.approx(0.01 - est.gyro_bias_rad_s[0])
 
 
-def test_vehicle_state_builder_is_the_dataclass() -> None:
-    """The 200 Hz builder (slots written directly) makes the object the dataclass makes: every
-    field by name to its own slot (a new or reordered field fails here)."""
+@pytest.mark.parametrize("cls", [VehicleState, NavEstimate])
+def test_positional_builders_are_the_dataclass(cls: type) -> None:
+    """The 200 Hz builders (a twin class with the same slots, then ``__class__``) make the
+    object the dataclass makes: every field by position to its own slot (a new or reordered
+    field fails here), frozen, of the dataclass's own type."""
     from dataclasses import FrozenInstanceError, fields
 
-    from air_sitl.nav.vehicle import vehicle_state
+    from air_sitl.nav.vehicle import nav_estimate, vehicle_state
 
-    values = {f.name: i + 0.25 for i, f in enumerate(fields(VehicleState))}  # all distinct
-    built = vehicle_state(**values)  # type: ignore[arg-type]
-    assert built == VehicleState(**values)
+    build = {VehicleState: vehicle_state, NavEstimate: nav_estimate}[cls]
+    values = {f.name: i + 0.25 for i, f in enumerate(fields(cls))}  # all distinct
+    built = build(*values.values())
+    assert type(built) is cls
+    assert built == cls(**values)
     assert {f.name: getattr(built, f.name) for f in fields(built)} == values
     with pytest.raises(FrozenInstanceError):
-        built.lat_deg = 0.0  # type: ignore[misc]
+        built.lat_deg = 0.0
