@@ -35,7 +35,9 @@ def _json_without(path: Path, keys: tuple[str, ...]) -> dict[str, object]:
     return {k: v for k, v in content.items() if k not in keys}
 
 
-def test_a_worker_writes_on_one_thread_the_bytes_fly_writes(tmp_path: Path) -> None:
+def test_a_worker_writes_on_one_thread_the_bytes_fly_writes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     short_plans.write_short_plan(tmp_path / "UT-200.plan", HOME, leg_m=30.0)
     spec_path = tmp_path / "one.yaml"
     content = {"base": {"plan": "UT-200.plan", "air-start": True, "seed": 3, "map-date": 1}}
@@ -45,15 +47,13 @@ def test_a_worker_writes_on_one_thread_the_bytes_fly_writes(tmp_path: Path) -> N
     threads: set[str] = set()
     original = threading.Thread.start
 
-    def start(thread: threading.Thread) -> None:  # every thread the run starts, by name
+    def start(thread: threading.Thread) -> None:  # the real start, each thread's name noted
         threads.add(thread.name)
         original(thread)
 
-    threading.Thread.start = start  # type: ignore[method-assign]
-    try:
-        row = execute(task)
-    finally:
-        threading.Thread.start = original  # type: ignore[method-assign]
+    monkeypatch.setattr(threading.Thread, "start", start)
+    row = execute(task)
+    monkeypatch.undo()
     assert row["error"] is None, row["error"]
     assert "dataset-io" not in threads, threads
 
