@@ -20,35 +20,35 @@ import numpy as np
 import numpy.typing as npt
 
 F32 = npt.NDArray[np.float32]
-TILE = 8  # level pixels per side of a max-height tile (tiles overlap by one pixel)
+_TILE_BITS = 3
+TILE = 1 << _TILE_BITS  # level pixels per side of a max-height tile (overlapping by one)
 MAX_FINE = 4096  # fine steps over a march's altitude range, at most
 REFINE = 4  # bisection steps after the march, before the secant
 TOL_M = 1.0  # a ray this close to the surface at a corner's hit altitude may settle there (m)
-SETTLED_M = 0.05  # ... if after the secant step it is this close (m)
+SETTLED_M = 0.05  # ... if after a secant step it is this close (m)
+SECANT = 3  # secant steps at most (after the first, each staying within TOL_M)
 EDGE_PX = 2.0  # a cell is re-solved where the parallax bends by more at a corner (px)
 FLAT_M = 0.25  # a 2-pixel cell whose corners' hits differ by less is interpolated (m)
 _MIN_DOWN = 1e-6
 
 
-def _compiled(inline: str = "never") -> Callable[[Callable[..., Any]], Any]:
+def _compiled() -> Callable[[Callable[..., Any]], Any]:
     """numba.njit without the GIL, IEEE division (error_model "numpy": a division by zero
     gives inf, no Python check per division; the code divides only by non-zero values),
     and machine code cached on disk where numba finds a writable place (next to this file
     or in the user's cache directory); where it finds none, compiled anew in each process
     rather than failing."""
-    options = {"nogil": True, "error_model": "numpy", "inline": inline}
 
     def wrap(fn: Callable[..., Any]) -> Any:
         try:
-            return numba.njit(cache=True, **options)(fn)
+            return numba.njit(fn, cache=True, nogil=True, error_model="numpy")
         except RuntimeError:  # numba: "cannot cache function ...: no locator available"
-            return numba.njit(**options)(fn)
+            return numba.njit(fn, nogil=True, error_model="numpy")
 
     return wrap
 
 
 _jit = _compiled()
-_inline = _compiled("always")
 
 
 @_jit
@@ -69,7 +69,7 @@ def tile_max(values: F32) -> F32:
     return out
 
 
-@_inline
+@_jit
 def _height(values: F32, x: float, y: float) -> float:
     """Bilinear height at level pixel (x, y) of the window, edges repeated outward."""
     h, w = values.shape
@@ -134,7 +134,7 @@ def march_ray(
         x, y = px0 - z * ax, py0 - z * ay
         zn = z
         if 0.0 <= x <= w - 1.0 and 0.0 <= y <= h - 1.0:
-            tx, ty = min(int(x) // TILE, tw - 1), min(int(y) // TILE, th - 1)
+            tx, ty = min(int(x) >> _TILE_BITS, tw - 1), min(int(y) >> _TILE_BITS, th - 1)
             top = tmax[ty, tx]  # the ray cannot meet this tile's surface above its top
             if z > top:  # jump to where the ray leaves the tile, or comes down to its top
                 zn = top
@@ -166,8 +166,9 @@ def settle_ray(
 
     The ray is tried at the corners' hit altitudes, highest first. At the first one where
     it is not above the surface (by more than TOL_M), a surface within TOL_M of the ray
-    gives the hit by a secant step through "the height found there" (exact on a plane),
-    kept if the ray is then within SETTLED_M of the surface. Rays under the surface there
+    gives the hit by secant steps through "the height found there" (exact on a plane; up
+    to SECANT on a curved surface), kept once the ray is within SETTLED_M of the surface.
+    Rays under the surface there
     (a wall, or something no corner saw), above it at every corner altitude, or not settled
     are marched (:func:`march_ray`) from the candidate above (or 1 m over the highest
     corner) down to that one (or 0.25 m under the lowest corner).
@@ -187,22 +188,29 @@ def settle_ray(
             break
     z_k = cand[k]
     if not_above and f_k >= -TOL_M:
+        z_0, f_0 = z_k, f_k
         z_1 = z_k - f_k  # the height found there
         f_1 = z_1 - _height(values, px0 - z_1 * ax, py0 - z_1 * ay)
-        denom = f_1 - f_k
-        z_hit = z_1 - f_1 * (z_1 - z_k) / denom if abs(denom) > 1e-6 else z_1
-        if abs(z_hit - _height(values, px0 - z_hit * ax, py0 - z_hit * ay)) <= SETTLED_M:
-            return z_hit, True
+        for step in range(SECANT):
+            denom = f_1 - f_0
+            z_2 = z_1 - f_1 * (z_1 - z_0) / denom if abs(denom) > 1e-6 else z_1
+            if step > 0 and abs(z_2 - z_k) > TOL_M:
+                break  # wandering off: marched instead
+            f_2 = z_2 - _height(values, px0 - z_2 * ax, py0 - z_2 * ay)
+            if abs(f_2) <= SETTLED_M:
+                return z_2, True
+            z_0, f_0, z_1, f_1 = z_1, f_1, z_2, f_2
     top = min(a + 1.0, h_max, cam_z)
     bot = max(d - 0.25, h_min)
     if k > 0:
         top = min(top, cand[k - 1])
     if not_above:
         bot = max(bot, z_k - TOL_M)
-    return march_ray(values, tmax, px0, py0, ax, ay, top, bot)
+    z_hit, found = march_ray(values, tmax, px0, py0, ax, ay, top, bot)
+    return z_hit, found
 
 
-@_inline
+@_jit
 def _ray(
     r: npt.NDArray[np.float64], jac: npt.NDArray[np.float64], s: float, u: float, v: float
 ) -> tuple[float, float]:
@@ -316,6 +324,8 @@ def sample_grid(
                 pj1, pi1 = min(pj + 2, gy - 1), min(pi + 2, gx - 1)
                 corners[0], corners[1] = grid[2, pj, pi], grid[2, pj, pi1]
                 corners[2], corners[3] = grid[2, pj1, pi], grid[2, pj1, pi1]
+                if corners.max() - corners.min() <= FLAT_M:
+                    continue
                 ax, ay = _ray(r, jac, s, ii * st - (pad - 0.5), jj * st - (pad - 0.5))
                 px0, py0 = ox + cam_z * ax, oy + cam_z * ay
                 z, ok = settle_ray(values, tmax, px0, py0, ax, ay, corners, cam_z, h_min, h_max)
