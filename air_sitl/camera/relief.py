@@ -12,20 +12,28 @@ marched; the grid is refined by halving the stride down to 2 only in cells next 
 where the parallax (pixels of lean) bends by more than ``EDGE_PX`` (roof edges, crowns,
 occlusion boundaries); then every pixel of the remaining edge cells is solved on its own and
 the rest is interpolated bilinearly (exact for a plane to far below a pixel). A new ray
-inside a cell first tries the altitudes its cell's corners hit (:func:`settle`: one height
-sample each, then a secant step); only rays under the surface there (walls, things no corner
-saw), or not settling, are marched over the corners' altitude range. Then one remap from the
-map window. The samples sit half a pixel off the pixel grid, so the last step to full
-resolution is one ``cv2.resize``. A march is a few large array operations: its rays at once
-as (steps, rays) arrays, heights sampled by one ``cv2.remap`` over rows of 4096 samples (a
-remap over thousands of short rows costs ten times more).
+inside a cell first tries the altitudes its cell's corners hit (``settle_ray``: one height
+sample each, then up to three secant steps); only rays under the surface there (walls,
+things no corner saw), or not settling, are marched over the corners' altitude range; new
+samples whose corners all hit one height (within ``FLAT_M``) keep the interpolation. A
+march skips 8-pixel tiles whose highest point is below the ray (a max-height tile per
+window), steps one level pixel at a time near the surface, then refines. Then one remap
+from the map window. The samples sit half a pixel off the pixel grid, so the last step to
+full resolution is one ``cv2.resize``. The loops are compiled (``relief_march``, numba,
+imported on the first frame over relief).
 
-Cost (bench_camera.py part 4, this 2-core machine under load): 8-13x the flat render over
-the built-in urban surface, 6-12x over it as a 1.2 m GeoTIFF DSM, 11-20x over the rough
-forest canopy, where nearly every cell is an edge (10-27x before the settle pass). What is
-left is NumPy work and call overhead over 6,000-70,000 rays per frame; the 3x target needs
-a compiled march (a polar prefix-maximum pass in NumPy/OpenCV measured no cheaper: its
-resampling and prefix maxima alone cost 3-4 ms a frame).
+Cost (bench_camera.py part 4, this 2-core machine under load 11-13, flat and the NumPy
+version of this design measured in the same run): 4.9 / 5.4 / 5.3x the flat render at
+200 / 300 / 3000 m over the built-in urban surface (NumPy 10.2 / 10.7 / 9.3x), 5.3 / 5.5 /
+3.6x over it as a 1.2 m GeoTIFF DSM (11.5 / 11.1 / 8.1x), 11.7 / 19.7 / 6.4x over the rough
+forest canopy (22.8 / 39.7 / 12.2x). At urban 200 m (5.2 ms a frame): the ground maps 3.6 ms
+(about 19,000 rays at 70-120 ns each, a fifth of them falling back to a march), the remap of
+the map window 0.7-1.7 ms (about the whole flat render), the geometry 0.2 ms. The forest
+needs 120,000 rays a frame at 300 m (nearly every cell is an edge), and is approximate
+there: against a march of every pixel, 20% of its pixels are off by more than 0.5 px (urban:
+0.9%). The 3x target needs fewer rays, not faster ones: a march of every pixel costs 60-70
+ms; a sweep along the image lines through the nadir point (where the first hit moves
+monotonically outward, so each ray starts where the previous one hit) is the candidate.
 """
 
 from __future__ import annotations
