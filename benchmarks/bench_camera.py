@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
+from air_sitl.camera import relief as relief_mod
 from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
@@ -258,8 +259,6 @@ def write_dsm(path: Path, m: MapSource, half_m: float = 3200.0) -> None:
 
 def _solved_rays(renderer: Renderer, state: VehicleState) -> float:
     """Rays solved for one frame (coarse grid, refinement, full-resolution edge cells)."""
-    from air_sitl.camera import relief as relief_mod
-
     g = renderer.geometry(state)
     r, jac, cx, cy = renderer._remap.relief_setup(state, g.level)
     window = renderer._remap.relief_window(state, g, r, jac, cx, cy)
