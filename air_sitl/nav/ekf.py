@@ -75,14 +75,6 @@ def integrate(
     else:
         s = 0.5
         c = 1.0 - angle2 / 8.0
-    bw, bx, by, bz = c, ax * s, ay * s, az * s
-    qw = w * bw - x * bx - y * by - z * bz
-    qx = w * bx + x * bw + y * bz - z * by
-    qy = w * by - x * bz + y * bw + z * bx
-    qz = w * bz + x * by - y * bx + z * bw
-    inv = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-    if qw < 0.0:
-        inv = -inv
     v0, v1, v2 = v
     w0 = v0 + nx
     w1 = v1 + ny
@@ -91,7 +83,7 @@ def integrate(
     return (
         (p[0] + (v0 + w0) * h, p[1] + (v1 + w1) * h, p[2] + (v2 + w2) * h),
         (w0, w1, w2),
-        (qw * inv, qx * inv, qy * inv, qz * inv),
+        unit_product(w, x, y, z, c, ax * s, ay * s, az * s),  # q * exp(dang): body frame
         (nx, ny, nz),
     )
 
@@ -123,12 +115,18 @@ def rotate_global(
         c = math.cos(0.5 * angle)
     else:
         s, c = 0.5, 1.0
-    aw, bx, by, bz = c, ax * s, ay * s, az * s
     w, x, y, z = q
-    qw = aw * w - bx * x - by * y - bz * z
-    qx = aw * x + bx * w + by * z - bz * y
-    qy = aw * y - bx * z + by * w + bz * x
-    qz = aw * z + bx * y - by * x + bz * w
+    return unit_product(c, ax * s, ay * s, az * s, w, x, y, z)  # exp(dtheta) * q: NED frame
+
+
+def unit_product(
+    aw: float, ax: float, ay: float, az: float, bw: float, bx: float, by: float, bz: float
+) -> tuple[float, float, float, float]:
+    """The Hamilton product a * b, normalised, scalar part made non-negative."""
+    qw = aw * bw - ax * bx - ay * by - az * bz
+    qx = aw * bx + ax * bw + ay * bz - az * by
+    qy = aw * by - ax * bz + ay * bw + az * bx
+    qz = aw * bz + ax * by - ay * bx + az * bw
     inv = 1.0 / math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
     if qw < 0.0:
         inv = -inv

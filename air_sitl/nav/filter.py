@@ -212,27 +212,29 @@ class NavFilter:
             start = max(start, self._t_delayed + 1)
         return start
 
-    def _now(self, now_ns: int | None, stamp_ns: int) -> int:
-        if now_ns is not None:
-            return now_ns
-        return self._t_imu if self._t_imu is not None else stamp_ns
+    def _arrival(self, now_ns: int | None, stamp_ns: int) -> tuple[int, int]:
+        """(arrival time, start of the horizon then) of a measurement stamped ``stamp_ns``;
+        the arrival defaults to the newest IMU time."""
+        if now_ns is None:
+            now_ns = self._t_imu if self._t_imu is not None else stamp_ns
+        return now_ns, self._horizon_start(now_ns)
 
     def fuse_gnss(self, fix: GpsFix, now_ns: int | None = None) -> bool:
         """Buffer one GNSS fix (arrived at ``now_ns``, default: the newest IMU time)."""
-        now = self._now(now_ns, fix.sim_time_ns)
-        return self.gnss.push(fix, now, self._horizon_start(now))
+        now, start = self._arrival(now_ns, fix.sim_time_ns)
+        return self.gnss.push(fix, now, start)
 
     def fuse_baro(self, sample: BaroSample, now_ns: int | None = None) -> bool:
-        now = self._now(now_ns, sample.sim_time_ns)
-        return self.baro.push(sample, now, self._horizon_start(now))
+        now, start = self._arrival(now_ns, sample.sim_time_ns)
+        return self.baro.push(sample, now, start)
 
     def fuse_airspeed(self, sample: AirspeedSample, now_ns: int | None = None) -> bool:
-        now = self._now(now_ns, sample.sim_time_ns)
-        return self.airspeed.push(sample, now, self._horizon_start(now))
+        now, start = self._arrival(now_ns, sample.sim_time_ns)
+        return self.airspeed.push(sample, now, start)
 
     def fuse_heading(self, sample: HeadingSample, now_ns: int | None = None) -> bool:
-        now = self._now(now_ns, sample.sim_time_ns)
-        return self.mag.push(sample, now, self._horizon_start(now))
+        now, start = self._arrival(now_ns, sample.sim_time_ns)
+        return self.mag.push(sample, now, start)
 
     def fuse_aid(self, measurement: AidMeasurement, now_ns: int) -> AidResult:
         """Check and buffer one external position (never raises on bad content).

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from air_sitl.nav.ekf import ErrorStateEkf
+from air_sitl.nav.ekf import ErrorStateEkf, Matrix
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,14 +82,7 @@ def fuse_direct(
         s0 = float(col[first]) + R[0][0]
         if not (s0 > 0.0 and math.isfinite(s0)):
             return REJECTED_BAD
-        y0 = innovation[0]
-        ratio = y0 * y0 / (s0 * gate * gate)
-        if ratio > 1.0 and not force:
-            return FusionResult(False, ratio)
-        k = col * (1.0 / s0)
-        P -= _outer(k, col)
-        ekf.correct(k * y0)
-        return FusionResult(True, ratio)
+        return _gated_scalar(ekf, col, s0, innovation[0], gate, force)
     pht = P[:, first : first + m]
     block = pht[first : first + m].tolist()
     s = [[block[r][c] + R[r][c] for c in range(m)] for r in range(m)]
@@ -126,10 +119,18 @@ def fuse_scalar(
     s = float(hv.dot(pht)) + R
     if not (s > 0.0 and math.isfinite(s)):
         return REJECTED_BAD
+    return _gated_scalar(ekf, pht, s, innovation, gate, force)
+
+
+def _gated_scalar(
+    ekf: ErrorStateEkf, pht: Matrix, s: float, innovation: float, gate: float, force: bool
+) -> FusionResult:
+    """The gate and the update of one scalar measurement: ``pht`` = P h', ``s`` = h P h' + R
+    (``pht`` may be a view of P: the update is made from it before P changes)."""
     ratio = innovation * innovation / (s * gate * gate)
     if ratio > 1.0 and not force:
         return FusionResult(False, ratio)
     k = pht * (1.0 / s)
-    P -= _outer(k, pht)
+    ekf.P -= _outer(k, pht)
     ekf.correct(k * innovation)
     return FusionResult(True, ratio)
