@@ -1,9 +1,12 @@
-"""The ``forest`` map: shaded canopy at several scales, clearings, lakes, tracks, roads, farms.
+"""The ``forest`` map: single tree crowns in stands, clearings, streams, lakes, tracks, farms.
 
-The canopy is a height field made of noise at crown (3 m), group (8 m) and stand (80 m)
-scales, lit by the date's sun: what a real canopy looks like from above, and cheap (a few
-small matrix products per tile). Tracks, roads and farm buildings are vector drawings found
-from their world cell indices, so any tile is drawn alone.
+Every tree is drawn (``crowns``): conifer and broadleaf stands of varying density and height,
+each crown lit on its sunny side, casting its shadow onto its neighbours and the ground by
+the date's sun; clearings (shrinking with the years), clear-cuts (felled at a later date),
+streams and lakes are open ground. Leaves turn with the season. Tracks, roads and farm
+buildings are vector drawings found from their world cell indices, so any tile is drawn
+alone. The built-in surface (``objects``) is the same crowns' height field. Pixels coarser
+than ``CROWN_MAX_GSD_M`` show each stand's mean look instead of its crowns.
 """
 
 from __future__ import annotations
@@ -16,17 +19,21 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.maps.procedural.canvas import Canvas, Color, DateLook, Point, rect, shade
+from air_sitl.maps.procedural.crowns import CELL_M, cell_window, crowns, stand_fields
 from air_sitl.maps.procedural.noise import (
     FloatImage,
     fractal_noise,
     key_of,
     rng_for,
+    unit2,
     value_noise,
     white_noise,
 )
 
-_CONIFER = {"summer": (38, 64, 40), "autumn": (36, 60, 40), "spring": (44, 66, 46)}
-_DECIDUOUS = {"summer": (44, 100, 66), "autumn": (46, 96, 140), "spring": (72, 104, 104)}
+_CONIFER = {"summer": (52, 84, 50), "autumn": (50, 80, 50), "spring": (56, 86, 54)}
+_DECIDUOUS = {"summer": (44, 104, 70), "autumn": (40, 110, 150), "spring": (70, 122, 110)}
+_DECIDUOUS_ALT = {"summer": (56, 118, 86), "autumn": (36, 86, 170), "spring": (84, 132, 120)}
+_UNDERSTORY: Color = (30, 50, 36)
 _MEADOW = {"summer": (70, 138, 112), "autumn": (84, 136, 150), "spring": (86, 124, 128)}
 _SOIL: Color = (90, 112, 132)
 _TRACK: Color = (110, 140, 160)
@@ -36,6 +43,18 @@ _ROOFS: tuple[Color, ...] = ((60, 70, 150), (110, 110, 116), (70, 84, 112), (150
 TRACK_CELL_M = 380.0
 ROAD_PITCH_M = 1700.0
 CUT_CELL_M = 170.0
+CROWN_MAX_GSD_M = 5.0  # coarser pixels draw each stand's mean instead of its crowns
+SHADOW_REACH_M = 12.0  # crowns this far toward the sun may shade a pixel
+SHADOW_STEPS_M = (0.6, 1.2, 1.8, 2.5, 3.5, 4.8, 6.5, 9.0, 12.0)
+STREAM_HALF = 0.012  # streams where a 520 m noise is within this of zero
+# Coarse levels (crowns below a pixel), measured on the crowns drawn at 0.6 m: crown cover per
+# unit tree density, mean canopy height over the stand height, the mean radial position on a
+# crown, mean shadow on crowns and in the gaps between them.
+MEAN_COVER = 0.8
+MEAN_HEIGHT = 1.0
+MEAN_RADIAL = 0.67
+MEAN_SHADOW_CROWN = 0.3
+MEAN_SHADOW_GAP = 0.8
 
 
 DRY_RADIUS_M = 2000.0  # no lake this close to home: flights start over land, not water
@@ -54,79 +73,53 @@ class ForestWorld:
         """One BGR tile of ``size`` pixels at absolute lattice (x0, y0)."""
         k = key_of(self.seed, 41)
         pm = 1.0 / gsd_m
-        d = date.index
         season = date.season
-        # Canopy height field (arbitrary units) and its sun shading.
-        height, crowns, _, fine, w_crown, _ = _canopy(k, x0, y0, size, pm)
-        gx = cv2.Sobel(height, cv2.CV_32F, 1, 0, ksize=3) * np.float32(pm / 8.0 * 3.0)
-        gy = cv2.Sobel(height, cv2.CV_32F, 0, 1, ksize=3) * np.float32(pm / 8.0 * 3.0)
-        sun_e, sun_n = date.sun_dir()
-        # Image x is east, image y is south: slope toward the sun lights the crown.
-        lit = gx * np.float32(sun_e) - gy * np.float32(sun_n)
-        low_sun = 1.0 / math.tan(math.radians(date.sun_elevation_deg))
-        # Crown tops are bright whatever the sun (sun-independent structure keeps dates
-        # aligned), their sunny side brighter still.
-        tops = np.clip(height, -1.5, 1.5) * np.float32(0.28)
-        shading = 1.0 + tops + np.clip(lit * np.float32(0.04 * low_sun), -0.08, 0.08)
-        gaps = np.clip((-height - 0.7) * 1.5, 0.0, 1.0)  # deep gaps are in shadow
-        shading *= 1.0 - 0.45 * gaps
-        # Species mix per stand.
-        stand = fractal_noise(k + 4, x0, y0, size, 90.0 * pm, 2)
-        conifer = np.clip(0.5 + stand * 0.9, 0.0, 1.0)
-        dec_col = np.array(_DECIDUOUS[season], dtype=np.float32)
-        if season == "autumn":
-            mix = np.clip(0.5 + 0.8 * value_noise(k + 5, x0, y0, size, 6.0 * pm), 0.0, 1.0)
-            alt = np.array((44, 118, 150), dtype=np.float32)
-            dec = (
-                dec_col[None, None, :] * (1 - mix[:, :, None])
-                + alt[None, None, :] * mix[:, :, None]
-            )
-        else:
-            dec = np.broadcast_to(dec_col, (size, size, 3))
-        con_col = np.array(_CONIFER[season], dtype=np.float32)
-        canopy = con_col[None, None, :] * conifer[:, :, None] + dec * (1.0 - conifer[:, :, None])
-        # Crown shadows darken a canopy seen from afar; keep that when crowns are faded out.
-        canopy = canopy * (shading * np.float32(1.0 - 0.08 * (1.0 - w_crown)))[:, :, None]
-        # Clearings (shrinking with the years: vegetation growth) and meadows.
-        clear_n = fractal_noise(k + 6, x0, y0, size, 160.0 * pm, 3)
-        thr = 1.45 + 0.12 * d
-        open_a = np.clip((clear_n - thr) * 5.0, 0.0, 1.0)
-        meadow_tex = 1.0 + 0.07 * fractal_noise(k + 7, x0, y0, size, 6.0 * pm, 3)
-        meadow_tex += 0.06 * fine
-        shrubs = np.clip((crowns - 1.7) * 2.0, 0.0, 0.4)  # scattered bushes in meadows
-        meadow_tex *= 1.0 - shrubs
-        meadow = np.array(_MEADOW[season], dtype=np.float32)[None, None, :] * meadow_tex[:, :, None]
-        # Scattered single trees at clearing edges keep texture there.
-        edge_trees = np.clip((height - 0.35) * 3.0, 0.0, 1.0) * np.clip(
-            1.6 - (clear_n - thr) * 4, 0.0, 1.0
+        pad = math.ceil(SHADOW_REACH_M * pm) if gsd_m <= CROWN_MAX_GSD_M else 0
+        g = self._ground(x0 - pad, y0 - pad, size + 2 * pad, gsd_m, date)
+        inner = (slice(pad, pad + size), slice(pad, pad + size))
+        if pad:
+            shadow = _cast_shadow(g.height_m, pad, size, gsd_m, date)
+            g = _Ground(*(layer[inner] for layer in g))
+        else:  # crowns below a pixel: the mean shadow of crowns and of the gaps between
+            gaps = np.clip(1.0 - g.meadow - g.cut - g.water - g.cover, 0.0, 1.0)
+            shadow = MEAN_SHADOW_CROWN * g.cover + MEAN_SHADOW_GAP * gaps
+        fine = fractal_noise(k + 3, x0, y0, size, 1.2 * pm, 2)
+        # Crowns: species colour, per-tree tint, darker rims, the side toward the sun lit. Tops
+        # bright whatever the sun (the sun-independent part keeps the dates aligned).
+        dec = np.array(_DECIDUOUS[season], dtype=np.float32)
+        dec_alt = np.array(_DECIDUOUS_ALT[season], dtype=np.float32)
+        tint = g.tint[:, :, None]
+        broadleaf = dec * (1.0 - tint) + dec_alt * tint
+        con = np.array(_CONIFER[season], dtype=np.float32) * (0.9 + 0.2 * tint)
+        cf = g.conifer[:, :, None]
+        crown_col = con * cf + broadleaf * (1.0 - cf)
+        lit_gain = np.float32(0.18 + 0.12 * _low_sun(date))
+        shade_con = 1.0 + lit_gain * g.lit - 0.35 * g.radial
+        shade_dec = 1.05 + 0.8 * lit_gain * g.lit - 0.35 * g.radial * g.radial + 0.08 * fine
+        shading = (shade_con * g.conifer + shade_dec * (1.0 - g.conifer)) * (
+            1.0 + 0.012 * (g.height_m - 18.0) * g.cover
         )
-        open_a = open_a * (1.0 - edge_trees)
-        # Clear-cuts: whole cells felled at a given date (construction change of a forest).
-        cut = self._cuts(x0, y0, size, gsd_m, d)
-        soil = np.array(_SOIL, dtype=np.float32)[None, None, :] * (1.0 + 0.12 * fine[:, :, None])
-        img = canopy * (1.0 - open_a[:, :, None]) + meadow * open_a[:, :, None]
-        if cut is not None:
-            img = img * (1.0 - cut[:, :, None]) + soil * cut[:, :, None]
-        # Lakes where a very smooth noise is low; a darker rim.
+        img = crown_col * (shading * g.cover)[:, :, None]
+        # Between crowns: dark understory in the forest, meadow in clearings, soil on cuts.
+        meadow_tex = 1.0 + 0.07 * fractal_noise(k + 7, x0, y0, size, 6.0 * pm, 3) + 0.06 * fine
+        under = np.array(_UNDERSTORY, dtype=np.float32) * (1.0 + 0.1 * fine)[:, :, None]
+        meadow = np.array(_MEADOW[season], dtype=np.float32) * meadow_tex[:, :, None]
+        soil = np.array(_SOIL, dtype=np.float32) * (1.0 + 0.12 * fine)[:, :, None]
+        gap = under * (1.0 - g.meadow[:, :, None]) + meadow * g.meadow[:, :, None]
+        gap = gap * (1.0 - g.cut[:, :, None]) + soil * g.cut[:, :, None]
+        img += gap * (1.0 - g.cover)[:, :, None]
+        # Tracks, roads and farms on top; then water; then the shadows of the crowns.
         cv = Canvas(x0, y0, size, gsd_m, (0, 0, 0))
         cv.img = np.clip(img, 0, 255).astype(np.uint8)
-        self._tracks(cv, d)
+        self._tracks(cv, date.index)
         self._roads(cv, date)
         out: npt.NDArray[np.float32] = cv.img.astype(np.float32)
-        water_n = value_noise(k + 8, x0, y0, size, 700.0 * pm) + 0.25 * value_noise(
-            k + 9, x0, y0, size, 150.0 * pm
-        )
-        water_a = np.clip((-water_n - 1.7) * 8.0, 0.0, 1.0)
-        if self.home_en_m is not None and float(water_a.max()) > 0.0:
-            water_a *= self._dry_near_home(x0, y0, size, gsd_m)
-        if float(water_a.max()) > 0.0:
-            # Lakes last: tracks and roads end at the shore.
+        if float(g.water.max()) > 0.0:
             ripple = 1.0 + 0.06 * value_noise(k + 10, x0, y0, size, 4.0 * pm)
             ripple += 0.06 * fractal_noise(k + 12, x0, y0, size, 1.5 * pm, 2)
             water = np.array(_WATER, dtype=np.float32)[None, None, :] * ripple[:, :, None]
-            out = (out * (1.0 - water_a[:, :, None]) + water * water_a[:, :, None]).astype(
-                np.float32
-            )
+            out = out * (1.0 - g.water[:, :, None]) + water * g.water[:, :, None]
+        out *= (1.0 - (0.3 + 0.25 * (1.0 - g.cover)) * shadow)[:, :, None]
         out += float(5.0 * min(1.0, 0.6 * pm)) * white_noise(k + 11, x0, y0, size)[:, :, None]
         return np.clip(out, 0, 255).astype(np.uint8)
 
@@ -135,48 +128,72 @@ class ForestWorld:
     ) -> npt.NDArray[np.float32]:
         """Canopy heights above the terrain (float32 m) of one tile, as :meth:`draw` shows it.
 
-        The crown height field that shades the texture sets the canopy (bright tops high,
-        dark gaps low, about 12-24 m); clearings, clear-cuts, lakes, tracks, roads and farmyards
-        are open ground (0 m).
+        The crowns the texture draws (cones and domes of 8-28 m trees); clearings, clear-cuts,
+        lakes, streams, tracks, roads and farmyards are open ground (0 m). Where crowns are
+        below a pixel, the stand's mean canopy height times its crown cover.
         """
+        heights: npt.NDArray[np.float32] = self._ground(x0, y0, size, gsd_m, date).height_m
+        return heights
+
+    def _ground(self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook) -> _Ground:
+        """What covers each pixel of a window: crowns, clearings, cuts, water, tracks."""
         k = key_of(self.seed, 41)
-        pm = 1.0 / gsd_m
         d = date.index
-        height, crowns, groups, _, w_crown, w_group = _canopy(k, x0, y0, size, pm)
-        clear_n = fractal_noise(k + 6, x0, y0, size, 160.0 * pm, 3)
-        thr = 1.45 + 0.12 * d
-        open_a = np.clip((clear_n - thr) * 5.0, 0.0, 1.0)
-        edge_trees = np.clip((height - 0.35) * 3.0, 0.0, 1.0) * np.clip(
-            1.6 - (clear_n - thr) * 4, 0.0, 1.0
+        thr = 1.45 + 0.12 * d  # clearings shrink with the years: vegetation growth
+        clear_px = _sample(fractal_noise, k + 6, x0, y0, size, gsd_m, 160.0, 3)
+        meadow = np.clip((clear_px - thr + 0.08) * 6.0, 0.0, 1.0)
+        stream_px = _sample(value_noise, k + 20, x0, y0, size, gsd_m, 520.0)
+        stream_on = _sample(value_noise, k + 21, x0, y0, size, gsd_m, 1400.0) > -0.3
+        stream = np.clip((STREAM_HALF - np.abs(stream_px)) * 80.0 * stream_on, 0.0, 1.0)
+        lake_n = value_noise(k + 8, x0, y0, size, 700.0 / gsd_m) + 0.25 * value_noise(
+            k + 9, x0, y0, size, 150.0 / gsd_m
         )
-        open_a = open_a * (1.0 - edge_trees)
-        stand = fractal_noise(k + 4, x0, y0, size, 90.0 * pm, 2)
-        # Tree groups shape the canopy; single crowns (3 m) only by a metre: the texture's
-        # shading carries them, a rougher height field would cost every frame dearly.
-        canopy = (17.0 + 3.0 * stand + 2.5 * w_group * groups + 1.0 * w_crown * crowns).astype(
-            np.float32
-        )
-        cover = 1.0 - open_a
-        cut = self._cuts(x0, y0, size, gsd_m, d)
-        if cut is not None:
-            cover *= 1.0 - cut
-        water_n = value_noise(k + 8, x0, y0, size, 700.0 * pm) + 0.25 * value_noise(
-            k + 9, x0, y0, size, 150.0 * pm
-        )
-        water_a = np.clip((-water_n - 1.7) * 8.0, 0.0, 1.0)
-        if self.home_en_m is not None and float(water_a.max()) > 0.0:
-            water_a *= self._dry_near_home(x0, y0, size, gsd_m)
-        cover *= 1.0 - water_a
+        lake = np.clip((-lake_n - 1.7) * 30.0, 0.0, 1.0)
+        if self.home_en_m is not None and float(lake.max()) > 0.0:
+            lake *= self._dry_near_home(x0, y0, size, gsd_m)
+        water: FloatImage = np.maximum(stream, lake).astype(np.float32)
+        cut_mask = self._cuts(x0, y0, size, gsd_m, d)
+        cut = np.zeros((size, size), np.float32) if cut_mask is None else cut_mask
         # Tracks, roads and yards: whatever those drawings touch on a black canvas.
         cv = Canvas(x0, y0, size, gsd_m, (0, 0, 0))
         self._tracks(cv, d)
         self._roads(cv, date)
-        opened = cv.img.max(axis=2) > 0
-        cover[opened] = 0.0
-        # A crown edge is steep: the canopy keeps its height until the cover is mostly gone.
-        cover = np.clip((cover - 0.2) * 2.0, 0.0, 1.0)
-        heights: npt.NDArray[np.float32] = (canopy * cover).astype(np.float32)
-        return heights
+        drawn = (cv.img[:, :, 0] | cv.img[:, :, 1] | cv.img[:, :, 2]) > 0
+        opened = np.maximum(drawn.astype(np.float32), water)
+        opened = np.maximum(opened, cut)
+        sun_e, sun_n = date.sun_dir()
+        if gsd_m <= CROWN_MAX_GSD_M:
+            i0, j0, n = cell_window(x0, y0, size, gsd_m)
+            # Trees stand off clearings (a few scattered into them) and streams.
+            clear_c = _sample(fractal_noise, k + 6, i0, j0, n, CELL_M, 160.0, 3)
+            stream_c = _sample(value_noise, k + 20, i0, j0, n, CELL_M, 520.0)
+            ii = np.arange(i0, i0 + n, dtype=np.int64)[None, :]
+            jj = np.arange(j0, j0 + n, dtype=np.int64)[:, None]
+            scatter = unit2(ii, jj, k + 22).astype(np.float32)
+            keep = (clear_c - thr < 0.35 * scatter - 0.12) & (np.abs(stream_c) > 2 * STREAM_HALF)
+            c = crowns(k + 30, x0, y0, size, gsd_m, (sun_e, -sun_n), keep)
+            cover = c.cover * (1.0 - (opened > 0.5))
+            return _Ground(
+                c.height_m * cover, cover, c.lit, c.radial, c.conifer, c.tint, meadow, cut, water
+            )
+        # Crowns below a pixel: the stand's canopy as a whole.
+        step = gsd_m / CELL_M
+        c0x, c0y = (x0 + 0.5) * step - 0.5, (y0 + 0.5) * step - 0.5
+        stand = stand_fields(k + 30, c0x, c0y, size, step)
+        forest = np.clip(1.0 - np.clip((clear_px - thr + 0.12) * 5.0, 0.0, 1.0) - opened, 0, 1)
+        cover = (forest * stand.density * MEAN_COVER).astype(np.float32)
+        zero = np.zeros_like(cover)
+        return _Ground(
+            (stand.height_m * MEAN_HEIGHT * cover).astype(np.float32),
+            cover,
+            zero,
+            zero + MEAN_RADIAL,
+            stand.conifer,
+            zero + 0.5,
+            meadow,
+            cut,
+            water,
+        )
 
     def _dry_near_home(self, x0: int, y0: int, size: int, gsd_m: float) -> npt.NDArray[np.float32]:
         """0 within DRY_RADIUS_M of home, rising to 1 over the next 500 m."""
@@ -317,22 +334,50 @@ class ForestWorld:
                         )
 
 
-class _Canopy(NamedTuple):
-    """A tile's canopy height field (arbitrary units) and what it is made of."""
+class _Ground(NamedTuple):
+    """Layers of one window (all size x size float32)."""
 
-    height: FloatImage
-    crowns: FloatImage
-    groups: FloatImage  # groups of trees
-    fine: FloatImage
-    w_crown: float  # weights: drawn coarse, features under ~2 px average out and fade
-    w_group: float
+    height_m: FloatImage  # canopy surface above the ground
+    cover: FloatImage  # crown cover (1 on a crown; on coarse levels the stand's mean)
+    lit: FloatImage
+    radial: FloatImage
+    conifer: FloatImage
+    tint: FloatImage
+    meadow: FloatImage  # 1 in clearings (meadow between the trees)
+    cut: FloatImage  # 1 on clear-cuts
+    water: FloatImage  # 1 on lakes and streams
 
 
-def _canopy(k: int, x0: int, y0: int, size: int, pm: float) -> _Canopy:
-    crowns = value_noise(k + 1, x0, y0, size, 3.0 * pm)
-    groups = value_noise(k + 2, x0, y0, size, 8.0 * pm)
-    fine = fractal_noise(k + 3, x0, y0, size, 1.2 * pm, 2)
-    w_crown = float(np.clip((3.0 * pm - 1.0) / 2.0, 0.0, 1.0))
-    w_group = float(np.clip((8.0 * pm - 1.0) / 2.0, 0.0, 1.0))
-    height = 0.55 * w_crown * crowns + 0.35 * w_group * groups + 0.18 * fine
-    return _Canopy(height, crowns, groups, fine, w_crown, w_group)
+def _sample(  # type: ignore[no-untyped-def]
+    noise, key: int, x0: int, y0: int, n: int, step_m: float, feature_m: float, *octaves: int
+) -> FloatImage:
+    """A noise field of the world in metres at the centres of n x n squares of ``step_m``
+    from square (x0, y0): pixels (step = gsd) or tree cells (step = CELL_M)."""
+    result: FloatImage = noise(key, x0 + 0.5, y0 + 0.5, n, feature_m / step_m, *octaves)
+    return result
+
+
+def _low_sun(date: DateLook) -> float:
+    """0 with the sun high, toward 1 with it low (longer shadows, harder light)."""
+    return float(np.clip((60.0 - date.sun_elevation_deg) / 30.0, 0.0, 1.0))
+
+
+def _cast_shadow(
+    height: FloatImage, pad: int, size: int, gsd_m: float, date: DateLook
+) -> FloatImage:
+    """Shadow (0..1) on the inner size x size pixels of a height field padded by ``pad``:
+    whether the crowns toward the sun rise above the sun's ray through the pixel."""
+    sun_e, sun_n = date.sun_dir()
+    rise = math.tan(math.radians(date.sun_elevation_deg))
+    here = height[pad : pad + size, pad : pad + size]
+    worst = np.zeros((size, size), dtype=np.float32)
+    seen: set[tuple[int, int]] = set()
+    for t in SHADOW_STEPS_M:
+        dx, dy = round(t * sun_e / gsd_m), round(-t * sun_n / gsd_m)
+        if (dx, dy) in seen or max(abs(dx), abs(dy)) > pad or (dx, dy) == (0, 0):
+            continue
+        seen.add((dx, dy))
+        toward = height[pad + dy : pad + dy + size, pad + dx : pad + dx + size]
+        worst = np.maximum(worst, toward - np.float32(math.hypot(dx, dy) * gsd_m * rise) - here)
+    shadow: FloatImage = np.clip(worst * np.float32(0.7), 0.0, 1.0)
+    return shadow

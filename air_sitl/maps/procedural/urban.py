@@ -36,12 +36,41 @@ from air_sitl.maps.procedural.noise import (
 from air_sitl.maps.procedural.urban_blocks import Block, Building, box, fill_block
 
 PITCH_M = 105.0
+FIELDS_BELOW = -0.35  # districts below this (a 1.5 km noise) turn to farm fields
 _ASPHALT: Color = (86, 85, 84)
 _ASPHALT_NEW: Color = (52, 51, 50)
 _SIDEWALK: Color = (158, 166, 172)
 _DRIVEWAY: Color = (140, 146, 150)
 _DIRT: Color = (92, 118, 142)
 _POOL: Color = (205, 175, 90)
+_VERGE: Color = (84, 122, 104)
+# Crops by season: green cereal, ripe cereal, bare soil, maize or beet, grass, rape or hay.
+_CROPS = {
+    "summer": (
+        (62, 138, 110),
+        (96, 176, 206),
+        (86, 112, 140),
+        (48, 112, 66),
+        (78, 150, 118),
+        (80, 196, 220),
+    ),
+    "autumn": (
+        (72, 124, 112),
+        (126, 168, 190),
+        (64, 86, 112),
+        (60, 100, 90),
+        (84, 140, 122),
+        (58, 78, 100),
+    ),
+    "spring": (
+        (78, 150, 112),
+        (70, 104, 130),
+        (80, 104, 132),
+        (74, 98, 122),
+        (88, 154, 128),
+        (64, 186, 214),
+    ),
+}
 _LAWN = {"summer": (64, 116, 92), "autumn": (80, 126, 134), "spring": (78, 108, 114)}
 _TREE = {
     "summer": ((34, 74, 44), (40, 86, 58), (30, 64, 38)),
@@ -79,10 +108,10 @@ class UrbanWorld:
     @functools.lru_cache(maxsize=4096)  # noqa: B019 - one world per map, bounded cache
     def block(self, kx: int, ky: int) -> Block:
         """The content of block (kx, ky), independent of the date."""
-        ux0, wx0, _ = self.street(0, kx)
-        ux1, wx1, _ = self.street(0, kx + 1)
-        vy0, wy0, _ = self.street(1, ky)
-        vy1, wy1, _ = self.street(1, ky + 1)
+        ux0, wx0, main_x0 = self.street(0, kx)
+        ux1, wx1, main_x1 = self.street(0, kx + 1)
+        vy0, wy0, main_y0 = self.street(1, ky)
+        vy1, wy1, main_y1 = self.street(1, ky + 1)
         u0, u1 = ux0 + wx0, ux1 - wx1
         v0, v1 = vy0 + wy0, vy1 - wy1
         rng = rng_for(self.seed, 21, kx, ky)
@@ -93,7 +122,12 @@ class UrbanWorld:
             )[0, 0]
         )
         kind = float(np.clip(rng.random() + 0.12 * zone, 0.0, 0.999))
-        return fill_block(rng, kind, u0, v0, u1, v1)
+        # Out of town (low districts): farm fields, mixed with the last houses at the edge.
+        fields = unit_of(self.seed, 23, kx, ky) < (FIELDS_BELOW - zone) / 0.5
+        if fields:  # fields reach over the minor streets to their middle: only main roads stay
+            u0, u1 = (u0 if main_x0 else ux0), (u1 if main_x1 else ux1)
+            v0, v1 = (v0 if main_y0 else vy0), (v1 if main_y1 else vy1)
+        return fill_block(rng, kind, u0, v0, u1, v1, fields)
 
     def _layout_corners(self, cv: Canvas) -> tuple[list[float], list[float]]:
         """Layout-frame (u, v) of the tile's four corners: its rotated bounding box."""
@@ -129,8 +163,13 @@ class UrbanWorld:
         lawn = _LAWN[date.season]
         tree_cols = _TREE[date.season]
         d = date.index
+        crops = _CROPS[date.season]
         for blk in blocks:
             for poly, kind in blk.grounds:
+                if kind.startswith("crop"):
+                    cv.poly(self.to_world(poly), crops[int(kind[4:])])
+                    cv.poly(self.to_world(poly), (40,), "veg")
+                    continue
                 col = {
                     "sidewalk": _SIDEWALK,
                     "lawn": lawn,
@@ -139,9 +178,10 @@ class UrbanWorld:
                     "pool": _POOL,
                     "dirt": _DIRT,
                     "path": (150, 162, 170),
+                    "verge": _VERGE,
                 }[kind]
                 cv.poly(self.to_world(poly), col)
-                if kind == "lawn":
+                if kind in ("lawn", "verge"):
                     cv.poly(self.to_world(poly), (70,), "veg")
             for b in blk.buildings:
                 if b.born > d:
@@ -357,27 +397,33 @@ def _erase_circle(cv: Canvas, c: Point, r: float) -> None:
 def _roof(
     cv: Canvas, world_: UrbanWorld, b: Building, world: list[Point], sun_e: float, sun_n: float
 ) -> None:
-    """A gabled roof in two shaded halves with a ridge, or a flat roof with a parapet."""
+    """A gabled roof in two shaded halves with a ridge (hipped: its ends sloped too, four
+    facets), or a flat roof with a parapet."""
     p = b.corners
     if b.gabled:
-        if b.ridge_along_x:
-            m0 = ((p[0][0] + p[3][0]) / 2, (p[0][1] + p[3][1]) / 2)
-            m1 = ((p[1][0] + p[2][0]) / 2, (p[1][1] + p[2][1]) / 2)
-            half_a = [p[0], p[1], m1, m0]
-            half_b = [m0, m1, p[2], p[3]]
-        else:
-            m0 = ((p[0][0] + p[1][0]) / 2, (p[0][1] + p[1][1]) / 2)
-            m1 = ((p[3][0] + p[2][0]) / 2, (p[3][1] + p[2][1]) / 2)
-            half_a = [p[0], m0, m1, p[3]]
-            half_b = [m0, p[1], p[2], m1]
-        for half in (half_a, half_b):
-            w = world_.to_world(half)
-            ce = sum(q[0] for q in w) / 4 - sum(q[0] for q in world) / 4
-            cn = sum(q[1] for q in w) / 4 - sum(q[1] for q in world) / 4
+        # The ridge joins the middles of the two short ends (e0, e1).
+        e0, e1 = ((p[0], p[3]), (p[1], p[2])) if b.ridge_along_x else ((p[0], p[1]), (p[3], p[2]))
+        m0 = ((e0[0][0] + e0[1][0]) / 2, (e0[0][1] + e0[1][1]) / 2)
+        m1 = ((e1[0][0] + e1[1][0]) / 2, (e1[0][1] + e1[1][1]) / 2)
+        r0, r1 = m0, m1
+        if b.hipped:  # the ridge ends half the short side in from each end
+            length = math.dist(m0, m1) or 1.0
+            t = min(0.45, 0.5 * math.dist(*e0) / length)
+            r0 = (m0[0] + (m1[0] - m0[0]) * t, m0[1] + (m1[1] - m0[1]) * t)
+            r1 = (m1[0] + (m0[0] - m1[0]) * t, m1[1] + (m0[1] - m1[1]) * t)
+        facets = [[e0[0], r0, r1, e1[0]], [r0, e0[1], e1[1], r1]]
+        if b.hipped:
+            facets += [[e0[0], e0[1], r0], [e1[0], e1[1], r1]]
+        cx = sum(q[0] for q in world) / 4
+        cy = sum(q[1] for q in world) / 4
+        for facet in facets:
+            w = world_.to_world(facet)
+            ce = sum(q[0] for q in w) / len(w) - cx
+            cn = sum(q[1] for q in w) / len(w) - cy
             n = math.hypot(ce, cn) or 1.0
             lit = (ce * sun_e + cn * sun_n) / n
             cv.poly(w, shade(b.roof, 1.0 + 0.22 * lit))
-        cv.line(world_.to_world([m0, m1]), shade(b.roof, 1.3), 0.35)
+        cv.line(world_.to_world([r0, r1]), shade(b.roof, 1.3), 0.35)
     else:
         cv.poly(world, shade(b.roof, 0.78))
         cv.poly(world_.to_world(_grow(b.corners, -0.7)), b.roof)

@@ -6,6 +6,7 @@ random choice comes from the block's own generator, never from the date.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +23,9 @@ _ROOFS: tuple[Color, ...] = (
     (118, 104, 92),
     (80, 100, 72),
     (150, 150, 150),
+    (52, 64, 118),
+    (96, 72, 58),
+    (40, 44, 52),
 )
 _FLAT_ROOFS: tuple[Color, ...] = (
     (202, 204, 200),
@@ -51,6 +55,7 @@ class Building:
     ridge_along_x: bool
     born: int  # first date index where it exists
     gone: int  # first date index where it no longer exists
+    hipped: bool = False  # a gabled roof with sloped ends too (four facets)
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,19 +71,29 @@ class Block:
 
 
 def fill_block(
-    rng: np.random.Generator, kind: float, u0: float, v0: float, u1: float, v1: float
+    rng: np.random.Generator,
+    kind: float,
+    u0: float,
+    v0: float,
+    u1: float,
+    v1: float,
+    fields: bool = False,
 ) -> Block:
-    """The content of a block between its streets: homes, shops, a park or a parking lot.
+    """The content of a block between its streets: homes, shops, a park or a parking lot;
+    or, out of town (``fields``), farm fields.
 
     ``kind`` in [0, 1) picks which; ``rng`` is the block's own generator.
     """
-    grounds: list[tuple[tuple[Point, ...], str]] = [(tuple(box(u0, v0, u1, v1)), "sidewalk")]
+    edge = "verge" if fields else "sidewalk"
+    grounds: list[tuple[tuple[Point, ...], str]] = [(tuple(box(u0, v0, u1, v1)), edge)]
     b0, b1, c0, c1 = u0 + 2.5, u1 - 2.5, v0 + 2.5, v1 - 2.5
     buildings: list[Building] = []
     trees: list[tuple[Point, float, int, int]] = []
     cars: list[tuple[tuple[Point, ...], Color]] = []
     paint: list[tuple[tuple[Point, ...], float]] = []
-    if kind < 0.62:
+    if fields:
+        _fields(rng, b0, c0, b1, c1, grounds, trees)
+    elif kind < 0.62:
         grounds.append((tuple(box(b0, c0, b1, c1)), "lawn"))
         _residential(rng, b0, c0, b1, c1, grounds, buildings, trees, cars)
     elif kind < 0.8:
@@ -125,6 +140,7 @@ def _residential(rng, b0, c0, b1, c1, grounds, buildings, trees, cars) -> None: 
             height = rng.uniform(5.0, 9.5)
             roof = _ROOFS[int(rng.integers(len(_ROOFS)))]
             gabled = rng.random() < 0.75
+            hipped = gabled and rng.random() < 0.35
             ridge = rng.random() < 0.6
             life = rng.random()
             born, gone = (
@@ -165,17 +181,18 @@ def _residential(rng, b0, c0, b1, c1, grounds, buildings, trees, cars) -> None: 
                 cars.append((poly(dx0 + 0.7, 1.0, dx0 + 2.5, 5.4), car_col))
             if recolor:
                 # Re-roofed later: a second building record covering later dates.
+                ridge_x = ridge ^ (not along_u)
                 buildings.append(
-                    Building(house, height, roof, gabled, ridge ^ (not along_u), born, min(gone, 2))
+                    Building(house, height, roof, gabled, ridge_x, born, min(gone, 2), hipped)
                 )
                 roof2 = _ROOFS[(_ROOFS.index(roof) + 3) % len(_ROOFS)]
                 if gone > 2:
                     buildings.append(
-                        Building(house, height, roof2, gabled, ridge ^ (not along_u), 2, gone)
+                        Building(house, height, roof2, gabled, ridge_x, 2, gone, hipped)
                     )
             else:
                 buildings.append(
-                    Building(house, height, roof, gabled, ridge ^ (not along_u), born, gone)
+                    Building(house, height, roof, gabled, ridge ^ (not along_u), born, gone, hipped)
                 )
             for (tx, ty), tr, tc in zip(tree_xy, tree_r, tree_c, strict=True):
                 p = to_block(tx, ty)
@@ -285,3 +302,29 @@ def _parking(rng, b0, c0, b1, c1, cars, paint, trees) -> None:  # type: ignore[n
         trees.append(
             ((rng.uniform(b0, b1), c1 - 1.0), rng.uniform(2.0, 3.0), int(rng.integers(3)), 0)
         )
+
+
+CROP_KINDS = 6  # ground kinds "crop0" .. "crop5": their colour depends on the season
+
+
+def _fields(rng, b0, c0, b1, c1, grounds, trees) -> None:  # type: ignore[no-untyped-def]
+    """Farm fields: strips across the block, each its own crop; a hedgerow on some edges."""
+    along_u = (b1 - b0) >= (c1 - c0)
+    length = (b1 - b0) if along_u else (c1 - c0)
+    n = int(rng.integers(1, 4))
+    cuts = np.sort(rng.uniform(0.25, 0.75, size=n - 1)) * length
+    edges = [0.0, *cuts.tolist(), length]
+    for a, b in itertools.pairwise(edges):
+        crop = f"crop{int(rng.integers(CROP_KINDS))}"
+        lo, hi = a + 0.6, b - 0.6  # a thin balk between fields
+        poly = box(b0 + lo, c0, b0 + hi, c1) if along_u else box(b0, c0 + lo, b1, c0 + hi)
+        grounds.append((tuple(poly), crop))
+    if rng.random() < 0.5:  # a hedgerow along one long side
+        near = rng.random() < 0.5
+        t, end = (b0, b1) if along_u else (c0, c1)
+        t += rng.uniform(0.0, 4.0)
+        side = (c0 + 1.5 if near else c1 - 1.5) if along_u else (b0 + 1.5 if near else b1 - 1.5)
+        while t < end:
+            p = (t, side) if along_u else (side, t)
+            trees.append((p, rng.uniform(1.8, 3.5), int(rng.integers(3)), 0))
+            t += rng.uniform(3.0, 9.0)
