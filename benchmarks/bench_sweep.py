@@ -9,10 +9,10 @@ folders, each timed from the call to the last row on disk, spawn start-up of the
 included:
 
 - ``-j 1`` and ``-j 2`` on the process pool (``--repeat N``: N pairs, one after the other,
-  each printed; the figures are of the sweep with the best wall of each): the ratio is the
-  speed-up of a second worker (2.0 at best on two cores); the cores a worker used while in
-  its runs (its CPU time over its runs' wall time: 1.0 for a worker that is one thread, less
-  when other processes take the cores);
+  each printed with its ratio, and the median of those; the figures below are of the sweep
+  with the best wall of each): the ratio is the speed-up of a second worker (2.0 at best on
+  two cores); the cores a worker used while in its runs (its CPU time over its runs' wall
+  time: 1.0 for a worker that is one thread, less when other processes take the cores);
 - ``--ray`` (a local Ray of 2 CPUs): Ray's start (``ray.init``) is printed apart; the overhead
   per run is (Ray's wall without its start - the pool's ``-j 2`` wall) / runs. A floor is
   measured in the same run: the round trip of an empty Ray task.
@@ -26,7 +26,7 @@ from __future__ import annotations
 import argparse
 import os
 import resource
-import shutil
+import statistics
 import sys
 import tempfile
 import time
@@ -72,9 +72,10 @@ def children_cpu_s() -> float:
 
 
 def timed(spec_path: Path, out: Path, executor: object) -> float:
+    """Sweep into ``out``, a new folder: nothing is deleted just before or while it runs
+    (ext4 then scans past the inodes deleted in the last minutes for every new file: kernel
+    time that lands on the next sweep's workers)."""
     spec = load_spec(spec_path)
-    if out.exists():
-        shutil.rmtree(out)
     cpu = children_cpu_s()
     start = time.perf_counter()
     outcome = run_sweep(spec, out, executor)  # type: ignore[arg-type]
@@ -117,19 +118,26 @@ def main() -> None:
         spec = write_spec(root, args.runs, methods, args.leg_m)
         n = args.runs
         best: dict[int, tuple[float, float, float]] = {}  # jobs -> wall, inside, CPU
+        pairs: list[tuple[float, float]] = []
         for i in range(args.repeat):
             pair = []
             for jobs in (1, 2):
-                out = root / f"j{jobs}"
+                out = root / f"j{jobs}-{i + 1}"
                 wall = timed(spec, out, PoolExecutor(jobs))
                 pair.append(wall)
                 if jobs not in best or wall < best[jobs][0]:  # the least disturbed
                     best[jobs] = (wall, run_seconds(out), CPU_S[out.name])
+            pairs.append((pair[0], pair[1]))
             if args.repeat > 1:
                 print(
                     f"pair {i + 1}: -j 1 {pair[0]:.1f} s, -j 2 {pair[1]:.1f} s: "
                     f"{pair[0] / pair[1]:.2f}x (load {os.getloadavg()[0]:.1f})"
                 )
+        if args.repeat > 1:
+            ratios = sorted(a / b for a, b in pairs)
+            print(
+                f"pairs: median {statistics.median(ratios):.2f}x, {ratios[0]:.2f}-{ratios[-1]:.2f}x"
+            )
         j1, j2 = best[1][0], best[2][0]
         for jobs, (wall, inside, cpu) in best.items():
             print(
@@ -149,8 +157,8 @@ def main() -> None:
             f"{best[2][1] / best[1][1]:.2f}x as long inside -j 2 "
             "(the two workers and every other process share the two cores)"
         )
-        same = [comparable(r) for r in latest_rows(root / "j1" / RESULTS).values()]
-        other = latest_rows(root / "j2" / RESULTS)
+        same = [comparable(r) for r in latest_rows(root / "j1-1" / RESULTS).values()]
+        other = latest_rows(root / "j2-1" / RESULTS)
         assert all(comparable(other[r["id"]]) == r for r in same), "-j 1 and -j 2 rows differ"
         if not args.no_ray:
             import ray
