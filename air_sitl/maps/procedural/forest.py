@@ -43,15 +43,15 @@ _ROOFS: tuple[Color, ...] = ((60, 70, 150), (110, 110, 116), (70, 84, 112), (150
 TRACK_CELL_M = 380.0
 ROAD_PITCH_M = 1700.0
 CUT_CELL_M = 170.0
-CROWN_MAX_GSD_M = 5.0  # coarser pixels draw each stand's mean instead of its crowns
+CROWN_MAX_GSD_M = 10.0  # coarser pixels draw each stand's mean instead of its crowns
 SHADOW_REACH_M = 12.0  # crowns this far toward the sun may shade a pixel
 SHADOW_STEPS_M = (0.6, 1.2, 1.8, 2.5, 3.5, 4.8, 6.5, 9.0, 12.0)
 STREAM_HALF = 0.012  # streams where a 520 m noise is within this of zero
 # Coarse levels (crowns below a pixel), measured on the crowns drawn at 0.6 m: crown cover per
 # unit tree density, mean canopy height over the stand height, the mean radial position on a
 # crown, mean shadow on crowns and in the gaps between them.
-MEAN_COVER = 0.8
-MEAN_HEIGHT = 1.0
+MEAN_COVER = 1.0
+MEAN_HEIGHT = 0.95
 MEAN_RADIAL = 0.67
 MEAN_SHADOW_CROWN = 0.3
 MEAN_SHADOW_GAP = 0.8
