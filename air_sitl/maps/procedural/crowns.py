@@ -118,7 +118,7 @@ def crowns(
         lit=(lit * cover).astype(np.float32),
         radial=np.where(cover > 0, best_s, 1.0).astype(np.float32),
         conifer=(conifer.ravel().take(best_k) * cover).astype(np.float32),
-        tint=tint.ravel().take(best_k),
+        tint=tint.ravel().take(best_k) * cover,
         cover=cover,
     )
 
@@ -131,11 +131,3 @@ def cell_window(x0: int, y0: int, size: int, gsd_m: float) -> tuple[int, int, in
     i1 = math.floor((x0 + size) * gsd_m / CELL_M) + 2
     j1 = math.floor((y0 + size) * gsd_m / CELL_M) + 2
     return i0, j0, max(i1 - i0, j1 - j0) + 1
-
-
-def cells_on_pixel_lattice(i0: int, j0: int, gsd_m: float) -> tuple[float, float, float]:
-    """Cell (i0, j0)'s centre on the pixel lattice at ``gsd_m``, in cell pitches, and the pitch
-    in pixels: ``value_noise(key, x, y, n, feature_px / pitch)`` samples at the n x n cells the
-    noise ``value_noise(key, x0, y0, size, feature_px)`` has at the pixels."""
-    pitch = CELL_M / gsd_m
-    return ((i0 + 0.5) * pitch - 0.5) / pitch, ((j0 + 0.5) * pitch - 0.5) / pitch, pitch
