@@ -178,13 +178,23 @@ class Gcs:
         self, items: Sequence[MissionItem], mission_type: int = 0, current: int | None = 0
     ) -> int:
         """Upload by MISSION_COUNT / MISSION_REQUEST_INT / MISSION_ITEM_INT; the ACK result.
-        ``current``: the item flagged current (None: none flagged)."""
+        ``current``: the item flagged current (None: none flagged).
+
+        As QGroundControl does, answers of another list's exchange are not this one's, and an
+        ACCEPTED before the last item went out is a late duplicate of an earlier exchange (a
+        busy vehicle re-asks an item whose answer is on its way, then acknowledges twice)."""
         self.conn.mav.mission_count_send(1, 1, len(items), mission_type)
+        sent_last = not items
         while True:
             msg = self.recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"])
             assert msg is not None, "upload: the vehicle stopped answering"
+            if getattr(msg, "mission_type", 0) != mission_type:
+                continue
             if msg.get_type() == "MISSION_ACK":
+                if msg.type == mavutil.mavlink.MAV_MISSION_ACCEPTED and not sent_last:
+                    continue
                 return int(msg.type)
+            sent_last = sent_last or msg.seq == len(items) - 1
             item = MissionItemMessage(
                 seq=msg.seq,
                 item=items[msg.seq],
@@ -197,6 +207,8 @@ class Gcs:
         """Download with MISSION_REQUEST_LIST / MISSION_REQUEST_INT."""
         self.conn.mav.mission_request_list_send(1, 1, mission_type)
         count = self.recv(["MISSION_COUNT"])
+        while count is not None and getattr(count, "mission_type", 0) != mission_type:
+            count = self.recv(["MISSION_COUNT"])  # another list's (a late duplicate)
         assert count is not None, "download: no MISSION_COUNT"
         items: list[MissionItem] = []
         for seq in range(count.count):
@@ -206,7 +218,7 @@ class Gcs:
                 # Re-asked as a GCS does (the protocol's retry), should a datagram be lost.
                 self.conn.mav.mission_request_int_send(1, 1, seq, mission_type)
                 msg = self.recv(["MISSION_ITEM_INT"], 2.0)
-                if msg is not None and msg.seq != seq:
+                if msg is not None and (msg.seq != seq or msg.mission_type != mission_type):
                     msg = None
             assert msg is not None, f"download: no item {seq}"
             converted = to_mission_message(msg)
