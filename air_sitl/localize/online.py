@@ -342,9 +342,9 @@ class BusLocalizer:
     def handle(self, meta: codec.FrameMeta, jpeg: bytes) -> Estimate | None:
         """Localize one frame and publish the answer (every frame gets one)."""
         if meta.frame <= self.last_frame:
-            if meta.frame != 0:
+            if meta.frame != 0 or self.last_frame == 0:
                 return None  # a repeat: already answered
-            self._restart()  # frame 0 again: a new capture window
+            self._restart()  # frame 0 again after others: a new capture window
         self.frames += 1
         obs = self.observation(meta, jpeg)
         est = None
@@ -381,7 +381,9 @@ class BusLocalizer:
         self._last_t_ns = None
         self._last_fix_t_ns = None
         self._camera_kept_on = False
-        self.frames = 0
+        self.frames = 0  # the counts of the closing line are the new window's
+        self.estimated = 0
+        self.step_s = 0.0
 
     def summary(self) -> dict[str, Any]:
         """Counts for the closing line."""

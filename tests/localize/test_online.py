@@ -162,3 +162,13 @@ def test_a_repeat_is_ignored_and_frame_zero_again_restarts() -> None:
     drain(loc)
     assert method.resets == 2
     assert [m["frame"] for m in bus.out.sent] == [0, 1, 2, 3, 4, 0, 1]
+    # The closing line counts the new window's frames and estimates, not the old ones too.
+    assert loc.frames == 2 and loc.estimated == sum("enu_m" in m for m in bus.out.sent[5:])
+    # Frame 0 twice in a row is a repeat, not a third window.
+    other = FakeBus()
+    fresh = BusLocalizer(other, KEYS, Recorder(), "rec", wait_s=1.0)  # type: ignore[arg-type]
+    fly(other, 1)
+    drain(fresh)
+    meta0 = codec.FrameMeta(frame=0, sim_time_ns=0, width_px=640, height_px=480)
+    assert fresh.handle(meta0, b"jpeg") is None
+    assert fresh.frames == 1 and [m["frame"] for m in other.out.sent] == [0]
