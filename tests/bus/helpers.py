@@ -45,6 +45,9 @@ def pair(endpoint: str) -> tuple[Bus, Bus]:
 
 
 SAFETY_S = 120.0  # wall seconds: only a stuck peer gets there (the machine may be loaded)
+# fly's --wait-for gives up after 10 wall seconds without a subscriber or an estimate; a
+# localizer starting beside a loaded suite (imports, its reference map) can take longer.
+WAIT_SAFETY = ("--wait-timeout", str(SAFETY_S))
 
 
 def wait_until(cond: Callable[[], bool], timeout_s: float = SAFETY_S) -> bool:
@@ -119,7 +122,7 @@ def fly_with_bus_localizer(localize: list[str], fly: list[str]) -> str:
     )  # fmt: skip
     try:
         flown = subprocess.run(
-            cli("fly", *fly, "--zenoh-listen", endpoint),
+            cli("fly", *fly, "--zenoh-listen", endpoint, *WAIT_SAFETY),
             capture_output=True, text=True, timeout=600, check=False,
         )  # fmt: skip
         assert flown.returncode == 0, flown.stderr

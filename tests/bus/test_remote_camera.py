@@ -24,7 +24,7 @@ from air_sitl.errors import BusError
 from air_sitl.maps.open import open_map
 from air_sitl.state import GeoPoint, VehicleState
 
-from .helpers import HOME, free_endpoint, make_sample, pair, wait_until
+from .helpers import HOME, SAFETY_S, free_endpoint, make_sample, pair, wait_until
 
 KEYS = KeySpace("rc")
 CAMERA = CameraModel(width_px=200, height_px=150, hfov_deg=60.0, mount_rpy_deg=(2.0, -3.0, 0.0))
@@ -54,7 +54,7 @@ def test_remote_frames_are_byte_identical_in_order_and_wait_for_a_late_bridge() 
     sim, bridge = pair(free_endpoint())
     with sim, bridge:
         settings = RenderSettings(home=HOME, camera=CAMERA.settings(), seed=11)
-        remote = RemoteCamera(sim, KEYS, settings, timeout_s=10.0, max_in_flight=4)
+        remote = RemoteCamera(sim, KEYS, settings, timeout_s=SAFETY_S, max_in_flight=4)
         samples = [
             make_sample(k * CAMERA_PERIOD_NS, east_m=0.3 * k, yaw_rad=1.0 + 0.01 * k)
             for k in range(12)
@@ -83,7 +83,7 @@ def test_bridge_errors_and_silence_end_the_flight_with_one_line() -> None:
     with sim, bridge:
         CameraBridgeServer(bridge, KEYS, factory)
         bad = RenderSettings(home=HOME, camera={"width_px": 3}, seed=0)
-        remote = RemoteCamera(sim, KEYS, bad, timeout_s=5.0)
+        remote = RemoteCamera(sim, KEYS, bad, timeout_s=SAFETY_S)
         remote.submit(make_sample(0), 0)
         with pytest.raises(BusError, match=r"camera bridge, frame 0: .*KeyError"):
             remote.flush()
@@ -121,7 +121,7 @@ def test_free_running_bridge_renders_truth_with_a_frame_index() -> None:
         ]
         for s in samples:
             pub.on_sample(s)
-        ok = wait_until(lambda: len(got) == 10, timeout_s=10.0)
+        ok = wait_until(lambda: len(got) == 10)
         assert ok, (len(got), server.rendered, bridge.callback_errors)
         local = Renderer(open_map("urban", HOME), CAMERA, seed=5)
         for m in got:
