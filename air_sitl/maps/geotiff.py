@@ -67,12 +67,32 @@ def _open_georeferenced(path: Path, option: str) -> Any:
     return src
 
 
-def _file_provenance(source: str, path: Path, sha256: str, crs: str) -> dict[str, Any]:
-    """Where a map or relief came from, as the manifest records it."""
-    return {"source": source, "path": str(path), "sha256": sha256, "crs": crs}
+class _GeoTiffFile:
+    """A georeferenced GeoTIFF that several threads read: its path, handle, lock and hash."""
+
+    path: Path
+    name: str
+    _src: Any
+    _lock: threading.Lock
+    _sha256: str | None
+
+    def _open_file(self, path: Path, option: str) -> Any:
+        """Open ``path`` for reading (:func:`_open_georeferenced`); return the handle."""
+        self.path = path
+        self.name = path.name
+        self._src = _open_georeferenced(path, option)
+        self._lock = threading.Lock()
+        self._sha256 = None
+        return self._src
+
+    def _provenance(self, source: str, crs: str) -> dict[str, Any]:
+        """Where the map or relief came from, as the manifest records it (SHA-256 once)."""
+        if self._sha256 is None:
+            self._sha256 = sha256_file(self.path)
+        return {"source": source, "path": str(self.path), "sha256": self._sha256, "crs": crs}
 
 
-class GeoTiffMap(TiledMap):
+class GeoTiffMap(TiledMap, _GeoTiffFile):
     """One georeferenced RGB/gray uint8 TIFF; windowed reads only."""
 
     def __init__(
@@ -83,11 +103,7 @@ class GeoTiffMap(TiledMap):
         cache_bytes: int = DEFAULT_CACHE_BYTES,
     ) -> None:
         super().__init__(cache_bytes)
-        self.path = path
-        self.name = path.name
-        src = _open_georeferenced(path, "")
-        self._src = src
-        self._lock = threading.Lock()
+        src = self._open_file(path, "")
         self._overviews: dict[int, Any] = {}
         if src.count not in (1, 3, 4) or any(dt != "uint8" for dt in src.dtypes):
             src.close()
@@ -113,7 +129,6 @@ class GeoTiffMap(TiledMap):
             round(math.log2(f)): i for i, f in enumerate(src.overviews(1)) if f & (f - 1) == 0
         }
         self._crs_text = crs_text
-        self._sha256: str | None = None
         # Nodata value, alpha band or mask: such pixels get alpha 0 (as off the map).
         self._masked = any(flags != [MaskFlags.all_valid] for flags in src.mask_flag_enums)
 
@@ -167,10 +182,8 @@ class GeoTiffMap(TiledMap):
 
     def describe(self) -> dict[str, Any]:
         """Provenance: file name, SHA-256 (computed once), CRS and size."""
-        if self._sha256 is None:
-            self._sha256 = sha256_file(self.path)
         size_px = [self.georef.width_px, self.georef.height_px]
-        provenance = _file_provenance("geotiff", self.path, self._sha256, self._crs_text)
+        provenance = self._provenance("geotiff", self._crs_text)
         return {**provenance, "size_px": size_px, "gsd_m": self.georef.gsd_m}
 
     def close(self) -> None:
@@ -249,7 +262,7 @@ def write_geotiff(
         tmp.unlink(missing_ok=True)
 
 
-class GeoTiffDem(TiledSurface):
+class GeoTiffDem(TiledSurface, _GeoTiffFile):
     """A GeoTIFF elevation model (heights AMSL, any CRS) sampled on a map's pixel grid.
 
     Each surface tile reads only the DEM window under it (plus a margin), fills nodata from
@@ -264,17 +277,12 @@ class GeoTiffDem(TiledSurface):
 
     def __init__(self, path: Path, map_source: MapSource) -> None:
         super().__init__(map_source)
-        self.path = path
-        self.name = path.name
-        src = _open_georeferenced(path, "--dem: ")
-        self._src = src
-        self._lock = threading.Lock()
+        src = self._open_file(path, "--dem: ")
         self._nodata = src.nodata
         self._same_crs = src.crs.to_string() == map_source.georef.crs
         self._dem_crs = src.crs.to_string()
         inv = ~src.transform
         self._inv = (inv.a, inv.b, inv.c, inv.d, inv.e, inv.f)
-        self._sha256: str | None = None
 
     def _dem_px(
         self, level: int, tx: int, ty: int
@@ -358,9 +366,7 @@ class GeoTiffDem(TiledSurface):
 
     def describe(self) -> dict[str, Any]:
         """Provenance: file name, SHA-256, CRS."""
-        if self._sha256 is None:
-            self._sha256 = sha256_file(self.path)
-        return _file_provenance("geotiff-dem", self.path, self._sha256, self._dem_crs)
+        return self._provenance("geotiff-dem", self._dem_crs)
 
     def close(self) -> None:
         """Close the file."""
