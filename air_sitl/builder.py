@@ -17,18 +17,10 @@ from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.options import close_map, open_chosen_map, open_chosen_surface
 from air_sitl.camera.render import Renderer
-from air_sitl.errors import OptionError
 from air_sitl.maps.base import MapSource
 from air_sitl.maps.surface import SurfaceModel
-from air_sitl.mission.items import (
-    LOITER_COMMANDS,
-    RELATIVE_FRAMES,
-    TERRAIN_FRAMES,
-    WAYPOINT_COMMANDS,
-    MavCmd,
-    Mission,
-    MissionItem,
-)
+from air_sitl.mission.geometry import shift_altitudes
+from air_sitl.mission.items import Mission
 from air_sitl.mission.plan_file import load_mission
 from air_sitl.options import FlightOptions, MapChoice
 from air_sitl.runner import Flight, assemble_flight, home_of
@@ -55,40 +47,6 @@ class FlightSetup:
     map: MapChoice = field(default_factory=MapChoice)
     render_workers: int | None = None
     map_source: MapSource | None = None
-
-
-# Items whose altitude is a height to fly at; RTL and landing keep theirs.
-_SHIFTED_COMMANDS = frozenset({MavCmd.NAV_TAKEOFF, *WAYPOINT_COMMANDS, *LOITER_COMMANDS})
-
-
-def shift_altitudes(mission: Mission, offset_m: float, home: GeoPoint) -> Mission:
-    """``mission`` with every altitude it flies at (take-off, waypoints, loiters, rally points)
-    raised by ``offset_m``; the capture items and their window stay as they are.
-
-    OptionError when a shifted altitude is not above home (terrain frames: above the ground).
-    """
-    if offset_m == 0.0:
-        return mission
-
-    def shifted(item: MissionItem, index: int, kind: str) -> MissionItem:
-        alt_m = item.alt_m + offset_m
-        base = "the ground" if item.frame in TERRAIN_FRAMES else "home"
-        relative = item.frame in RELATIVE_FRAMES or item.frame in TERRAIN_FRAMES
-        above_m = alt_m if relative else alt_m - home.alt_amsl_m
-        if above_m <= 0.0:
-            msg = (
-                f"--altitude-offset {offset_m:g}: {mission.source}: {kind} {index}: altitude "
-                f"{item.alt_m:g} m would be {above_m:g} m above {base} (must stay above it)"
-            )
-            raise OptionError(msg)
-        return replace(item, alt_m=alt_m)
-
-    items = tuple(
-        shifted(item, i, "item") if item.command in _SHIFTED_COMMANDS else item
-        for i, item in enumerate(mission.items)
-    )
-    rally = tuple(shifted(item, i, "rally point") for i, item in enumerate(mission.rally))
-    return replace(mission, items=items, rally=rally)
 
 
 def load_setup(

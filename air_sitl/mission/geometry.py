@@ -1,12 +1,15 @@
 """Where mission items are: pure functions of a :class:`~air_sitl.mission.items.MissionItem`
-(or a :class:`~air_sitl.mission.items.Mission`) and home, shared by the executor and air starts.
+(or a :class:`~air_sitl.mission.items.Mission`) and home, shared by the executor and air starts;
+and the mission raised or lowered by ``--altitude-offset``.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
 
+from air_sitl.errors import OptionError
 from air_sitl.frames import geodetic2ned
 from air_sitl.mission.items import (
     LOITER_COMMANDS,
@@ -110,3 +113,37 @@ def next_nav_index(items: tuple[MissionItem, ...], seq: int, jump_counts: dict[i
         if steps > MAX_DO_STEPS:
             return -1
     return -1
+
+
+# Items whose altitude is a height to fly at; RTL and landing keep theirs.
+_SHIFTED_COMMANDS = frozenset({MavCmd.NAV_TAKEOFF, *POSITIONED_COMMANDS})
+
+
+def shift_altitudes(mission: Mission, offset_m: float, home: GeoPoint) -> Mission:
+    """``mission`` with every altitude it flies at (take-off, waypoints, loiters, rally points)
+    raised by ``offset_m``; the capture items and their window stay as they are.
+
+    OptionError when a shifted altitude is not above home (terrain frames: above the ground).
+    """
+    if offset_m == 0.0:
+        return mission
+
+    def shifted(item: MissionItem, index: int, kind: str) -> MissionItem:
+        alt_m = item.alt_m + offset_m
+        base = "the ground" if item.frame in TERRAIN_FRAMES else "home"
+        relative = item.frame in RELATIVE_FRAMES or item.frame in TERRAIN_FRAMES
+        above_m = alt_m if relative else alt_m - home.alt_amsl_m
+        if above_m <= 0.0:
+            msg = (
+                f"--altitude-offset {offset_m:g}: {mission.source}: {kind} {index}: altitude "
+                f"{item.alt_m:g} m would be {above_m:g} m above {base} (must stay above it)"
+            )
+            raise OptionError(msg)
+        return replace(item, alt_m=alt_m)
+
+    items = tuple(
+        shifted(item, i, "item") if item.command in _SHIFTED_COMMANDS else item
+        for i, item in enumerate(mission.items)
+    )
+    rally = tuple(shifted(item, i, "rally point") for i, item in enumerate(mission.rally))
+    return replace(mission, items=items, rally=rally)

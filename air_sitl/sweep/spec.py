@@ -30,7 +30,6 @@ from typing import Any, NoReturn
 
 import yaml
 
-from air_sitl.builder import shift_altitudes
 from air_sitl.bus.args import bus_options_from_args
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.fly import add_arguments
@@ -39,6 +38,7 @@ from air_sitl.errors import AirSitlError
 from air_sitl.eval.align import ALIGNMENTS
 from air_sitl.localize import METHODS
 from air_sitl.localize.external import ExternalLocalizer
+from air_sitl.mission.geometry import shift_altitudes
 from air_sitl.mission.plan_file import load_mission
 from air_sitl.options import flight_options_from_args, int_in_range
 from air_sitl.runner import home_of

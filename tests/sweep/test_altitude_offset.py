@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 import short_plans
 
-from air_sitl.builder import load_setup, shift_altitudes
+from air_sitl.builder import load_setup
 from air_sitl.errors import OptionError
+from air_sitl.mission.geometry import shift_altitudes
 from air_sitl.mission.items import MavCmd, Mission, MissionItem
 from air_sitl.options import FlightOptions, add_flight_arguments, flight_options_from_args
 from air_sitl.state import GeoPoint
