@@ -10,19 +10,22 @@ from __future__ import annotations
 
 import queue
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
 from air_sitl.bus.hookup import BusHookup
 from air_sitl.mavlink.codec import ParseCounters
+from air_sitl.mavlink.interfaces import SEVERITY_CRITICAL
 from air_sitl.mavlink.links import LinkSpec
 from air_sitl.mavlink.nav_aid import NavLink
+from air_sitl.mavlink.streams import TelemetrySink
 from air_sitl.mavlink.telemetry import CameraInfo
 from air_sitl.mavlink.vehicle import EndpointOptions, Job, VehicleEndpoint
 from air_sitl.recording import CaptureRecorder
 from air_sitl.runner import Flight, InboxItem
 from air_sitl.sinks import FrameSource, Sink
+from air_sitl.state import SimSample
 
 
 def camera_info(setup: FlightSetup) -> CameraInfo | None:
@@ -31,6 +34,33 @@ def camera_info(setup: FlightSetup) -> CameraInfo | None:
     if cam is None:
         return None
     return CameraInfo(width_px=cam.width_px, height_px=cam.height_px, hfov_deg=cam.hfov_deg)
+
+
+class CrashResponse:
+    """After a crash (the flight's own ground-contact judgement, ``FlightStats.crashed``) the
+    served vehicle disarms, motors off, and says once where and why (STATUSTEXT CRITICAL);
+    the simulation goes on, so clients see it disarmed on the ground and may arm again."""
+
+    def __init__(self, flight: Flight, telemetry: TelemetrySink) -> None:
+        self._flight = flight
+        self._telemetry = telemetry
+        self.reported = False
+
+    def then(self, stop: Callable[[], bool]) -> Callable[[SimSample], bool]:
+        """A ``Flight.run`` stop test that first responds to a new crash."""
+
+        def check(_sample: SimSample) -> bool:
+            crash = self._flight.stats.crashed
+            if crash is not None and not self.reported:
+                self.reported = True
+                self._flight.autopilot.crashed()
+                self._telemetry.announce(
+                    SEVERITY_CRITICAL,
+                    f"Crashed at {crash['sim_time_s']:.1f} s: {crash['reason']}; disarmed",
+                )
+            return stop()
+
+        return check
 
 
 def serve_vehicle(
@@ -104,7 +134,8 @@ def serve_vehicle(
                 f"{home.alt_amsl_m:.1f} speed {setup.options.speed:g}; links: {where}",
                 flush=True,
             )
-        flight.run(stop=lambda _sample: stop.is_set(), max_sim_time_ns=max_sim_time_ns, inbox=inbox)
+        crash = CrashResponse(flight, endpoint.sink)
+        flight.run(stop=crash.then(stop.is_set), max_sim_time_ns=max_sim_time_ns, inbox=inbox)
     finally:
         endpoint.close()
     return endpoint.counters

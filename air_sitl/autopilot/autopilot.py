@@ -196,6 +196,11 @@ class Autopilot:
         self._after_command()
         return self._exec.disarm()
 
+    def crashed(self) -> None:
+        """The vehicle crashed: disarm at once, in the air or not (see :meth:`disarm`)."""
+        self._auto_start_pending = False
+        self._exec.crashed()
+
     def set_mode(self, mode: FlightMode) -> tuple[bool, str]:
         """Change flight mode."""
         self._after_command()

@@ -69,6 +69,13 @@ class MissionExecutor(MissionSequencer):
         self._emit("Disarmed")
         return True, ""
 
+    def crashed(self) -> None:
+        """Motors off wherever the vehicle is: it met the ground outside a landing (a served
+        vehicle after a crash; PX4's land detector would disarm it on the ground)."""
+        self.armed = False
+        self._in_mission = False
+        self._task = IdleTask()
+
     def set_mode(self, mode: FlightMode) -> tuple[bool, str]:
         """Switch flight mode (as a DO_SET_MODE from a ground station)."""
         if mode is FlightMode.MISSION:

@@ -325,6 +325,10 @@ class TelemetrySink:
                 return  # a flush is already queued
         self._ep.to_io(self._flush_outbox)
 
+    def announce(self, severity: int, text: str) -> None:
+        """A STATUSTEXT from the simulation thread, in order with the telemetry."""
+        self._text(severity, text)
+
     def _text(self, severity: int, text: str) -> None:
         """A STATUSTEXT, in order with the telemetry."""
         self._send(lambda: self._ep.broadcast_text(severity, text))

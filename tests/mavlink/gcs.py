@@ -161,6 +161,21 @@ class Gcs:
             self.recv(["STATUSTEXT"], 1.0)
         raise AssertionError(f"no STATUSTEXT with {fragment!r}: {self.texts}")
 
+    def wait_whole_text(self, fragment: str) -> str:
+        """The whole text of the first STATUSTEXT whose first chunk contains ``fragment``: a
+        text over 50 characters comes as MAVLink 2 chunks sharing a non-zero id, joined here."""
+        self.wait_text(fragment)
+        first = next(m for m in self.statustexts if fragment in m.text)
+        if first.id == 0:
+            return str(first.text)
+        chunks = [m for m in self.statustexts if m.id == first.id]
+        while len(chunks[-1].text) == 50:
+            msg = self.recv(["STATUSTEXT"])
+            assert msg is not None, "the rest of a chunked STATUSTEXT did not come"
+            if msg.id == first.id:
+                chunks.append(msg)
+        return "".join(m.text for m in chunks)
+
     def connect(self, timeout_s: float = SAFETY_S) -> Any:
         """Send heartbeats until the vehicle's heartbeat arrives."""
         deadline = time.monotonic() + timeout_s
