@@ -36,14 +36,7 @@ from air_sitl.dataset.air_schema import FRAMES_CSV, IMU_COLUMNS, IMU_CSV, MANIFE
 from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive, open_archive
 from air_sitl.errors import DatasetError
-from air_sitl.localize.base import (
-    Estimate,
-    GnssFix,
-    ImuReading,
-    Localizer,
-    LocalizerContext,
-    Observation,
-)
+from air_sitl.localize import base
 from air_sitl.localize.inputs import AirspeedModel, BaroModel
 from air_sitl.localize.methods import make_method
 from air_sitl.localize.output import write_estimates
@@ -91,7 +84,7 @@ def context_of(
     reference_map: str | None = None,
     reference_date: int | None = None,
     seed: int = 0,
-) -> LocalizerContext:
+) -> base.LocalizerContext:
     """The method's view of an archive before the first frame (home, camera, map, manifest)."""
     where = f"{archive.path}/{MANIFEST_JSON}"
     manifest = archive.manifest
@@ -120,7 +113,7 @@ def context_of(
         di = map_info.get("date_index")
         map_date = int(di) if isinstance(di, int) else None
         map_name = str(map_info.get("kind") or map_info.get("source") or "") or None
-    return LocalizerContext(
+    return base.LocalizerContext(
         home=home,
         camera=camera,
         frame_rate_hz=rate,
@@ -182,7 +175,7 @@ def _column(rows: list[dict[str, str]], name: str, where: str) -> npt.NDArray[np
 
 def observations(
     archive: Archive, *, needs_image: bool, seed: int = 0, bus_inputs: bool = False
-) -> Iterator[Observation]:
+) -> Iterator[base.Observation]:
     """The observations of every capture frame, in order (see the module docstring)."""
     where = f"{archive.path}/{FRAMES_CSV}"
     rows = archive.extra_rows
@@ -209,7 +202,7 @@ def observations(
             raise DatasetError(msg)
         lo = hi - 1 if prev_t is None else int(np.searchsorted(imu.t_ns, prev_t, side="right"))
         readings = tuple(
-            ImuReading(
+            base.ImuReading(
                 sim_time_ns=int(imu.t_ns[i]),
                 gyro_frd_rad_s=(float(d[0]), float(d[1]), float(d[2])),
                 accel_frd_m_s2=(float(d[3]), float(d[4]), float(d[5])),
@@ -231,7 +224,7 @@ def observations(
                 msg = f"{archive.path}/{archive.rows[k].filename}: not a decodable image"
                 raise DatasetError(msg)
             image = np.asarray(decoded, dtype=np.uint8)
-        yield Observation(
+        yield base.Observation(
             frame=k,
             sim_time_ns=t,
             image_bgr=image,
@@ -251,7 +244,7 @@ def _fix_of(
     t_ns: int,
     last_fix_t: int | None,
     windows: tuple[tuple[int, int], ...],
-) -> GnssFix | None:
+) -> base.GnssFix | None:
     """The GNSS fix given at frame ``k``: the first frame's, then only new fixes outside the
     denial windows when the archive records windows."""
     if k > 0 and not windows:
@@ -260,7 +253,7 @@ def _fix_of(
         if row.get("gps_fix_type", "") in ("", "0", "1") or not row.get("gps_time_ns"):
             return None
         fix_t = int(row["gps_time_ns"])
-        fix = GnssFix(
+        fix = base.GnssFix(
             sim_time_ns=fix_t,
             lat_deg=float(row["gps_lat_deg"]),
             lon_deg=float(row["gps_lon_deg"]),
@@ -281,20 +274,20 @@ def _fix_of(
 
 
 def run_method(
-    method: Localizer,
-    context: LocalizerContext,
-    source: Iterator[Observation],
+    method: base.Localizer,
+    context: base.LocalizerContext,
+    source: Iterator[base.Observation],
     *,
     total: int,
     progress: ProgressFn | None = None,
-) -> list[Estimate]:
+) -> list[base.Estimate]:
     """Feed every observation to ``method`` (reset first); one estimate per frame."""
     method.reset(context)
-    out: list[Estimate] = []
+    out: list[base.Estimate] = []
     for done, obs in enumerate(source, start=1):
         est = method.step(obs)
         if est is None:
-            est = Estimate(frame=obs.frame, sim_time_ns=obs.sim_time_ns, enu_m=None)
+            est = base.Estimate(frame=obs.frame, sim_time_ns=obs.sim_time_ns, enu_m=None)
         out.append(est)
         if progress is not None and (done % 50 == 0 or done == total):
             progress(done, total)

@@ -49,14 +49,7 @@ from air_sitl.bus.session import Bus, Message
 from air_sitl.camera.model import CameraModel
 from air_sitl.errors import BusError
 from air_sitl.frames import quat2euler, quat_conjugate, quat_multiply
-from air_sitl.localize.base import (
-    Estimate,
-    GnssFix,
-    ImuReading,
-    Localizer,
-    LocalizerContext,
-    Observation,
-)
+from air_sitl.localize import base
 from air_sitl.state import GeoPoint, Quat
 
 QUIET_S = 1.0  # after the capture window: no frame for this long ends the run
@@ -107,14 +100,14 @@ def feed_latest(bus: Bus, handlers: Mapping[str, Callable[[Message], None]]) -> 
             handler(Message(key, bus.query(key, timeout_s=2.0).payload, None))
 
 
-def gnss_fix_of(message: Message) -> GnssFix | None:
+def gnss_fix_of(message: Message) -> base.GnssFix | None:
     """The 3D fix a ``gps`` message holds, None without one; BusError naming the key when bad."""
     m = codec.loads(message.payload, message.key)
     with codec.fields_of(message.key, "fix"):
         if int(m.get("fix_type", 3)) < 3:
             return None
         v = m["vel_ned_m_s"]
-        return GnssFix(
+        return base.GnssFix(
             sim_time_ns=int(m["sim_time_ns"]),
             lat_deg=float(m["lat_deg"]),
             lon_deg=float(m["lon_deg"]),
@@ -140,7 +133,7 @@ class BusLocalizer:
         self,
         bus: Bus,
         keys: KeySpace,
-        method: Localizer,
+        method: base.Localizer,
         name: str,
         *,
         wait_s: float = 30.0,
@@ -157,8 +150,8 @@ class BusLocalizer:
         self.gnss_mode = gnss
         self.seed = seed
         self._cond = threading.Condition()
-        self._imu: deque[ImuReading] = deque(maxlen=4000)
-        self._fixes: deque[GnssFix] = deque(maxlen=50)
+        self._imu: deque[base.ImuReading] = deque(maxlen=4000)
+        self._fixes: deque[base.GnssFix] = deque(maxlen=50)
         self._frames: queue.Queue[_Frame] = queue.Queue()
         self._capturing: bool | None = None
         self._status_t_ns = -1
@@ -194,7 +187,7 @@ class BusLocalizer:
         if not isinstance(home, dict):
             msg = f"{keys.mission_status}: no home in the status"
             raise BusError(msg)
-        self.context = LocalizerContext(
+        self.context = base.LocalizerContext(
             home=GeoPoint(
                 lat_deg=float(home["lat_deg"]),
                 lon_deg=float(home["lon_deg"]),
@@ -289,7 +282,7 @@ class BusLocalizer:
                 msg = f"{self.keys.root}: the simulator has been silent for {silent:.0f} s"
                 raise BusError(msg)
 
-    def observation(self, meta: codec.FrameMeta, jpeg: bytes) -> Observation | None:
+    def observation(self, meta: codec.FrameMeta, jpeg: bytes) -> base.Observation | None:
         """The observation of one frame from what the bus delivered (None: no attitude yet)."""
         t = meta.sim_time_ns
         with self._cond:
@@ -327,7 +320,7 @@ class BusLocalizer:
         if self.method.needs_image:
             decoded = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
             image = None if decoded is None else np.asarray(decoded, dtype=np.uint8)
-        return Observation(
+        return base.Observation(
             frame=meta.frame,
             sim_time_ns=t,
             image_bgr=image,
@@ -339,7 +332,7 @@ class BusLocalizer:
             jpeg=jpeg,
         )
 
-    def handle(self, meta: codec.FrameMeta, jpeg: bytes) -> Estimate | None:
+    def handle(self, meta: codec.FrameMeta, jpeg: bytes) -> base.Estimate | None:
         """Localize one frame and publish the answer (every frame gets one)."""
         if meta.frame <= self.last_frame:
             if meta.frame != 0 or self.last_frame == 0:
