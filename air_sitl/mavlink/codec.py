@@ -17,15 +17,7 @@ from typing import Any
 from pymavlink.dialects.v20 import common as mavlink2
 
 from air_sitl.errors import MavlinkError
-from air_sitl.mavlink.messages import (
-    MissionAck,
-    MissionClearAll,
-    MissionCount,
-    MissionItemMessage,
-    MissionMessage,
-    MissionRequest,
-    MissionRequestList,
-)
+from air_sitl.mavlink import messages
 from air_sitl.mission.items import GLOBAL_FRAMES, TERRAIN_FRAMES, MissionItem
 
 mav = mavlink2  # the dialect module: message classes and enum constants for the other modules
@@ -219,25 +211,25 @@ def item_from_int(
     )
 
 
-def to_mission_message(msg: Message) -> MissionMessage | None:
+def to_mission_message(msg: Message) -> messages.MissionMessage | None:
     """The mission-protocol value of a MISSION_* message, None for any other message."""
     name = msg.get_type()
     mission_type = getattr(msg, "mission_type", 0)
     if name == "MISSION_COUNT":
-        return MissionCount(
+        return messages.MissionCount(
             count=msg.count, mission_type=mission_type, opaque_id=getattr(msg, "opaque_id", 0)
         )
     if name == "MISSION_REQUEST_LIST":
-        return MissionRequestList(mission_type=mission_type)
+        return messages.MissionRequestList(mission_type=mission_type)
     if name in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
-        return MissionRequest(
+        return messages.MissionRequest(
             seq=msg.seq, mission_type=mission_type, int_form=name == "MISSION_REQUEST_INT"
         )
     if name == "MISSION_ITEM_INT":
         p = (msg.param1, msg.param2, msg.param3, msg.param4)
         xyz = (msg.x, msg.y, msg.z)
         item = item_from_int(msg.frame, msg.command, p, xyz, msg.autocontinue, msg.seq)
-        return MissionItemMessage(
+        return messages.MissionItemMessage(
             seq=msg.seq, item=item, mission_type=mission_type, current=bool(msg.current)
         )
     if name == "MISSION_ITEM":
@@ -248,34 +240,36 @@ def to_mission_message(msg: Message) -> MissionMessage | None:
             autocontinue=bool(msg.autocontinue),
             seq=msg.seq,
         )
-        return MissionItemMessage(
+        return messages.MissionItemMessage(
             seq=msg.seq, item=item, mission_type=mission_type, current=bool(msg.current),
             int_form=False,
         )  # fmt: skip
     if name == "MISSION_ACK":
-        return MissionAck(
+        return messages.MissionAck(
             result=msg.type, mission_type=mission_type, opaque_id=getattr(msg, "opaque_id", 0)
         )
     if name == "MISSION_CLEAR_ALL":
-        return MissionClearAll(mission_type=mission_type)
+        return messages.MissionClearAll(mission_type=mission_type)
     return None
 
 
-def from_mission_message(m: MissionMessage, target_system: int, target_component: int) -> Message:
+def from_mission_message(
+    m: messages.MissionMessage, target_system: int, target_component: int
+) -> Message:
     """The pymavlink message for a mission-protocol value addressed to the target."""
     t = (target_system, target_component)
-    if isinstance(m, MissionCount):
+    if isinstance(m, messages.MissionCount):
         return mavlink2.MAVLink_mission_count_message(*t, m.count, m.mission_type)
-    if isinstance(m, MissionRequestList):
+    if isinstance(m, messages.MissionRequestList):
         return mavlink2.MAVLink_mission_request_list_message(*t, m.mission_type)
-    if isinstance(m, MissionRequest):
+    if isinstance(m, messages.MissionRequest):
         cls = (
             mavlink2.MAVLink_mission_request_int_message
             if m.int_form
             else mavlink2.MAVLink_mission_request_message
         )
         return cls(*t, m.seq, m.mission_type)
-    if isinstance(m, MissionItemMessage):
+    if isinstance(m, messages.MissionItemMessage):
         i = m.item
         p = i.params[:4]
         if m.int_form:
@@ -288,6 +282,6 @@ def from_mission_message(m: MissionMessage, target_system: int, target_component
             *t, m.seq, i.frame, i.command, int(m.current), int(i.autocontinue), *p,
             i.lat_deg, i.lon_deg, i.alt_m, m.mission_type,
         )  # fmt: skip
-    if isinstance(m, MissionAck):
+    if isinstance(m, messages.MissionAck):
         return mavlink2.MAVLink_mission_ack_message(*t, m.result, m.mission_type)
     return mavlink2.MAVLink_mission_clear_all_message(*t, m.mission_type)
