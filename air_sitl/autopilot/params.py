@@ -1,4 +1,4 @@
-"""The autopilot's parameters: a PX4-named set with types, defaults and limits.
+"""The autopilot's parameters: a PX4-named set with types, defaults and limits (params.csv).
 
 The autopilot reads them at every guidance update, so a change (for example a PARAM_SET from
 QGroundControl) takes effect in flight. The order of :data:`PARAMS` is the MAVLink
@@ -9,11 +9,12 @@ range (:meth:`ParamStore.in_range`). Overrides given at start are checked agains
 
 from __future__ import annotations
 
+import csv
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from importlib import resources
 
-from air_sitl.autopilot.px4_params import PX4_CONNECT_PARAMS
 from air_sitl.errors import AirSitlError
 
 
@@ -34,217 +35,37 @@ class ParamSpec:
     description: str = ""
 
 
-PARAMS: tuple[ParamSpec, ...] = (
-    ParamSpec(
-        name="FW_AIRSPD_TRIM",
-        default=15.0,
-        min_value=5.0,
-        max_value=100.0,
-        unit="m/s",
-        description="cruise airspeed outside missions, and in missions without a plan speed",
-    ),
-    ParamSpec(
-        name="FW_AIRSPD_MIN",
-        default=12.0,
-        min_value=5.0,
-        max_value=100.0,
-        unit="m/s",
-        description="lowest airspeed the autopilot commands",
-    ),
-    ParamSpec(
-        name="FW_AIRSPD_MAX",
-        default=22.0,
-        min_value=5.0,
-        max_value=150.0,
-        unit="m/s",
-        description="highest airspeed the autopilot commands",
-    ),
-    ParamSpec(
-        name="FW_R_LIM",
-        default=35.0,
-        min_value=5.0,
-        max_value=65.0,
-        unit="deg",
-        description="bank angle limit",
-    ),
-    ParamSpec(
-        name="FW_P_LIM_MAX",
-        default=30.0,
-        min_value=0.0,
-        max_value=60.0,
-        unit="deg",
-        description="maximum pitch (nose up)",
-    ),
-    ParamSpec(
-        name="FW_P_LIM_MIN",
-        default=-30.0,
-        min_value=-60.0,
-        max_value=0.0,
-        unit="deg",
-        description="minimum pitch (nose down)",
-    ),
-    ParamSpec(
-        name="FW_T_CLMB_MAX",
-        default=3.0,
-        min_value=0.5,
-        max_value=15.0,
-        unit="m/s",
-        description="maximum climb rate the height loop demands",
-    ),
-    ParamSpec(
-        name="FW_T_SINK_MAX",
-        default=4.0,
-        min_value=0.5,
-        max_value=15.0,
-        unit="m/s",
-        description="maximum sink rate the height loop demands",
-    ),
-    ParamSpec(
-        name="FW_CLMBOUT_DIFF",
-        default=10.0,
-        min_value=0.0,
-        max_value=150.0,
-        unit="m",
-        description="take-off: climb wings level until this close to the take-off altitude",
-    ),
-    ParamSpec(
-        name="FW_LND_ANG",
-        default=6.0,
-        min_value=1.0,
-        max_value=15.0,
-        unit="deg",
-        description="landing glide slope",
-    ),
-    ParamSpec(
-        name="FW_LND_AIRSPD",
-        default=13.0,
-        min_value=6.0,
-        max_value=100.0,
-        unit="m/s",
-        description="landing approach airspeed",
-    ),
-    ParamSpec(
-        name="NAV_L1_PERIOD",
-        default=16.0,
-        min_value=5.0,
-        max_value=50.0,
-        unit="s",
-        description="L1 path-following period (smaller is tighter)",
-    ),
-    ParamSpec(
-        name="NAV_L1_DAMPING",
-        default=0.75,
-        min_value=0.6,
-        max_value=0.9,
-        description="L1 path-following damping ratio",
-    ),
-    ParamSpec(
-        name="NAV_ACC_RAD",
-        default=10.0,
-        min_value=0.05,
-        max_value=200.0,
-        unit="m",
-        description="waypoint acceptance radius when the item gives none",
-    ),
-    ParamSpec(
-        name="NAV_FW_ALT_RAD",
-        default=10.0,
-        min_value=0.05,
-        max_value=200.0,
-        unit="m",
-        description="altitude acceptance (take-off, loiter to altitude, capture start)",
-    ),
-    ParamSpec(
-        name="NAV_LOITER_RAD",
-        default=80.0,
-        min_value=25.0,
-        max_value=1000.0,
-        unit="m",
-        description="loiter radius when the item gives none (hold, RTL, end of mission)",
-    ),
-    ParamSpec(
-        name="MIS_TAKEOFF_ALT",
-        default=30.0,
-        min_value=5.0,
-        max_value=500.0,
-        unit="m",
-        description="take-off altitude above home for a take-off command without one",
-    ),
-    ParamSpec(
-        name="RTL_RETURN_ALT",
-        default=60.0,
-        min_value=10.0,
-        max_value=1500.0,
-        unit="m",
-        description="return altitude above home (RTL climbs to it, never descends to it)",
-    ),
-    ParamSpec(
-        name="COM_POS_FS_EPH",
-        default=5.0,  # PX4's default
-        min_value=1.0,
-        max_value=10000.0,
-        unit="m",
-        description="position failsafe: horizontal position uncertainty (1-sigma) above which "
-        "the onboard estimate is no longer trusted (COM_POS_FS_ACT acts)",
-    ),
-    ParamSpec(
-        name="COM_POS_FS_ACT",
-        default=0.0,
-        min_value=0.0,
-        max_value=2.0,
-        is_int=True,
-        description="position failsafe action: 0 continue the mission and warn, 1 loiter "
-        "(hold), 2 return to launch (numbered as PX4's NAV_DLL_ACT)",
-    ),
-    ParamSpec(
-        name="EKF2_GPS_CTRL",
-        default=7.0,
-        min_value=0.0,
-        max_value=15.0,
-        is_int=True,
-        description="GNSS aiding bits (PX4): bit 0 horizontal position; 0 keeps the receiver's "
-        "fixes (position and velocity) out of the onboard filter",
-    ),
-    ParamSpec(
-        name="EKF2_EV_CTRL",
-        default=0.0,
-        min_value=0.0,
-        max_value=15.0,
-        is_int=True,
-        description="external vision aiding bits (PX4): bit 0 horizontal position "
-        "(VISION_POSITION_ESTIMATE, ODOMETRY); on by default with serve --nav-aid mavlink",
-    ),
-    ParamSpec(
-        name="EKF2_EV_NOISE_MD",
-        default=0.0,
-        min_value=0.0,
-        max_value=1.0,
-        is_int=True,
-        description="external vision noise: 0 the message's covariance (EKF2_EVP_NOISE "
-        "without one), 1 always EKF2_EVP_NOISE",
-    ),
-    ParamSpec(
-        name="EKF2_EVP_NOISE",
-        default=5.0,
-        min_value=0.01,
-        max_value=1000.0,
-        unit="m",
-        description="1-sigma of an aid position without covariance (--nav-aid-sigma)",
-    ),
-)
+PARAMS_CSV = "params.csv"  # package data beside this module
 
-PARAMS = PARAMS + tuple(
-    ParamSpec(
-        name=name,
-        default=float(default),
-        min_value=-(2.0**31) if is_int else -1e9,
-        max_value=2.0**31 - 1 if is_int else 1e9,
+
+def _spec_of(row: dict[str, str]) -> ParamSpec:
+    """One row of :data:`PARAMS_CSV`; without min and max, any value of the type."""
+    if row["type"] not in ("INT32", "REAL32"):
+        msg = f"{PARAMS_CSV}: {row['name']}: type {row['type']!r}, expected INT32 or REAL32"
+        raise ValueError(msg)
+    is_int = row["type"] == "INT32"
+    lo, hi = (-(2.0**31), 2.0**31 - 1) if is_int else (-1e9, 1e9)
+    return ParamSpec(
+        name=row["name"],
+        default=float(row["default"]),
+        min_value=float(row["min"]) if row["min"] else lo,
+        max_value=float(row["max"]) if row["max"] else hi,
         is_int=is_int,
-        unit=unit,
-        description=description,
+        unit=row["unit"],
+        description=row["description"],
     )
-    for name, default, is_int, unit, description in PX4_CONNECT_PARAMS
-)
+
+
+def _load_params() -> tuple[ParamSpec, ...]:
+    """The table of :data:`PARAMS_CSV` (``#`` lines are comments)."""
+    text = resources.files("air_sitl.autopilot").joinpath(PARAMS_CSV).read_text(encoding="utf-8")
+    lines = (line for line in text.splitlines() if not line.startswith("#"))
+    return tuple(_spec_of(row) for row in csv.DictReader(lines))
+
+
+# Every parameter in MAVLink param_index order: the autopilot's (with a range) and those PX4
+# serves to ground stations at connect.
+PARAMS: tuple[ParamSpec, ...] = _load_params()
 
 _SPECS: dict[str, ParamSpec] = {spec.name: spec for spec in PARAMS}
 
