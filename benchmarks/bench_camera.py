@@ -263,7 +263,7 @@ def _solved_rays(renderer: Renderer, state: VehicleState) -> float:
     r, jac, cx, cy = renderer._remap.relief_setup(state, g.level)
     window = renderer._remap.relief_window(state, g, r, jac, cx, cy)
     cam = renderer.camera
-    _maps, stats = relief_mod.ground_maps(
+    _maps, _bounds, stats = relief_mod.ground_maps(
         window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px
     )
     return stats["rays"] + stats["fixed_rays"]

@@ -17,23 +17,25 @@ sample each, then up to three secant steps); only rays under the surface there (
 things no corner saw), or not settling, are marched over the corners' altitude range; new
 samples whose corners all hit one height (within ``FLAT_M``) keep the interpolation. A
 march skips 8-pixel tiles whose highest point is below the ray (a max-height tile per
-window), steps one level pixel at a time near the surface, then refines. Then one remap
-from the map window. The samples sit half a pixel off the pixel grid, so the last step to
-full resolution is one ``cv2.resize``. The loops are compiled (``relief_march``, numba,
+window), steps one level pixel at a time near the surface, then refines. Then a remap
+from the map window (in strips). The samples sit half a pixel off the pixel grid, so the
+last step to full resolution is one ``cv2.resize``. The loops are compiled (``relief_march``, numba,
 imported on the first frame over relief).
 
-Cost (bench_camera.py part 4, this 2-core machine under load 11-13, flat and the NumPy
-version of this design measured in the same run): 4.9 / 5.4 / 5.3x the flat render at
-200 / 300 / 3000 m over the built-in urban surface (NumPy 10.2 / 10.7 / 9.3x), 5.3 / 5.5 /
-3.6x over it as a 1.2 m GeoTIFF DSM (11.5 / 11.1 / 8.1x), 11.7 / 19.7 / 6.4x over the rough
-forest canopy (22.8 / 39.7 / 12.2x). At urban 200 m (5.2 ms a frame): the ground maps 3.6 ms
-(about 19,000 rays at 70-120 ns each, a fifth of them falling back to a march), the remap of
-the map window 0.7-1.7 ms (about the whole flat render), the geometry 0.2 ms. The forest
-needs 120,000 rays a frame at 300 m (nearly every cell is an edge), and is approximate
-there: against a march of every pixel, 20% of its pixels are off by more than 0.5 px (urban:
-0.9%). The 3x target needs fewer rays, not faster ones: a march of every pixel costs 60-70
-ms; a sweep along the image lines through the nadir point (where the first hit moves
-monotonically outward, so each ray starts where the previous one hit) is the candidate.
+Cost (bench_camera.py part 4, this 2-core machine, flat in the same run, load average 5.6
+falling to 3.4): 5.9 / 7.0 / 3.6x the flat render at 200 / 300 / 3000 m over the built-in
+urban surface, 5.0 / 7.1 / 3.3x over it as a 1.2 m GeoTIFF DSM, 13.0 / 21.7 / 6.4x over the
+rough forest canopy. The remap runs in strips, each from a copy of the map pixels it samples
+where the mosaic is large (3000 m: 0.3-0.7 ms less a frame), and a thread keeps its last
+three height windows (a frame's search may read two, which before were read again every
+frame). At urban 200 m (about 5 ms a frame): the ground maps 3.5 ms (sample_grid 2.0 ms of
+which 0.5 ms coarse grid and bookkeeping, then about 9,000 refinement rays at ~200 ns, and
+9,000 edge pixels 1.1 ms), the remap 0.7 ms, geometry 0.2 ms. The forest needs 120,000 rays
+a frame at 300 m (nearly every cell is an edge), and is approximate there: against a march
+of every pixel, 20% of its pixels are off by more than 0.5 px (urban: 0.9%). Tried: each
+new ray marched from the smallest nadir distance its cell's corners hit at (the first hit
+moves outward with the angle from the nadir) cuts those to 4.8% (forest) and 0.26% (urban),
+but costs twice the time. The 3x target needs fewer rays, not only faster ones.
 """
 
 from __future__ import annotations
@@ -134,6 +136,18 @@ def march(
     )  # fmt: skip
 
 
+def march_one(window: HeightWindow, cx: float, cy: float, cam_z: float, ax: float,
+              ay: float) -> float:  # fmt: skip
+    """Altitude of the first surface point of one ray (level-pixel slopes ax, ay) between
+    the window's highest point (or the camera) and its lowest."""
+    top = float(np.float32(min(window.h_max, cam_z)))
+    z, _found = _kernels().march_ray(
+        window.values, window.tile_max, (cx - window.x0) + cam_z * ax,
+        (cy - window.y0) + cam_z * ay, ax, ay, top, window.h_min,
+    )  # fmt: skip
+    return float(np.float32(z))  # as the float32 arrays of rays did before
+
+
 def ground_maps(
     window: HeightWindow,
     r: tuple[float, ...],
@@ -144,10 +158,12 @@ def ground_maps(
     cam_z: float,
     width: int,
     height: int,
-) -> tuple[F32, dict[str, float]]:
+    rows: int = 0,
+) -> tuple[F32, F32, dict[str, float]]:
     """Level-pixel coordinates (relative to the window) of the surface each pixel sees.
 
-    Returns ((height, width, 2) map x, y; stats of the march). Rays that never descend
+    Returns ((height, width, 2) map x, y; (x min, y min, x max, y max) of them in each strip
+    of ``rows`` image rows (0: one strip); stats of the march). Rays that never descend
     are the caller's to mask (sky). Samples sit at image points (STRIDE * j - PAD + 0.5,
     STRIDE * i - PAD + 0.5); each level halves the stride, interpolating midpoints and
     solving again only the cells whose corners' parallax differs by more than EDGE_PX.
@@ -166,10 +182,12 @@ def ground_maps(
     coarse = cv2.merge((grid[0], grid[1]))
     size = (2 * coarse.shape[1], 2 * coarse.shape[0])
     full: F32 = cv2.resize(coarse, size, interpolation=cv2.INTER_LINEAR)
-    fixed = k.solve_edge_pixels(full, grid, edge, *args, pad, width, height)
+    rows = rows if rows > 0 else height
+    bounds = k.strip_bounds(grid, pad, height, rows)
+    fixed = k.solve_edge_pixels(full, grid, edge, *args, pad, width, height, bounds, rows)
     stats = {"rays": float(rays), "rays_before_full": float(solved),
              "fixed_rays": float(solved + fixed)}  # fmt: skip
-    return full[pad : pad + height, pad : pad + width], stats  # a view: remap takes it
+    return full[pad : pad + height, pad : pad + width], bounds, stats  # a view: remap takes it
 
 
 def _kernels() -> ModuleType:

@@ -340,14 +340,39 @@ def sample_grid(
 
 
 @_jit
+def strip_bounds(grid: F32, pad: int, height: int, rows: int) -> F32:
+    """(x min, y min, x max, y max) of the map points of each strip of ``rows`` image rows
+    (rows [k * rows, (k + 1) * rows)), from the stride-2 samples its pixels interpolate
+    (a bilinear value lies between its samples'; cv2.resize's x2 puts output row Y at input
+    row Y / 2 - 0.25), a row of samples to spare on each side."""
+    ny, nx = grid.shape[1:]
+    count = -(-height // rows)
+    out = np.empty((count, 4), dtype=np.float32)
+    for k in range(count):
+        v0, v1 = k * rows, min(height, (k + 1) * rows)
+        j0 = max(0, (v0 + pad) // 2 - 2)
+        j1 = min(ny - 1, (v1 - 1 + pad) // 2 + 2)
+        x_lo, y_lo = grid[0, j0, 0], grid[1, j0, 0]
+        x_hi, y_hi = x_lo, y_lo
+        for j in range(j0, j1 + 1):
+            for i in range(nx):
+                x, y = grid[0, j, i], grid[1, j, i]
+                x_lo, x_hi = min(x_lo, x), max(x_hi, x)
+                y_lo, y_hi = min(y_lo, y), max(y_hi, y)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = x_lo, y_lo, x_hi, y_hi
+    return out
+
+
+@_jit
 def solve_edge_pixels(
     full: F32, grid: F32, edge: npt.NDArray[np.bool_], values: F32, tmax: F32,
     r: npt.NDArray[np.float64], jac: npt.NDArray[np.float64], s: float, ox: float,
     oy: float, cam_z: float, h_min: float, h_max: float, pad: int, width: int, height: int,
+    bounds: F32, rows: int,
 ) -> int:  # fmt: skip
     """Every pixel of a stride-2 edge cell whose corners' hits differ by more than FLAT_M,
-    solved on its own into ``full`` (pixel (px, py) at full[py + pad, px + pad]); the
-    number of pixels solved."""
+    solved on its own into ``full`` (pixel (px, py) at full[py + pad, px + pad]), widening
+    its strip's ``bounds`` (:func:`strip_bounds`); the number of pixels solved."""
     corners = np.empty(4, dtype=np.float64)
     solved = 0
     for j in range(edge.shape[0]):
@@ -371,8 +396,11 @@ def solve_edge_pixels(
                     px0, py0 = ox + cam_z * ax, oy + cam_z * ay
                     z, ok = settle_ray(values, tmax, px0, py0, ax, ay, corners, cam_z, h_min, h_max)
                     if ok:
-                        full[py + pad, px + pad, 0] = px0 - z * ax
-                        full[py + pad, px + pad, 1] = py0 - z * ay
+                        x, y = np.float32(px0 - z * ax), np.float32(py0 - z * ay)
+                        full[py + pad, px + pad, 0], full[py + pad, px + pad, 1] = x, y
+                        b = bounds[py // rows]
+                        b[0], b[1] = min(b[0], x), min(b[1], y)
+                        b[2], b[3] = max(b[2], x), max(b[3], y)
                     solved += 1
     return solved
 

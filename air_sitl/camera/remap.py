@@ -42,6 +42,9 @@ if TYPE_CHECKING:
 Image = npt.NDArray[np.uint8]
 Jac4 = tuple[float, float, float, float]
 FILL_BGR: tuple[int, int, int] = FILL_BGRX[:3]
+_WINDOWS_KEPT = 3  # height windows kept per thread (a frame's search may read two)
+_SOURCE_BYTES = 640 * 1024  # largest map window copied for one strip of a relief frame
+_SMALL_MOSAIC_BYTES = 2 * 1024 * 1024  # a mosaic this small is remapped without copies
 
 
 class RemapPaths:
@@ -144,12 +147,13 @@ class RemapPaths:
             t = TILE_PX  # snapped to whole tiles: the window depends on this frame alone
             key = (g.level, (x0 // t) * t, (y0 // t) * t, -(-(x1 + 1) // t) * t,
                    -(-(y1 + 1) // t) * t)  # fmt: skip
-            last = getattr(self._local, "heights", None)
-            if last is not None and last[0] == key:
-                window = last[1]
-            else:
+            kept: list[tuple[tuple[int, ...], relief.HeightWindow]] = getattr(
+                self._local, "heights", []
+            )
+            window = next((w for k, w in kept if k == key), None)
+            if window is None:
                 window = relief.read_window(self.surface, g.level, x0, y0, x1, y1)
-                self._local.heights = (key, window)
+                self._local.heights = [(key, window), *kept[: _WINDOWS_KEPT - 1]]
             if window.h_min >= z_lo and window.h_max <= z_hi:
                 break
             z_lo, z_hi = min(z_lo, window.h_min), max(z_hi, window.h_max)
@@ -167,12 +171,9 @@ class RemapPaths:
         x0, y0 = self.map.latlon_to_map_px(state.lat_deg, state.lon_deg)
         # Level 0 slopes against a level-L window: the march needs level-L slopes.
         s = float(1 << g.level)
-        top = np.array([min(window.h_max, state.alt_amsl_m)], np.float32)
-        bot = np.array([window.h_min], np.float32)
-        z_hit, _ok = relief.march(
-            window, cx, cy, state.alt_amsl_m, rays.ax / s, rays.ay / s, top, bot
-        )
-        d = state.alt_amsl_m - float(z_hit[0])
+        ax, ay = rays.ax / np.float32(s), rays.ay / np.float32(s)
+        z_hit = relief.march_one(window, cx, cy, state.alt_amsl_m, float(ax[0]), float(ay[0]))
+        d = state.alt_amsl_m - z_hit
         centre = (x0 + d * float(rays.ax[0]), y0 + d * float(rays.ay[0]))
         return FrameGeometry(g.h_img_to_map0, g.level, centre, g.sees_horizon, g.height_m)
 
@@ -187,26 +188,74 @@ class RemapPaths:
         cam = self.camera
         r, jac, cx, cy = self.relief_setup(state, g.level)
         window = self.relief_window(state, g, r, jac, cx, cy)
-        maps, _stats = relief.ground_maps(
-            window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px
-        )
+        rows = self._owner._strip_rows
+        maps, bounds, _stats = relief.ground_maps(
+            window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px,
+            rows,
+        )  # fmt: skip
         wh, ww = window.values.shape
         mosaic, mx, my = self._owner._mosaic(g.level, window.x0, window.y0, window.x0 + ww - 1,
                                       window.y0 + wh - 1)  # fmt: skip
-        if (mx, my) != (window.x0, window.y0):
-            maps = maps + np.array([window.x0 - mx, window.y0 - my], dtype=np.float32)
-        warped = cv2.remap(
-            mosaic, maps, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,  # type: ignore[call-overload]
-            borderValue=FILL_BGRX,
-        )  # fmt: skip
-        cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR, dst=out)
         sky = self._owner._sky(state) if g.sees_horizon else None
-        if sky is not None:
-            out[sky] = FILL_BGR
-        self._owner._note_nodata(warped, sky)
-        if noise is not None:
-            self._owner._noised(out, noise, 0, cam.height_px)
+        scratch = getattr(self._local, "strip", None)
+        if scratch is None:
+            scratch = np.empty((rows, cam.width_px, 4), dtype=np.uint8)
+            self._local.strip = scratch
+            self._local.strip_maps = np.empty((rows, cam.width_px, 2), dtype=np.float32)
+        maps_buf = self._local.strip_maps
+        # In strips, each from a copy of the map pixels it samples (as the flat path: the
+        # remap then finds its source in the core's cache); the shift of the maps by whole
+        # pixels is exact, so the bytes are those of one remap of the whole mosaic.
+        for k, v0 in enumerate(range(0, cam.height_px, rows)):
+            v1 = min(cam.height_px, v0 + rows)
+            source, sx, sy = self._strip_source(mosaic, window.x0 - mx, window.y0 - my,
+                                                bounds[k])  # fmt: skip
+            part = maps[v0:v1]
+            if sx != 0.0 or sy != 0.0:
+                # (x, y) pairs as flat rows (NumPy's loop then runs along whole rows), into
+                # a buffer kept per thread (a new array per strip costs page faults).
+                shift = np.tile(np.array([sx, sy], dtype=np.float32), cam.width_px)
+                shifted = maps_buf[: v1 - v0]
+                np.subtract(part.reshape(v1 - v0, 2 * cam.width_px), shift,
+                            out=shifted.reshape(v1 - v0, 2 * cam.width_px))  # fmt: skip
+                part = shifted
+            warped = cv2.remap(
+                source, part, None, cv2.INTER_LINEAR, dst=scratch[: v1 - v0],  # type: ignore[call-overload]
+                borderMode=cv2.BORDER_CONSTANT, borderValue=FILL_BGRX,
+            )  # fmt: skip
+            rows_out = out[v0:v1]
+            cv2.cvtColor(warped, cv2.COLOR_BGRA2BGR, dst=rows_out)
+            if sky is not None:
+                rows_out[sky[v0:v1]] = FILL_BGR
+            self._owner._note_nodata(warped, None if sky is None else sky[v0:v1])
+            if noise is not None:
+                self._owner._noised(rows_out, noise, v0, v1)
         return out
+
+    def _strip_source(
+        self, mosaic: Image, ox: int, oy: int, b: npt.NDArray[np.float32]
+    ) -> tuple[Image, float, float]:
+        """The mosaic pixels a strip samples (window coordinates in ``b``: x min, y min,
+        x max, y max; the window at (ox, oy) in the mosaic), copied into a small per-thread
+        buffer; (pixels, their origin in window coordinates). The whole mosaic where the
+        strip reaches beyond it or the copy would be large."""
+        h, w = mosaic.shape[:2]
+        # Bilinear sampling at x reads columns floor(x) and floor(x) + 1.
+        x0, y0 = math.floor(float(b[0])) + ox - 1, math.floor(float(b[1])) + oy - 1
+        x1, y1 = math.floor(float(b[2])) + ox + 3, math.floor(float(b[3])) + oy + 3
+        if (
+            mosaic.nbytes <= _SMALL_MOSAIC_BYTES
+            or x0 < 0 or y0 < 0 or x1 > w or y1 > h
+            or (x1 - x0) * (y1 - y0) * 4 > _SOURCE_BYTES
+        ):  # fmt: skip
+            return mosaic, float(-ox), float(-oy)
+        buf = getattr(self._local, "strip_source", None)
+        if buf is None:
+            buf = np.empty(_SOURCE_BYTES, dtype=np.uint8)
+            self._local.strip_source = buf
+        part = buf[: (x1 - x0) * (y1 - y0) * 4].reshape(y1 - y0, x1 - x0, 4)
+        np.copyto(part, mosaic[y0:y1, x0:x1])
+        return part, float(x0 - ox), float(y0 - oy)
 
     # -- camera effects ------------------------------------------------------------------------
     def _pose_maps(
@@ -238,7 +287,7 @@ class RemapPaths:
         g = FrameGeometry(g.h_img_to_map0, level, g.center_map_px, g.sees_horizon, g.height_m)
         size = (cam.width_px + 2 * m, cam.height_px + 2 * m)
         window = self.relief_window(state, g, r, jac, cx, cy, size)
-        maps, _ = relief.ground_maps(
+        maps, _, _ = relief.ground_maps(
             window, r, jac, level, cx, cy, state.alt_amsl_m, cam.width_px + 2 * m,
             cam.height_px + 2 * m,
         )  # fmt: skip

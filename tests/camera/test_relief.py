@@ -20,6 +20,7 @@ from georef_helpers import HOME, marks_image, utm_grid, write_tif
 from rasterio.transform import Affine
 from rasterio.warp import Resampling, calculate_default_transform, reproject
 
+from air_sitl.camera import relief as relief_mod
 from air_sitl.camera import relief_march
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state, render_camera_frame
@@ -339,3 +340,37 @@ def test_relief_frames_are_the_same_bytes_when_the_kernels_are_compiled_anew() -
         roll_rad=0.2, pitch_rad=0.05, yaw_rad=1.0,
     )  # fmt: skip
     assert hashlib.sha256(r.render(s, noise_index=0).tobytes()).hexdigest() == fresh
+
+
+@pytest.mark.parametrize(("kind", "alt_m", "roll_deg"), [("urban", 300.0, 4.0),
+                                                         ("forest", 3000.0, 10.0)])  # fmt: skip
+def test_relief_frames_in_strips_are_one_remap_of_the_whole_window(
+    kind: str, alt_m: float, roll_deg: float
+) -> None:
+    """The relief path remaps strip by strip, each from a copy of the map pixels its strip
+    samples: the same bytes as one remap of the whole mosaic, and every map point of a
+    strip inside that strip's bounds."""
+    m = open_map(kind, HOME, seed=1)
+    r = Renderer(m, CameraModel(noise_sigma=0.0), seed=1, surface=open_surface("builtin", m))
+    state = _pose(HOME.alt_amsl_m + alt_m, roll_deg=roll_deg)
+    got = r.render(state)
+    g = r.geometry(state)
+    assert r._remap is not None
+    rp, cam, rows = r._remap, r.camera, r._strip_rows
+    rot, jac, cx, cy = rp.relief_setup(state, g.level)
+    window = rp.relief_window(state, g, rot, jac, cx, cy)
+    maps, bounds, _ = relief_mod.ground_maps(
+        window, rot, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px, rows
+    )
+    assert rows < cam.height_px and len(bounds) == -(-cam.height_px // rows)
+    for k, b in enumerate(bounds):
+        part = maps[k * rows : (k + 1) * rows]
+        assert b[0] <= part[:, :, 0].min() and part[:, :, 0].max() <= b[2]
+        assert b[1] <= part[:, :, 1].min() and part[:, :, 1].max() <= b[3]
+    wh, ww = window.values.shape
+    mosaic, mx, my = r._mosaic(g.level, window.x0, window.y0, window.x0 + ww - 1,
+                               window.y0 + wh - 1)  # fmt: skip
+    whole = cv2.remap(mosaic, maps + np.float32([window.x0 - mx, window.y0 - my]), None,
+                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=(0, 0, 0, 0))  # fmt: skip
+    assert np.array_equal(got, cv2.cvtColor(whole, cv2.COLOR_BGRA2BGR))
