@@ -8,6 +8,7 @@ vectors expressed in frame a into frame b. Pure Python ``math``: fast enough for
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from air_sitl.state import Quat, Vec3
 
@@ -16,6 +17,7 @@ WGS84_F = 1.0 / 298.257223563
 WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
 WGS84_B_M = WGS84_A_M * (1.0 - WGS84_F)
 GRAVITY_M_S2 = 9.80665
+_NEAR_POLE_RAD = math.radians(89.0)  # beyond: the height from z (cos(lat) vanishes)
 
 
 def geodetic2ecef(lat_deg: float, lon_deg: float, alt_m: float) -> Vec3:
@@ -28,10 +30,23 @@ def geodetic2ecef(lat_deg: float, lon_deg: float, alt_m: float) -> Vec3:
     return (r * math.cos(lon), r * math.sin(lon), (n * (1.0 - WGS84_E2) + alt_m) * sin_lat)
 
 
-def ecef2geodetic(x: float, y: float, z: float) -> tuple[float, float, float]:
-    """ECEF metres to WGS84 (lat_deg, lon_deg, alt_m); iterative, sub-millimetre."""
-    lon = math.atan2(y, x)
-    p = math.hypot(x, y)
+def ecef2geodetic(
+    x: float,
+    y: float,
+    z: float,
+    solve: Callable[[float, float], tuple[float, float]] | None = None,
+) -> tuple[float, float, float]:
+    """ECEF metres to WGS84 (lat_deg, lon_deg, alt_m); iterative, sub-millimetre.
+
+    ``solve``: :func:`geodetic_lat_alt` or a compiled twin of it (the onboard filter's).
+    """
+    lat, alt = (solve or geodetic_lat_alt)(math.hypot(x, y), z)
+    return (math.degrees(lat), math.degrees(math.atan2(y, x)), alt)
+
+
+def geodetic_lat_alt(p: float, z: float) -> tuple[float, float]:
+    """Geodetic latitude (rad) and ellipsoid height of the ECEF point at distance ``p`` from
+    the polar axis and ``z`` along it (iterated to a fixed point, at most 6 steps)."""
     lat = math.atan2(z, p * (1.0 - WGS84_E2))
     alt = 0.0
     for _ in range(6):
@@ -39,11 +54,14 @@ def ecef2geodetic(x: float, y: float, z: float) -> tuple[float, float, float]:
         n = WGS84_A_M / math.sqrt(1.0 - WGS84_E2 * sin_lat * sin_lat)
         alt = (
             p / math.cos(lat) - n
-            if abs(lat) < math.radians(89.0)
+            if abs(lat) < _NEAR_POLE_RAD
             else z / sin_lat - n * (1.0 - WGS84_E2)
         )
-        lat = math.atan2(z, p * (1.0 - WGS84_E2 * n / (n + alt)))
-    return (math.degrees(lat), math.degrees(lon), alt)
+        new = math.atan2(z, p * (1.0 - WGS84_E2 * n / (n + alt)))
+        if new == lat:
+            break  # a fixed point (2-3 steps at any altitude): the 6 steps end on these bits
+        lat = new
+    return (lat, alt)
 
 
 def _ecef2ned_matrix(lat0_deg: float, lon0_deg: float) -> tuple[Vec3, Vec3, Vec3]:
@@ -58,11 +76,18 @@ class LocalNed:
     """A local NED frame at a fixed origin, its rotation and ECEF origin computed once (a
     filter converting every 20 ms at one home pays only for the conversion itself)."""
 
-    __slots__ = ("_m", "_origin")
+    __slots__ = ("_m", "_origin", "_solve")
 
-    def __init__(self, lat0_deg: float, lon0_deg: float, alt0_m: float) -> None:
+    def __init__(
+        self,
+        lat0_deg: float,
+        lon0_deg: float,
+        alt0_m: float,
+        solve: Callable[[float, float], tuple[float, float]] | None = None,
+    ) -> None:
         self._m = _ecef2ned_matrix(lat0_deg, lon0_deg)
         self._origin = geodetic2ecef(lat0_deg, lon0_deg, alt0_m)
+        self._solve = solve  # of ecef2geodetic (None: geodetic_lat_alt)
 
     def from_geodetic(self, lat_deg: float, lon_deg: float, alt_m: float) -> Vec3:
         """Position of a WGS84 point in this frame (n, e, d metres)."""
@@ -84,7 +109,7 @@ class LocalNed:
         dy = m[0][1] * n_m + m[1][1] * e_m + m[2][1] * d_m
         dz = m[0][2] * n_m + m[1][2] * e_m + m[2][2] * d_m
         x0, y0, z0 = self._origin
-        return ecef2geodetic(x0 + dx, y0 + dy, z0 + dz)
+        return ecef2geodetic(x0 + dx, y0 + dy, z0 + dz, self._solve)
 
 
 def geodetic2ned(

@@ -19,6 +19,7 @@ from typing import Generic, TypeVar
 from air_sitl.nav.ekf import integrate, rotate_global, rotation_matrix
 
 T = TypeVar("T")
+NEVER = 2**63  # the due time of an empty buffer: after any simulated time
 
 
 @dataclass(slots=True)
@@ -35,24 +36,32 @@ class ImuDelta:
 
 
 class TimedBuffer(Generic[T]):
-    """Measurements in time order, popped once the delayed horizon reaches them."""
+    """Measurements in time order, popped once the delayed horizon reaches them.
 
-    __slots__ = ("_items", "maxlen")
+    ``due_ns`` is the time of the oldest one (:data:`NEVER` when empty): the filter asks a
+    source to fuse only once its horizon has reached it.
+    """
+
+    __slots__ = ("_items", "due_ns", "maxlen")
 
     def __init__(self, maxlen: int) -> None:
         self._items: deque[tuple[int, T]] = deque()
         self.maxlen = maxlen
+        self.due_ns = NEVER
 
     def __len__(self) -> int:
         return len(self._items)
 
     def push(self, t_ns: int, item: T) -> bool:
         """Append (times must not go back); False when full or out of order."""
-        if len(self._items) >= self.maxlen:
+        items = self._items
+        if len(items) >= self.maxlen:
             return False
-        if self._items and t_ns < self._items[-1][0]:
+        if items and t_ns < items[-1][0]:
             return False
-        self._items.append((t_ns, item))
+        if not items:
+            self.due_ns = t_ns
+        items.append((t_ns, item))
         return True
 
     def newest_time(self) -> int | None:
@@ -64,10 +73,12 @@ class TimedBuffer(Generic[T]):
         items = self._items
         while items and items[0][0] <= t_ns:
             out.append(items.popleft())
+        self.due_ns = items[0][0] if items else NEVER
         return out
 
     def clear(self) -> None:
         self._items.clear()
+        self.due_ns = NEVER
 
 
 class OutputPredictor:

@@ -18,6 +18,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
+from air_sitl.nav import kernels
 from air_sitl.nav.params import NavParams
 
 N_STATES = 17
@@ -36,6 +37,7 @@ def normal_gravity_m_s2(lat_deg: float, alt_m: float) -> float:
     return g0 - 3.086e-6 * alt_m
 
 
+@kernels.jit  # compiled: the same bits as CPython's floats (IEEE, the C library's sin/cos)
 def integrate(
     p: tuple[float, float, float],
     v: tuple[float, float, float],
@@ -104,6 +106,7 @@ def rotation_matrix(q: tuple[float, float, float, float]) -> tuple[float, ...]:
     )
 
 
+@kernels.jit  # compiled: the same bits as CPython's floats (IEEE, the C library's sin/cos)
 def rotate_global(
     q: tuple[float, float, float, float], dtheta: tuple[float, float, float]
 ) -> tuple[float, float, float, float]:
@@ -116,9 +119,11 @@ def rotate_global(
     else:
         s, c = 0.5, 1.0
     w, x, y, z = q
-    return unit_product(c, ax * s, ay * s, az * s, w, x, y, z)  # exp(dtheta) * q: NED frame
+    out: tuple[float, float, float, float] = unit_product(c, ax * s, ay * s, az * s, w, x, y, z)
+    return out  # exp(dtheta) * q: NED frame
 
 
+@kernels.jit  # compiled: the same bits as CPython's floats (IEEE, the C library's sin/cos)
 def unit_product(
     aw: float, ax: float, ay: float, az: float, bw: float, bx: float, by: float, bz: float
 ) -> tuple[float, float, float, float]:

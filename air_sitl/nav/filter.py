@@ -12,6 +12,7 @@ import math
 from collections import deque
 
 from air_sitl.frames import LocalNed, euler2quat
+from air_sitl.nav import kernels
 from air_sitl.nav.aid import AidControl
 from air_sitl.nav.airspeed import AirspeedControl
 from air_sitl.nav.baro import BaroControl
@@ -42,7 +43,10 @@ class NavFilter:
 
     def __init__(self, home: GeoPoint, params: NavParams | None = None) -> None:
         self.home = home
-        self._local = LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
+        # The estimate's latitude/longitude every filter period: the conversion compiled.
+        self._local = LocalNed(
+            home.lat_deg, home.lon_deg, home.alt_amsl_m, kernels.geodetic_lat_alt
+        )
         self.params = p = params or NavParams()
         g = normal_gravity_m_s2(home.lat_deg, home.alt_amsl_m)
         self.ekf = ErrorStateEkf(p, g)
@@ -126,19 +130,21 @@ class NavFilter:
         ekf.predict(d.dang, d.dvel, d.dt)
         t_d = d.t_ns
         self._t_delayed = t_d
-        if self.mag.buffer:
+        # A source is asked only once the horizon has reached its oldest measurement.
+        if self.mag.buffer.due_ns <= t_d:
             self.mag.fuse_due(ekf, t_d)
-        if self.baro.buffer:
+        if self.baro.buffer.due_ns <= t_d:
             self.baro.fuse_due(ekf, t_d, self.gnss.last_alt_amsl_m)
-        if self.gnss.buffer:
+        gnss = self.gnss
+        if gnss.buffer.due_ns <= t_d:
             self._fuse_gnss_due(t_d)
         if self.aids:
             self._fuse_aids_due(t_d)
-        if self.airspeed.buffer:
+        if self.airspeed.buffer.due_ns <= t_d:
             self.airspeed.fuse_due(ekf, t_d, self.vel_valid)
             if self.airspeed.wind_started and not self.vel_valid:
                 self.vel_valid = True
-        if self.gnss.started and not self.gnss.fusing(t_d):
+        if gnss.started and not gnss.fusing(t_d):
             self.gnss_denied_ns += round(d.dt * 1e9)
         out = self.output
         pending = ekf.take_pending()
@@ -166,8 +172,8 @@ class NavFilter:
         for name, aid in self.aids.items():
             if not aid.alive(now):
                 aid.lost()
-            if not aid.buffer:
-                continue
+            if aid.buffer.due_ns > t_d:
+                continue  # nothing for the horizon yet
             others = gnss_fusing or any(
                 other.fusing(t_d) for n, other in self.aids.items() if n != name
             )
@@ -305,8 +311,7 @@ class NavFilter:
                 out.g,
             )
         lat, lon, alt = self._local.to_geodetic(p[0], p[1], p[2])
-        (a, b), (_, c) = ekf.P[:2, :2].tolist()
-        big = 0.5 * (a + c) + math.sqrt(max(0.0, 0.25 * (a - c) ** 2 + b * b))
+        std_h, std_v = kernels.position_std(ekf.P)
         return nav_estimate(  # positional, in NavEstimate's field order (every filter period)
             t,
             p,
@@ -315,8 +320,8 @@ class NavFilter:
             lat,
             lon,
             alt,
-            math.sqrt(max(big, 0.0)),
-            math.sqrt(max(ekf.P.item(2, 2), 0.0)),
+            std_h,
+            std_v,
             ekf.wind,
             ekf.bg,
             ekf.ba,
