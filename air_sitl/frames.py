@@ -8,7 +8,6 @@ vectors expressed in frame a into frame b. Pure Python ``math``: fast enough for
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 from air_sitl.state import Quat, Vec3
 
@@ -30,17 +29,9 @@ def geodetic2ecef(lat_deg: float, lon_deg: float, alt_m: float) -> Vec3:
     return (r * math.cos(lon), r * math.sin(lon), (n * (1.0 - WGS84_E2) + alt_m) * sin_lat)
 
 
-def ecef2geodetic(
-    x: float,
-    y: float,
-    z: float,
-    solve: Callable[[float, float], tuple[float, float]] | None = None,
-) -> tuple[float, float, float]:
-    """ECEF metres to WGS84 (lat_deg, lon_deg, alt_m); iterative, sub-millimetre.
-
-    ``solve``: :func:`geodetic_lat_alt` or a compiled twin of it (the onboard filter's).
-    """
-    lat, alt = (solve or geodetic_lat_alt)(math.hypot(x, y), z)
+def ecef2geodetic(x: float, y: float, z: float) -> tuple[float, float, float]:
+    """ECEF metres to WGS84 (lat_deg, lon_deg, alt_m); iterative, sub-millimetre."""
+    lat, alt = geodetic_lat_alt(math.hypot(x, y), z)
     return (math.degrees(lat), math.degrees(math.atan2(y, x)), alt)
 
 
@@ -76,18 +67,11 @@ class LocalNed:
     """A local NED frame at a fixed origin, its rotation and ECEF origin computed once (a
     filter converting every 20 ms at one home pays only for the conversion itself)."""
 
-    __slots__ = ("_m", "_origin", "_solve")
+    __slots__ = ("_m", "_origin")
 
-    def __init__(
-        self,
-        lat0_deg: float,
-        lon0_deg: float,
-        alt0_m: float,
-        solve: Callable[[float, float], tuple[float, float]] | None = None,
-    ) -> None:
+    def __init__(self, lat0_deg: float, lon0_deg: float, alt0_m: float) -> None:
         self._m = _ecef2ned_matrix(lat0_deg, lon0_deg)
         self._origin = geodetic2ecef(lat0_deg, lon0_deg, alt0_m)
-        self._solve = solve  # of ecef2geodetic (None: geodetic_lat_alt)
 
     def from_geodetic(self, lat_deg: float, lon_deg: float, alt_m: float) -> Vec3:
         """Position of a WGS84 point in this frame (n, e, d metres)."""
@@ -109,7 +93,7 @@ class LocalNed:
         dy = m[0][1] * n_m + m[1][1] * e_m + m[2][1] * d_m
         dz = m[0][2] * n_m + m[1][2] * e_m + m[2][2] * d_m
         x0, y0, z0 = self._origin
-        return ecef2geodetic(x0 + dx, y0 + dy, z0 + dz, self._solve)
+        return ecef2geodetic(x0 + dx, y0 + dy, z0 + dz)
 
 
 def geodetic2ned(

@@ -18,7 +18,6 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from air_sitl.nav import kernels
 from air_sitl.nav.params import NavParams
 
 N_STATES = 17
@@ -37,7 +36,6 @@ def normal_gravity_m_s2(lat_deg: float, alt_m: float) -> float:
     return g0 - 3.086e-6 * alt_m
 
 
-@kernels.jit  # compiled: the same bits as CPython's floats (IEEE, the C library's sin/cos)
 def integrate(
     p: tuple[float, float, float],
     v: tuple[float, float, float],
@@ -106,7 +104,6 @@ def rotation_matrix(q: tuple[float, float, float, float]) -> tuple[float, ...]:
     )
 
 
-@kernels.jit  # compiled: the same bits as CPython's floats (IEEE, the C library's sin/cos)
 def rotate_global(
     q: tuple[float, float, float, float], dtheta: tuple[float, float, float]
 ) -> tuple[float, float, float, float]:
@@ -119,11 +116,9 @@ def rotate_global(
     else:
         s, c = 0.5, 1.0
     w, x, y, z = q
-    out: tuple[float, float, float, float] = unit_product(c, ax * s, ay * s, az * s, w, x, y, z)
-    return out  # exp(dtheta) * q: NED frame
+    return unit_product(c, ax * s, ay * s, az * s, w, x, y, z)  # exp(dtheta) * q: NED frame
 
 
-@kernels.jit  # compiled: the same bits as CPython's floats (IEEE, the C library's sin/cos)
 def unit_product(
     aw: float, ax: float, ay: float, az: float, bw: float, bx: float, by: float, bz: float
 ) -> tuple[float, float, float, float]:

@@ -12,7 +12,6 @@ import math
 from collections import deque
 
 from air_sitl.frames import LocalNed, euler2quat
-from air_sitl.nav import kernels
 from air_sitl.nav.aid import AidControl
 from air_sitl.nav.airspeed import AirspeedControl
 from air_sitl.nav.baro import BaroControl
@@ -43,10 +42,7 @@ class NavFilter:
 
     def __init__(self, home: GeoPoint, params: NavParams | None = None) -> None:
         self.home = home
-        # The estimate's latitude/longitude every filter period: the conversion compiled.
-        self._local = LocalNed(
-            home.lat_deg, home.lon_deg, home.alt_amsl_m, kernels.geodetic_lat_alt
-        )
+        self._local = LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
         self.params = p = params or NavParams()
         g = normal_gravity_m_s2(home.lat_deg, home.alt_amsl_m)
         self.ekf = ErrorStateEkf(p, g)
@@ -311,7 +307,8 @@ class NavFilter:
                 out.g,
             )
         lat, lon, alt = self._local.to_geodetic(p[0], p[1], p[2])
-        std_h, std_v = kernels.position_std(ekf.P)
+        (a, b), (_, c) = ekf.P[:2, :2].tolist()
+        big = 0.5 * (a + c) + math.sqrt(max(0.0, 0.25 * (a - c) ** 2 + b * b))
         return nav_estimate(  # positional, in NavEstimate's field order (every filter period)
             t,
             p,
@@ -320,8 +317,8 @@ class NavFilter:
             lat,
             lon,
             alt,
-            std_h,
-            std_v,
+            math.sqrt(max(big, 0.0)),
+            math.sqrt(max(ekf.P.item(2, 2), 0.0)),
             ekf.wind,
             ekf.bg,
             ekf.ba,
