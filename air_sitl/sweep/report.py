@@ -35,13 +35,14 @@ class Metric:
     label: str
     path: tuple[str, ...]
     fmt: str = "{:.2f}"
+    fraction: bool = False  # a share from 0 to 1: plotted on that whole scale
 
 
 EVAL_METRICS = (
     Metric("median horizontal error m", ("horizontal_error_m", "median")),
     Metric("p95 horizontal error m", ("horizontal_error_m", "p95")),
-    Metric("recall at 25 m", ("recall", "25m"), "{:.2f}"),
-    Metric("availability", ("availability",), "{:.2f}"),
+    Metric("recall at 25 m", ("recall", "25m"), "{:.2f}", fraction=True),
+    Metric("availability", ("availability",), "{:.2f}", fraction=True),
     Metric("final drift % of distance", ("drift_pct",), "{:.1f}"),
 )
 FLIGHT_METRICS = (
@@ -145,6 +146,28 @@ def table(
     return out
 
 
+def constant_metrics(
+    rows: Sequence[dict[str, Any]], entries: Sequence[str], metrics: Sequence[Metric]
+) -> dict[str, str]:
+    """The metrics with one value in every run and method (label -> that value, formatted):
+    a panel of flat lines says nothing, so the figure names them instead of drawing them."""
+    out = {}
+    for metric in metrics:
+        shown = {
+            metric.fmt.format(v)
+            for r in rows
+            for e in entries
+            if (v := _value_of(r, e, metric)) is not None
+        }
+        if len(shown) == 1 and len(rows) > 1:
+            out[metric.label] = shown.pop()
+    return out
+
+
+def _constant_text(constant: dict[str, str]) -> str:
+    return "the same in every run: " + ", ".join(f"{k} {v}" for k, v in constant.items())
+
+
 def _fmt(metric: Metric, cell: Cell, spread: bool) -> str:
     if cell.median is None:
         return "-"
@@ -171,6 +194,12 @@ def markdown(
         f"methods: {', '.join(entries)}. Each cell: the median over the runs with that value "
         "(seeds and the other axes), and in brackets the 25-75 % range.",
         "",
+    ]
+    constant = constant_metrics(rows, entries, metrics)
+    if constant:
+        text = _constant_text(constant)
+        lines += [text[0].upper() + text[1:] + " (not drawn in the figure).", ""]
+    lines += [
         f"![each metric against each axis]({REPORT_PNG})",
         "",
     ]
@@ -209,15 +238,17 @@ def plot(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # after the backend is chosen
 
+    constant = constant_metrics(rows, entries, metrics)
+    drawn = [m for m in metrics if m.label not in constant] or list(metrics[:1])
     ncols = max(1, len(axes))
     fig, grid = plt.subplots(
-        len(metrics), ncols, figsize=(3.6 * ncols + 0.6, 2.4 * len(metrics) + 0.8), squeeze=False
+        len(drawn), ncols, figsize=(3.6 * ncols + 0.6, 2.4 * len(drawn) + 1.0), squeeze=False
     )
     colours = plt.get_cmap("tab10")
     for col, axis in enumerate(axes):
         values = axis_values(rows, axis)
-        rows_of = table(rows, axis, entries, metrics)
-        for r, metric in enumerate(metrics):
+        rows_of = table(rows, axis, entries, drawn)
+        for r, metric in enumerate(drawn):
             ax = grid[r][col]
             for k, entry in enumerate(entries):
                 cells = [c[4][r] for c in rows_of if c[1] == entry]
@@ -233,13 +264,19 @@ def plot(
             ax.set_xlim(-0.5, len(values) - 0.5)
             ax.tick_params(axis="y", labelsize=8)
             ax.grid(alpha=0.3)
-            if r == len(metrics) - 1:
+            if metric.fraction:
+                ax.set_ylim(-0.02, 1.05)
+            else:  # errors, drift and counts start at zero: differences read at their size
+                ax.set_ylim(bottom=0.0)
+            if r == len(drawn) - 1:
                 ax.set_xlabel(axis)
             if col == 0:
                 ax.set_ylabel(metric.label, fontsize=8)
     grid[0][0].legend(fontsize=7, loc="best")
     fig.suptitle(f"{title}: median and 25-75 % range over seeds and other axes", fontsize=10)
-    fig.tight_layout()
+    if constant:
+        fig.text(0.5, 0.005, _constant_text(constant), ha="center", va="bottom", fontsize=8)
+    fig.tight_layout(rect=(0.0, 0.02 if constant else 0.0, 1.0, 1.0))
     fig.savefig(path, dpi=90)
     plt.close(fig)
 

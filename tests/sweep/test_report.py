@@ -1,0 +1,61 @@
+"""``sweep report`` on rows written by hand: what the table and the figure say."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from air_sitl.cli import main
+from air_sitl.sweep.results import RESULTS
+
+
+def _report(horizontal: float, recall: float) -> dict[str, object]:
+    return {
+        "horizontal_error_m": {"median": horizontal, "p95": 2.0 * horizontal},
+        "recall": {"25m": recall},
+        "availability": 1.0,
+        "drift_pct": 0.1 * horizontal,
+    }
+
+
+def _sweep(tmp_path: Path, recalls: list[float]) -> Path:
+    rows = []
+    for k, recall in enumerate(recalls):
+        options = {"map-date": k % 2, "seed": k // 2}
+        rows.append(
+            {
+                "id": f"run{k}",
+                "options": options,
+                "summary": {"capture_frames": 100},
+                "eval": {"mapmatch": _report(1.0 + k, recall), "vo": _report(3.0 + k, recall)},
+                "error": None,
+                "wall_s": 1.0,
+                "host": "here",
+            }
+        )
+    tmp_path.mkdir()
+    (tmp_path / RESULTS).write_text("".join(json.dumps(r) + "\n" for r in rows))
+    (tmp_path / "sweep.json").write_text(json.dumps({"axes": ["map-date", "seed"]}))
+    return tmp_path
+
+
+def _png_height(png: bytes) -> int:
+    assert png.startswith(b"\x89PNG")
+    return int.from_bytes(png[20:24], "big")
+
+
+def test_a_metric_the_same_in_every_run_is_named_not_drawn(tmp_path: Path) -> None:
+    flat = _sweep(tmp_path / "flat", [1.0, 1.0, 1.0, 1.0])
+    varied = _sweep(tmp_path / "varied", [1.0, 0.8, 0.9, 0.7])
+    for folder in (flat, varied):
+        assert main(["sweep", "report", str(folder), "--quiet"]) == 0
+    flat_md = (flat / "report.md").read_text()
+    varied_md = (varied / "report.md").read_text()
+    assert "The same in every run: recall at 25 m 1.00, availability 1.00" in flat_md
+    assert "The same in every run: availability 1.00" in varied_md
+    # The tables keep every column either way.
+    assert "| 0 | mapmatch | 2 | 0 | 2.00 (1.50-2.50) | 4.00 | 1.00 | 1.00 | 0.2 |" in flat_md
+    # One row of panels fewer for the one more constant metric.
+    flat_h = _png_height((flat / "report.png").read_bytes())
+    varied_h = _png_height((varied / "report.png").read_bytes())
+    assert flat_h < varied_h
