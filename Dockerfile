@@ -9,11 +9,14 @@ ENV PYTHONUNBUFFERED=1 \
 WORKDIR /opt/air-sitl
 # Every dependency ships manylinux wheels (jsbsim, opencv-python-headless, rasterio with GDAL,
 # eclipse-zenoh, mavsdk): no compiler and no system libraries needed.
+# EXTRAS: optional extras, for example --build-arg EXTRAS="[ray]" (docker-compose's Ray nodes).
+ARG EXTRAS=""
 COPY pyproject.toml README.md ./
 COPY air_sitl ./air_sitl
-RUN pip install .
+RUN pip install ".${EXTRAS}"
 COPY bridges ./bridges
 COPY missions ./missions
+COPY examples ./examples
 
 # zenoh (router), MAVLink over TCP (QGroundControl: Comm Links -> TCP, host 127.0.0.1:5760)
 EXPOSE 7447 5760

@@ -38,9 +38,13 @@ def localizer_parser() -> Any:
 
 def test_services_build_from_this_repository_and_depend_on_defined_services() -> None:
     services = compose()["services"]
-    assert {"router", "simulator", "localizer"} <= set(services)
+    assert {"router", "simulator", "localizer", "ray-head", "ray-worker"} <= set(services)
     for name, service in services.items():
-        assert service["build"] == "." and service["image"] == "air-sitl:latest", name
+        if "ray" in service.get("profiles", []):  # the Ray nodes: the image with its [ray] extra
+            assert service["build"] == {"context": ".", "args": {"EXTRAS": "[ray]"}}, name
+            assert service["image"] == "air-sitl:ray", name
+        else:
+            assert service["build"] == "." and service["image"] == "air-sitl:latest", name
         assert isinstance(service["command"], list) and service["command"], name
         for dep in service.get("depends_on", []):
             assert dep in services, (name, dep)
@@ -66,6 +70,8 @@ def test_every_command_parses_with_our_cli() -> None:
                     spec = parse_link(url)
                     assert f"127.0.0.1:{spec.port}:{spec.port}" in service["ports"]
                 assert (REPO / args.plan).is_file()
+        elif argv[0] == "ray":
+            continue  # test_ray_nodes_start_a_cluster_the_sweep_can_join
         else:
             assert argv[:2] == ["python", "bridges/example_localizer.py"], name
             assert (REPO / argv[1]).is_file()
@@ -82,8 +88,30 @@ def test_dockerfile_copies_what_exists_and_installs_the_cli() -> None:
     for sources in copied:
         for src in sources:
             assert (REPO / src).exists(), src
-    assert any(ln.startswith("RUN pip install .") for ln in lines)
-    assert {"air_sitl", "bridges", "missions", "pyproject.toml"} <= {s for c in copied for s in c}
+    assert any(re.fullmatch(r'RUN pip install "\.\$\{EXTRAS\}"', ln) for ln in lines)
+    assert 'ARG EXTRAS=""' in lines  # the plain image installs no extra
+    wanted = {"air_sitl", "bridges", "missions", "examples", "pyproject.toml"}
+    assert wanted <= {s for c in copied for s in c}
+
+
+def test_ray_nodes_start_a_cluster_the_sweep_can_join() -> None:
+    """The compose profile "ray": a head and workers joining it, with options `ray start`
+    (the version the [ray] extra installs) has; not started by a plain `docker compose up`."""
+    services = compose()["services"]
+    head, worker = services["ray-head"], services["ray-worker"]
+    for service in (head, worker):
+        assert service["profiles"] == ["ray"]
+        assert service["command"][:2] == ["ray", "start"] and "--block" in service["command"]
+        assert "./out:/out" in service["volumes"]
+    assert "--head" in head["command"] and "--port=6379" in head["command"]
+    assert "--address=ray-head:6379" in worker["command"] and worker["depends_on"] == ["ray-head"]
+    pytest.importorskip("ray", reason="ray is not installed (the [ray] extra)")
+    scripts = pytest.importorskip("ray.scripts.scripts")
+    start = scripts.cli.commands["start"]  # ray's click command
+    known = {opt for p in start.params for opt in p.opts}
+    for service in (head, worker):
+        for arg in service["command"][2:]:
+            assert arg.split("=")[0] in known, arg
 
 
 @pytest.mark.parametrize("service", ["router", "simulator", "localizer"])
