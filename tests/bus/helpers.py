@@ -6,13 +6,13 @@ import dataclasses
 import math
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
+from ports import free_port
 from vehicle_states import airborne_state
 
 from air_sitl.bus.session import Bus, BusConfig, open_bus
@@ -30,11 +30,8 @@ HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
 
 
 def free_endpoint() -> str:
-    """A loopback TCP endpoint on a port nobody uses right now."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    return f"tcp/127.0.0.1:{port}"
+    """A loopback TCP endpoint on a port nobody uses right now (this worker's range)."""
+    return f"tcp/127.0.0.1:{free_port()}"
 
 
 def pair(endpoint: str) -> tuple[Bus, Bus]:

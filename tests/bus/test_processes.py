@@ -152,7 +152,9 @@ def test_a_slow_subscriber_does_not_slow_the_simulation(plan: Path, tmp_path: Pa
     # The proof that the simulation did not wait: every frame was published and recorded while
     # the 1 s/frame subscriber took only a few (waiting for it would deliver them all).
     assert len(read_csv(tmp_path / "slow0" / "metadata.csv")) == frames
-    assert all(1 <= r < frames / 10 for r in received), received  # it got some, lost the rest
+    # It got some and lost the rest: at 1 s a frame, about one per wall second of its flight.
+    assert all(1 <= r < frames for r in received), received
+    assert all(r <= wall + 2.0 for r, wall in zip(received, walls["slow"], strict=True)), received
 
 
 def test_remote_camera_frames_are_byte_identical_to_the_local_camera(
@@ -253,7 +255,7 @@ def test_an_estimator_that_vanishes_stops_the_run_with_one_line(plan: Path, tmp_
     loc = start([sys.executable, LOCALIZER, "--name", "ex", "--zenoh-connect", endpoint])
     out = tmp_path / "a"
     flyer = start(cli("fly", str(plan), "--out", str(out), "--air-start", "--quiet",
-                      "--zenoh-listen", endpoint, "--wait-for", "ex", "--wait-timeout", "5",
+                      "--zenoh-listen", endpoint, "--wait-for", "ex", "--wait-timeout", "20",
                       "--speed", "1"))  # fmt: skip
     try:
         assert wait_until(
@@ -265,12 +267,12 @@ def test_an_estimator_that_vanishes_stops_the_run_with_one_line(plan: Path, tmp_
     finally:
         loc.kill()
         loc.wait()
-    _out, stderr = flyer.communicate(timeout=30)
+    _out, stderr = flyer.communicate(timeout=90)
     code = flyer.returncode
     assert code == 2, stderr
     lines = stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in stderr
-    assert "--wait-for ex: no estimate for frame" in lines[0] and "within 5 s" in lines[0]
+    assert "--wait-for ex: no estimate for frame" in lines[0] and "within 20 s" in lines[0]
     assert len(read_csv(out / "estimates" / "ex.csv")) >= 20  # what came is kept
     assert (out / "trajectory.csv").stat().st_size > 0
 
@@ -281,9 +283,8 @@ def test_serve_publishes_on_the_bus_and_stops_cleanly(plan: Path) -> None:
     with open_bus(BusConfig(listen=(endpoint,), connect=(), serves=True)) as bus:
         got: dict[str, list[bytes]] = {}
         bus.subscribe(f"{keys.root}/**", lambda m: got.setdefault(m.key, []).append(m.payload))
-        mav = free_endpoint().split(":")[-1]
         serve = start(cli("serve", "--plan", str(plan), "--zenoh-connect", endpoint,
-                          "--vehicle", "srv", "--mavlink", f"udpout:127.0.0.1:{mav}",
+                          "--vehicle", "srv", "--mavlink", "udpin:127.0.0.1:0",
                           "--speed", "4", "--quiet"))  # fmt: skip
         try:
             assert wait_until(lambda: len(got.get(keys.imu, [])) > 50)

@@ -21,6 +21,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import IO, Any
 
+from ports import free_port
 from pymavlink import mavutil
 
 from air_sitl.mavlink.codec import from_mission_message, to_mission_message
@@ -33,10 +34,8 @@ SAFETY_S = float(os.environ.get("AIR_SITL_TEST_SAFETY_S", "300"))
 
 
 def free_udp_port() -> int:
-    """A UDP port nobody uses right now on 127.0.0.1."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    """A UDP port nobody uses right now on 127.0.0.1 (this worker's range)."""
+    return free_port(socket.SOCK_DGRAM)
 
 
 @dataclass

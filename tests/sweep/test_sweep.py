@@ -183,7 +183,12 @@ def test_report_has_a_table_per_axis_and_a_png(pool2: Path) -> None:
 def test_an_external_localizer_runs_in_lockstep_on_its_own_port(spec: Path, tmp_path: Path) -> None:
     program = Path(__file__).resolve().parents[2] / "bridges" / "example_localizer.py"
     content = {
-        "base": {"plan": str(spec.parent / "plans" / "UT-200.plan"), "air-start": True},
+        # The localizer starts beside a loaded suite: fly's safety bound, not its 10 s default.
+        "base": {
+            "plan": str(spec.parent / "plans" / "UT-200.plan"),
+            "air-start": True,
+            "wait-timeout": 120,
+        },
         "localizers": {"ex": f"{sys.executable} {program} --name ex --quiet"},
     }
     path = tmp_path / "ext.yaml"
