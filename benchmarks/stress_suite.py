@@ -3,7 +3,8 @@
     python benchmarks/stress_suite.py --busy 4 --runs 3 [-- PYTEST ARGS]
 
 Starts ``--busy`` processes that spin on the CPU (this VM has 2 cores, so 4 loops leave the
-suite a fraction of a core), runs ``python -m pytest -q`` ``--runs`` times in a row and prints
+suite a fraction of a core), runs ``python -m pytest -q`` (with pyproject's addopts: two
+xdist workers; ``-- -n 0`` for one process) ``--runs`` times in a row and prints
 each run's outcome, wall time and failed tests (the whole output of each run is kept under
 ``--logs``) beside the same suite's time with no load when ``--baseline`` is given. Exit 0 only
 when every loaded run passed.
