@@ -2,9 +2,16 @@
 """An external localization process on the bus: the package's ``vo`` method, hand-wired.
 
 The pattern every estimator follows: join the bus, read ``camera/info`` and the latest
-``mission/status`` (home) and ``gps`` with a query, subscribe to ``imu`` and ``camera/image``,
-publish one estimate per frame on ``air/<vehicle>/estimate/<name>`` (no position when it
-cannot tell: lockstep counts that as an answer too).
+``mission/status`` (home) and ``gps`` with a query, subscribe to the vehicle's keys, publish
+one estimate per frame on ``air/<vehicle>/estimate/<name>`` (no position when it cannot tell:
+lockstep counts that as an answer too).
+
+One subscription on ``air/<vehicle>/**``, not one per key: zenoh-python calls each
+subscriber back on a thread of its own, so with one subscriber per key the IMU sample or GNSS
+fix of an exposure can arrive after its frame, a different one from run to run. On one
+subscriber the samples come in the order the simulator published them: a frame after the IMU
+and GNSS of its own step, so its inputs are already there and a lockstep run
+(``fly --wait-for NAME``) gives the same estimates every time.
 
 The method is :class:`air_sitl.localize.vo.VisualOdometry` (attitude-compensated
 frame-to-frame VO), given the GNSS fix at the first frame only, then pure odometry: it
@@ -20,6 +27,7 @@ import argparse
 import sys
 import threading
 from collections import deque
+from collections.abc import Callable
 
 from air_sitl.bus import codec
 from air_sitl.bus.args import add_connection_arguments, bus_config_from_args
@@ -39,13 +47,16 @@ class Localizer:
     def __init__(self, bus: Bus, keys: KeySpace, name: str, *, wait_s: float) -> None:
         self.bus = bus
         self.key_out = keys.estimate(name)
-        self._lock = threading.Condition()
+        self._lock = threading.Lock()
         self._imu: deque[tuple[int, Quat]] = deque(maxlen=2000)
         self._fix: GnssFix | None = None
         self.frames = self.published = 0
         self.last_frame = -1
-        bus.subscribe(keys.imu, self._on_imu)
-        bus.subscribe(keys.gps, self._on_gps)
+        self._handlers: dict[str, Callable[[Message], None]] = {
+            keys.imu: self._on_imu,
+            keys.gps: self._on_gps,
+        }
+        bus.subscribe(f"{keys.root}/**", self._on_message)
         info = codec.decode_camera_info(ask(bus, keys.info, wait_s).payload)
         status = codec.loads(ask(bus, keys.mission_status, wait_s).payload, keys.mission_status)
         h = status.get("home")
@@ -57,13 +68,17 @@ class Localizer:
         self.vo.reset(LocalizerContext(home=home, camera=camera_from_info(info)))
         feed_latest(bus, {keys.gps: self._on_gps, keys.imu: self._on_imu})
         self._out = bus.publisher(self.key_out, encoding=codec.JSON_ENCODING, block=True)
-        bus.subscribe(keys.image, self._on_image)
+        self._handlers[keys.image] = self._on_image  # frames only once ready to answer
+
+    def _on_message(self, message: Message) -> None:
+        handler = self._handlers.get(message.key)
+        if handler is not None:
+            handler(message)
 
     def _on_imu(self, message: Message) -> None:
         imu = codec.decode_imu(message.payload)
         with self._lock:
             self._imu.append((imu.sim_time_ns, imu.q_ahrs_body_to_ned_wxyz))
-            self._lock.notify_all()
 
     def _on_gps(self, message: Message) -> None:
         fix = gnss_fix_of(message)
@@ -73,10 +88,9 @@ class Localizer:
             self._fix = fix
 
     def _attitude_at(self, t_ns: int) -> Quat | None:
-        """The AHRS attitude at the exposure (the IMU sample of that step comes first, but on
-        another subscriber's thread: give it a moment)."""
+        """The AHRS attitude at the exposure (the IMU sample of that step came before the
+        frame on the same subscription)."""
         with self._lock:
-            self._lock.wait_for(lambda: bool(self._imu) and self._imu[-1][0] >= t_ns, 0.1)
             best = None
             for t, q in reversed(self._imu):
                 best = q
