@@ -208,6 +208,9 @@ class FrameMeta:
     width_px: int
     height_px: int
     map_xy_px: tuple[int, int] | None = None  # only in camera-bridge render replies
+    # Share of the image showing map nodata or ground off the map: only in render replies
+    # (CameraFrame.nodata_fraction, what the local camera measures).
+    nodata_fraction: float | None = None
 
 
 def encode_frame_meta(meta: FrameMeta) -> bytes:
@@ -220,6 +223,8 @@ def encode_frame_meta(meta: FrameMeta) -> bytes:
     }
     if meta.map_xy_px is not None:
         m["map_xy_px"] = meta.map_xy_px
+    if meta.nodata_fraction is not None:
+        m["nodata_fraction"] = meta.nodata_fraction
     return dumps(m)
 
 
@@ -231,12 +236,14 @@ def decode_frame_meta(attachment: bytes | None) -> FrameMeta:
     m = loads(attachment, "camera/image attachment")
     with fields_of("camera/image attachment", "value"):
         xy = m.get("map_xy_px")
+        nodata = m.get("nodata_fraction")
         return FrameMeta(
             frame=int(m["frame"]),
             sim_time_ns=int(m["sim_time_ns"]),
             width_px=int(m["width_px"]),
             height_px=int(m["height_px"]),
             map_xy_px=None if xy is None else (int(xy[0]), int(xy[1])),
+            nodata_fraction=None if nodata is None else float(nodata),
         )
 
 

@@ -3,9 +3,11 @@
 Lockstep rendering is a zenoh query on ``air/<vehicle>/camera/render``: the payload is the
 ``truth`` message of the exposure (with ``frame``), the attachment names what to render with
 (home, camera model fields, noise seed), and the reply is the JPEG with a frame attachment
-carrying ``map_xy_px``. A frame whose answer does not come is asked again until the timeout;
-nothing is ever skipped, and the renderer being a pure function of (map, camera, state, index,
-seed), the images are byte-identical to the in-process camera's.
+carrying ``map_xy_px`` and ``nodata_fraction`` (the frame's share of map nodata, which the
+flight's nodata warning and ``frames_with_nodata`` count as for the in-process camera). A
+frame whose answer does not come is asked again until the timeout; nothing is ever skipped,
+and the renderer being a pure function of (map, camera, state, index, seed), the images are
+byte-identical to the in-process camera's.
 
 The same server also runs free: it subscribes to ``truth`` and publishes ``camera/image`` for
 every truth sample that carries a frame index (a simulator with ``--publish-truth`` and no
@@ -36,6 +38,7 @@ class RenderedFrame:
     map_xy_px: tuple[int, int]
     width_px: int
     height_px: int
+    nodata_fraction: float = 0.0  # share of the image showing map nodata or off-map ground
 
 
 RenderFn = Callable[[VehicleState, int], RenderedFrame]
@@ -167,6 +170,7 @@ class RemoteCamera:
             height_px=meta.height_px,
             sample=sample,
             map_xy_px=meta.map_xy_px or (-1, -1),
+            nodata_fraction=meta.nodata_fraction or 0.0,
         )
         self._finish(index, frame)
 
@@ -276,7 +280,7 @@ class CameraBridgeServer:
             msg = f"camera/render frame {frame}: {type(err).__name__}: {err}"
             self.errors.append(msg)
             raise BusError(msg) from None
-        meta = self._rendered(frame, state, out, map_xy_px=out.map_xy_px)
+        meta = self._rendered(frame, state, out, render_reply=True)
         return QueryAnswer(out.jpeg, meta, codec.JPEG_ENCODING)
 
     def _rendered(
@@ -285,16 +289,18 @@ class CameraBridgeServer:
         state: VehicleState,
         out: RenderedFrame,
         *,
-        map_xy_px: tuple[int, int] | None = None,
+        render_reply: bool = False,
     ) -> bytes:
-        """Count a rendered frame and return its attachment (:class:`codec.FrameMeta`)."""
+        """Count a rendered frame and return its attachment (:class:`codec.FrameMeta`); a
+        render reply adds ``map_xy_px`` and ``nodata_fraction`` (``camera/image`` has neither)."""
         self.rendered += 1
         meta = codec.FrameMeta(
             frame=frame,
             sim_time_ns=state.sim_time_ns,
             width_px=out.width_px,
             height_px=out.height_px,
-            map_xy_px=map_xy_px,
+            map_xy_px=out.map_xy_px if render_reply else None,
+            nodata_fraction=out.nodata_fraction if render_reply else None,
         )
         return codec.encode_frame_meta(meta)
 

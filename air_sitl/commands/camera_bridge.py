@@ -97,6 +97,9 @@ def _renderer(choice: MapChoice, settings: RenderSettings, maps: list[MapSource]
 
     def render(state: VehicleState, index: int) -> RenderedFrame:
         jpeg, xy = renderer.frame_jpeg(state, index)
-        return RenderedFrame(jpeg, xy, camera.width_px, camera.height_px)
+        # nodata_fraction is per thread: that of the frame just rendered on this one.
+        return RenderedFrame(
+            jpeg, xy, camera.width_px, camera.height_px, renderer.nodata_fraction()
+        )
 
     return render
