@@ -124,8 +124,13 @@ def check_archive_inputs(config: BenchConfig, scenario: str) -> None:
 
 def bench_spec(config: BenchConfig) -> dict[str, Any]:
     """The sweep SPEC a bench is: one run per scenario, flown as ``dataset`` flies it (the map
-    date and seed of the bench), scored with the bench's methods and localizers."""
-    spec: dict[str, Any] = {
+    date and seed of the bench), scored with the bench's methods and localizers; ``base``
+    holds ``wait-timeout`` only when the bench was given one (so a bench without it writes
+    the SPEC it wrote before)."""
+    spec: dict[str, Any] = {}
+    if config.wait_timeout_s is not None:
+        spec["base"] = {"wait-timeout": config.wait_timeout_s}
+    spec |= {
         "runs": [
             {"scenario": s, "map-date": config.flight_date, "seed": config.seed}
             for s in config.scenarios

@@ -40,6 +40,8 @@ class BenchConfig:
     reference_date: int = REFERENCE_DATE
     align: str = "none"
     seed: int = 0
+    # fly's --wait-timeout for the lockstep flights of external localizers (None: fly's default)
+    wait_timeout_s: float | None = None
     quiet: bool = False
 
     @property

@@ -15,12 +15,13 @@ from pathlib import Path
 
 from air_sitl.bench import BenchConfig, parse_localizer, parse_methods, run_bench
 from air_sitl.bench.config import FLIGHT_DATE, REFERENCE_DATE
+from air_sitl.bus.args import DEFAULT_WAIT_TIMEOUT_S
 from air_sitl.commands.sweep import add_executor_arguments
 from air_sitl.dataset.scenarios import missions_dir, parse_scenarios
 from air_sitl.errors import OptionError
 from air_sitl.eval import ALIGNMENTS
 from air_sitl.localize import METHODS
-from air_sitl.options import int_in_range
+from air_sitl.options import int_in_range, positive_number
 
 HELP = "rank localization methods over the AIR scenarios: leaderboard, box plots"
 
@@ -43,6 +44,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="an external localizer program, run on the bus in lockstep per scenario; it gets "
         "'--zenoh-connect ENDPOINT' appended (or {endpoint} replaced) and must publish "
         "estimate/NAME; repeatable",
+    )
+    parser.add_argument(
+        "--wait-timeout",
+        default=None,
+        metavar="S",
+        help="wall seconds each lockstep flight waits for an external localizer's subscriber "
+        f"or estimate before giving up (fly's --wait-timeout, default {DEFAULT_WAIT_TIMEOUT_S:g})",
     )
     parser.add_argument("--out", metavar="DIR", required=True, help="bench folder")
     add_executor_arguments(parser, note="; the bench folder at the same path on every node")
@@ -86,6 +94,11 @@ def config_from_args(args: argparse.Namespace) -> BenchConfig:
         reference_date=int_in_range("--reference-date", args.reference_date, 0, 99),
         align=args.align,
         seed=int_in_range("--seed", args.seed, 0, 2**31 - 1),
+        wait_timeout_s=(
+            None
+            if args.wait_timeout is None
+            else positive_number("--wait-timeout", args.wait_timeout)
+        ),
         quiet=bool(args.quiet),
     )
 

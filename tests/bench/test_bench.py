@@ -97,6 +97,8 @@ def test_endpoint_is_appended_or_substituted() -> None:
         (["--localizer", "x="], "--localizer x: the command is empty"),
         (["--scenarios", "ZZ-100"], "ZZ-100 has no plan"),
         (["-j", "0"], "-j"),
+        (["--wait-timeout", "0"], "--wait-timeout: '0' is not a number > 0"),
+        (["--wait-timeout", "soon"], "--wait-timeout: 'soon' is not a number > 0"),
     ],
 )
 def test_bad_options_get_one_line_and_exit_2(
@@ -127,7 +129,9 @@ def test_archives_of_another_flight_are_refused_not_reused(
 
 
 def test_a_bench_is_a_sweep_with_its_spec_and_rows(bench: Path) -> None:
-    spec = yaml.safe_load((bench / "bench.yaml").read_text())
+    text = (bench / "bench.yaml").read_text()
+    assert text.startswith("runs:\n")  # no base: no --wait-timeout given, the SPEC of before
+    spec = yaml.safe_load(text)
     assert spec["runs"] == [{"scenario": "UT-200", "map-date": 1, "seed": 0}]
     assert spec["methods"] == ["deadreckon", "vo"] and list(spec["localizers"]) == ["ex"]
     (row,) = read_rows(bench / RESULTS)
@@ -138,16 +142,43 @@ def test_a_bench_is_a_sweep_with_its_spec_and_rows(bench: Path) -> None:
         assert saved["report"] == report
 
 
-def test_the_same_leaderboard_on_a_local_ray(bench: Path, missions: Path, tmp_path: Path) -> None:
-    pytest.importorskip("ray", reason="ray is not installed (pip install 'air-sitl[ray]')")
-    out = tmp_path / "b"
-    # The same archive (hard links: nothing measured yet in this folder), measured on Ray.
+def _linked_archives(bench: Path, out: Path) -> None:
+    """The bench's archive in ``out`` (hard links: nothing measured yet in that folder)."""
     shutil.copytree(
         bench / "archives",
         out / "archives",
         copy_function=os.link,
         ignore=shutil.ignore_patterns("estimates", "*.log"),
     )
+
+
+def test_wait_timeout_reaches_the_lockstep_flights(
+    bench: Path, missions: Path, tmp_path: Path
+) -> None:
+    """A localizer that never subscribes: its lockstep flight gives up after --wait-timeout
+    (fly's default is 10 s), and bench.yaml records the option as the SPEC's base."""
+    out = tmp_path / "b"
+    _linked_archives(bench, out)
+    silent = f"{sys.executable} -c 'import time; time.sleep(600)'"
+    argv = [
+        "bench", "--scenarios", "UT-200", "--methods", "deadreckon", "--missions",
+        str(missions), "--localizer", f"silent={silent}", "--wait-timeout", "1.5",
+        "--out", str(out), "--quiet",
+    ]  # fmt: skip
+    assert main(argv) == 1  # the silent localizer's cell failed
+    rows = {r["method"]: r for r in json.loads((out / "leaderboard.json").read_text())["rows"]}
+    assert rows["deadreckon"]["error"] is None
+    error = rows["silent"]["error"]
+    assert "nobody subscribed to" in error and "within 1.5 s" in error, error
+    spec = yaml.safe_load((out / "bench.yaml").read_text())
+    assert spec["base"] == {"wait-timeout": 1.5}
+    assert spec["runs"] == [{"scenario": "UT-200", "map-date": 1, "seed": 0}]
+
+
+def test_the_same_leaderboard_on_a_local_ray(bench: Path, missions: Path, tmp_path: Path) -> None:
+    pytest.importorskip("ray", reason="ray is not installed (pip install 'air-sitl[ray]')")
+    out = tmp_path / "b"
+    _linked_archives(bench, out)  # the same archive, measured on Ray
     argv = [
         "bench", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
         str(missions), "--out", str(out), "--ray", "--quiet",
