@@ -94,6 +94,7 @@ def make_tasks(spec: SweepSpec, out: Path, keep: str = "all") -> list[RunTask]:
                 options=run.options,
                 plan_label=run.plan_label,
                 plan_name=run.plan_path.name,
+                plan_path=str(run.plan_path),
                 plan_text=texts[run.plan_path],
                 argv=run.argv,
                 seed=run.seed,

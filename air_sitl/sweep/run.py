@@ -71,6 +71,9 @@ class RunTask:
     options: dict[str, Any]
     plan_label: str
     plan_name: str  # file name of the plan (its stem names the scenario)
+    # The plan file the SPEC named, on the driver (absolute): what the run's summary.json
+    # records as its plan, not the temporary copy the worker flies.
+    plan_path: str
     plan_text: bytes
     argv: tuple[str, ...]
     seed: int
@@ -158,7 +161,13 @@ def _fly(task: RunTask, plan: Path, out: Path) -> dict[str, Any]:
     )
     if setup.camera is not None:
         setup = replace(setup, map_source=_cached_map(setup))
-    request = RecordingRequest(setup=setup, out=out, bus=bus_sinks_from_args(args), io_thread=False)
+    request = RecordingRequest(
+        setup=setup,
+        out=out,
+        bus=bus_sinks_from_args(args),
+        io_thread=False,
+        plan_label=task.plan_path,
+    )
     with request.bus or contextlib.nullcontext():
         record_flight(request)
     return _read_summary(out)
