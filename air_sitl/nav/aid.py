@@ -178,15 +178,11 @@ class AidControl:
             pn = ekf.p[0] - ekf.v[0] * lag
             pe = ekf.p[1] - ekf.v[1] * lag
             res = fuse_direct(ekf, POS, [n - pn, e - pe], [[vnn, vne], [vne, vee]], p.aid_gate)
-            c.test_ratio = res.test_ratio
-            if res.fused:
-                c.fused += 1
+            if c.gated(res):
                 self.last_fused_ns = t_m
                 self.first_reject_ns = None
-            else:
-                c.reject("gate")
-                if first is None:
-                    self.first_reject_ns = t_m
+            elif first is None:
+                self.first_reject_ns = t_m
         return reset
 
     def lost(self) -> None:

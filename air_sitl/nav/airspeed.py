@@ -11,19 +11,16 @@ from __future__ import annotations
 
 import math
 
-from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.nav.ekf import ATT, N_STATES, VEL, WIND, ErrorStateEkf, rotation_matrix
 from air_sitl.nav.fusion import fuse_scalar
 from air_sitl.nav.params import NavParams
-from air_sitl.nav.status import SourceCounters
+from air_sitl.nav.status import ScalarSource
 from air_sitl.nav.types import AirspeedSample
 
 
-class AirspeedControl:
+class AirspeedControl(ScalarSource):
     def __init__(self, params: NavParams) -> None:
-        self.params = params
-        self.counters = SourceCounters()
-        self.buffer: TimedBuffer[float] = TimedBuffer(64)
+        super().__init__(params)
         self.wind_started = False
         self.last_fused_ns: int | None = None
         self.tas_ratio = 0.0
@@ -31,10 +28,8 @@ class AirspeedControl:
 
     def push(self, sample: AirspeedSample, now_ns: int, horizon_start_ns: int) -> bool:
         tas = sample.airspeed_m_s
-        window = (horizon_start_ns, now_ns)
-        return self.counters.admit(
-            self.buffer, sample.sim_time_ns, tas, math.isfinite(tas) and tas >= 0.0, window
-        )
+        valid = math.isfinite(tas) and tas >= 0.0
+        return self.admit(sample.sim_time_ns, tas, valid, now_ns, horizon_start_ns)
 
     def fuse_due(self, ekf: ErrorStateEkf, t_ns: int, velocity_valid: bool) -> None:
         p = self.params
@@ -66,12 +61,9 @@ class AirspeedControl:
             h[VEL], h[VEL + 1], h[VEL + 2] = rn * inv, re * inv, vd * inv
             h[WIND], h[WIND + 1] = -rn * inv, -re * inv
             res = fuse_scalar(ekf, h, tas - pred, p.airspeed_noise_m_s**2, p.airspeed_gate)
-            self.tas_ratio = self.counters.test_ratio = res.test_ratio
-            if res.fused:
-                self.counters.fused += 1
+            self.tas_ratio = res.test_ratio
+            if self.counters.gated(res):
                 self.last_fused_ns = t_m
-            else:
-                self.counters.reject("gate")
             if p.fuse_beta:
                 self._fuse_beta(ekf)
 

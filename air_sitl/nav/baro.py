@@ -13,22 +13,19 @@ from __future__ import annotations
 
 import math
 
-from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.nav.ekf import POS, ErrorStateEkf
 from air_sitl.nav.fusion import fuse_direct
 from air_sitl.nav.params import NavParams
-from air_sitl.nav.status import SourceCounters
+from air_sitl.nav.status import ScalarSource
 from air_sitl.nav.types import BaroSample
 
 CURVATURE_1_M = 0.5 / 6_371_000.0  # 1 / (2 R), mean Earth radius
 
 
-class BaroControl:
+class BaroControl(ScalarSource):
     def __init__(self, params: NavParams, home_alt_m: float) -> None:
-        self.params = params
+        super().__init__(params)
         self.home_alt_m = home_alt_m
-        self.counters = SourceCounters()
-        self.buffer: TimedBuffer[float] = TimedBuffer(64)
         self.started = False
         self.offset_m = 0.0
         self.offset_var_m2 = 25.0
@@ -39,8 +36,7 @@ class BaroControl:
 
     def push(self, sample: BaroSample, now_ns: int, horizon_start_ns: int) -> bool:
         alt = sample.alt_amsl_m
-        window = (horizon_start_ns, now_ns)
-        return self.counters.admit(self.buffer, sample.sim_time_ns, alt, math.isfinite(alt), window)
+        return self.admit(sample.sim_time_ns, alt, math.isfinite(alt), now_ns, horizon_start_ns)
 
     def fusing(self, t_ns: int) -> bool:
         last = self.last_fused_ns
@@ -84,12 +80,9 @@ class BaroControl:
             # Measured down position minus the predicted one at the reading's time.
             y = self._down_m(ekf, alt) - (ekf.p[2] - ekf.v[2] * lag)
             r = fuse_direct(ekf, POS + 2, [y], [[p.baro_noise_m**2]], p.baro_gate)
-            self.ratio = self.counters.test_ratio = r.test_ratio
-            if r.fused:
-                self.counters.fused += 1
+            self.ratio = r.test_ratio
+            if self.counters.gated(r):
                 self.last_fused_ns = t_m
                 self.first_reject_ns = None
-            else:
-                self.counters.reject("gate")
-                if first is None:
-                    self.first_reject_ns = t_m
+            elif first is None:
+                self.first_reject_ns = t_m

@@ -9,21 +9,18 @@ from __future__ import annotations
 
 import math
 
-from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.nav.ekf import ATT, N_STATES, ErrorStateEkf, rotation_matrix
 from air_sitl.nav.fusion import fuse_scalar
 from air_sitl.nav.params import NavParams
-from air_sitl.nav.status import SourceCounters
+from air_sitl.nav.status import ScalarSource
 from air_sitl.nav.types import HeadingSample
 
 RESET_TIMEOUT_NS = 5_000_000_000
 
 
-class MagControl:
+class MagControl(ScalarSource):
     def __init__(self, params: NavParams) -> None:
-        self.params = params
-        self.counters = SourceCounters()
-        self.buffer: TimedBuffer[float] = TimedBuffer(64)
+        super().__init__(params)
         self.started = False
         self.first_reject_ns: int | None = None
         self.last_heading_rad: float | None = None  # newest arrival (alignment)
@@ -31,9 +28,8 @@ class MagControl:
 
     def push(self, sample: HeadingSample, now_ns: int, horizon_start_ns: int) -> bool:
         heading = sample.heading_rad
-        window = (horizon_start_ns, now_ns)
-        admitted = self.counters.admit(
-            self.buffer, sample.sim_time_ns, heading, math.isfinite(heading), window
+        admitted = self.admit(
+            sample.sim_time_ns, heading, math.isfinite(heading), now_ns, horizon_start_ns
         )
         if admitted:
             self.last_heading_rad = heading
@@ -59,14 +55,11 @@ class MagControl:
             yaw, h = model
             y = math.remainder(yaw_meas - yaw, 2.0 * math.pi)
             res = fuse_scalar(ekf, h, y, p.heading_noise_rad**2, p.heading_gate)
-            self.ratio = self.counters.test_ratio = res.test_ratio
-            if res.fused:
-                self.counters.fused += 1
+            self.ratio = res.test_ratio
+            if self.counters.gated(res):
                 self.first_reject_ns = None
-            else:
-                self.counters.reject("gate")
-                if self.first_reject_ns is None:
-                    self.first_reject_ns = t_m
+            elif self.first_reject_ns is None:
+                self.first_reject_ns = t_m
 
 
 def yaw_model(q: tuple[float, float, float, float]) -> tuple[float, list[float]] | None:

@@ -11,6 +11,8 @@ from dataclasses import dataclass, field, fields
 from typing import Any, TypeVar
 
 from air_sitl.nav.buffer import TimedBuffer
+from air_sitl.nav.fusion import FusionResult
+from air_sitl.nav.params import NavParams
 from air_sitl.state import NavFlags
 
 T = TypeVar("T")
@@ -49,6 +51,34 @@ class SourceCounters:
             self.reject("rate")
             return False
         return True
+
+    def gated(self, result: FusionResult) -> bool:
+        """Count one gated update (fused, or rejected by the gate) and keep its test ratio;
+        True when it fused."""
+        self.test_ratio = result.test_ratio
+        if result.fused:
+            self.fused += 1
+        else:
+            self.reject("gate")
+        return result.fused
+
+
+class ScalarSource:
+    """A sensor giving one number a reading (barometer, airspeed, compass): its counters and
+    the readings waiting for the delayed horizon."""
+
+    def __init__(self, params: NavParams) -> None:
+        self.params = params
+        self.counters = SourceCounters()
+        self.buffer: TimedBuffer[float] = TimedBuffer(64)
+
+    def admit(
+        self, t_ns: int, value: float, valid: bool, now_ns: int, horizon_start_ns: int
+    ) -> bool:
+        """Count one reading taken at ``t_ns`` and buffer it (:meth:`SourceCounters.admit`,
+        the window from the horizon's start to the arrival ``now_ns``)."""
+        window = (horizon_start_ns, now_ns)
+        return self.counters.admit(self.buffer, t_ns, value, valid, window)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
