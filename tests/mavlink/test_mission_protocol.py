@@ -8,23 +8,13 @@ from collections.abc import Sequence
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from air_sitl.mavlink import messages
 from air_sitl.mavlink.codec import (
     Encoder,
     ParseCounters,
     Parser,
     from_mission_message,
     to_mission_message,
-)
-from air_sitl.mavlink.messages import (
-    MISSION_TYPE_ALL,
-    MissionAck,
-    MissionClearAll,
-    MissionCount,
-    MissionItemMessage,
-    MissionMessage,
-    MissionRequest,
-    MissionRequestList,
-    Peer,
 )
 from air_sitl.mavlink.mission_protocol import (
     ITEM_TIMEOUT_NS,
@@ -38,8 +28,8 @@ from air_sitl.mavlink.mission_protocol import (
 )
 from air_sitl.mission.items import MavCmd, MavFrame, MissionItem, MissionResult, MissionType
 
-GCS = Peer(255, 190)
-OTHER = Peer(254, 1)
+GCS = messages.Peer(255, 190)
+OTHER = messages.Peer(254, 1)
 MS = 1_000_000
 
 
@@ -51,12 +41,12 @@ OLD = (wp(47.0), wp(47.001), MissionItem(command=MavCmd.NAV_RETURN_TO_LAUNCH, fr
 NEW = tuple(wp(47.0 + i * 1e-3, 8.5 + i * 1e-3, 100.0 + i) for i in range(6))
 
 
-def sends(out: Sequence[Output]) -> list[MissionMessage]:
+def sends(out: Sequence[Output]) -> list[messages.MissionMessage]:
     return [o.message for o in out if isinstance(o, Send)]
 
 
-def ack_of(out: Sequence[Output]) -> MissionAck:
-    acks = [m for m in sends(out) if isinstance(m, MissionAck)]
+def ack_of(out: Sequence[Output]) -> messages.MissionAck:
+    acks = [m for m in sends(out) if isinstance(m, messages.MissionAck)]
     assert len(acks) == 1, out
     return acks[0]
 
@@ -65,20 +55,22 @@ def upload(
     proto: MissionProtocol,
     items: Sequence[MissionItem],
     mission_type: int = MissionType.MISSION,
-    peer: Peer = GCS,
+    peer: messages.Peer = GCS,
     int_form: bool = True,
 ) -> list[Output]:
     """Answer every request in order; return every output of the transfer."""
-    outputs = proto.handle(peer, MissionCount(count=len(items), mission_type=mission_type), 0)
+    outputs = proto.handle(
+        peer, messages.MissionCount(count=len(items), mission_type=mission_type), 0
+    )
     all_out = list(outputs)
     while True:
-        reqs = [m for m in sends(outputs) if isinstance(m, MissionRequest)]
+        reqs = [m for m in sends(outputs) if isinstance(m, messages.MissionRequest)]
         if not reqs:
             return all_out
         seq = reqs[-1].seq
         # The vehicle asks for MISSION_ITEM_INT first, then in the form the client answers in.
         assert reqs[-1].int_form is (int_form or seq == 0)
-        msg = MissionItemMessage(
+        msg = messages.MissionItemMessage(
             seq=seq, item=items[seq], mission_type=mission_type, int_form=int_form
         )
         outputs = proto.handle(peer, msg, 0)
@@ -90,14 +82,16 @@ def test_upload_then_download_returns_the_same_items() -> None:
     out = upload(proto, NEW)
     assert ack_of(out).result == MissionResult.ACCEPTED
     assert [o for o in out if isinstance(o, Replaced)] == [Replaced(MissionType.MISSION, NEW)]
-    count = sends(proto.handle(GCS, MissionRequestList(), 0))
+    count = sends(proto.handle(GCS, messages.MissionRequestList(), 0))
     assert count == [
-        MissionCount(count=len(NEW), mission_type=0, opaque_id=proto.opaque_id(MissionType.MISSION))
+        messages.MissionCount(
+            count=len(NEW), mission_type=0, opaque_id=proto.opaque_id(MissionType.MISSION)
+        )
     ]
     got = []
     for seq in range(len(NEW)):
-        (item,) = sends(proto.handle(GCS, MissionRequest(seq=seq), 0))
-        assert isinstance(item, MissionItemMessage) and item.seq == seq
+        (item,) = sends(proto.handle(GCS, messages.MissionRequest(seq=seq), 0))
+        assert isinstance(item, messages.MissionItemMessage) and item.seq == seq
         got.append(item.item)
     assert same_items(got, NEW)
     assert proto.opaque_id(MissionType.MISSION) != MissionProtocol(mission=OLD).opaque_id(0)
@@ -107,8 +101,8 @@ def test_old_float_messages_are_accepted_and_answered_in_kind() -> None:
     proto = MissionProtocol()
     out = upload(proto, NEW, int_form=False)
     assert ack_of(out).result == MissionResult.ACCEPTED
-    (item,) = sends(proto.handle(GCS, MissionRequest(seq=1, int_form=False), 0))
-    assert isinstance(item, MissionItemMessage) and not item.int_form
+    (item,) = sends(proto.handle(GCS, messages.MissionRequest(seq=1, int_form=False), 0))
+    assert isinstance(item, messages.MissionItemMessage) and not item.int_form
 
 
 def bad(**changes: float) -> MissionItem:
@@ -151,48 +145,48 @@ def test_jump_to_nowhere_is_invalid_sequence() -> None:
 
 def test_count_zero_clears_and_count_65535_is_no_space() -> None:
     proto = MissionProtocol(mission=OLD)
-    out = proto.handle(GCS, MissionCount(count=65535), 0)
+    out = proto.handle(GCS, messages.MissionCount(count=65535), 0)
     assert ack_of(out).result == MissionResult.NO_SPACE
     assert proto.items(MissionType.MISSION) == OLD
-    out = proto.handle(GCS, MissionCount(count=0), 0)
+    out = proto.handle(GCS, messages.MissionCount(count=0), 0)
     assert ack_of(out).result == MissionResult.ACCEPTED
     assert proto.items(MissionType.MISSION) == ()
 
 
 def test_unknown_mission_type_is_unsupported() -> None:
     proto = MissionProtocol(mission=OLD)
-    assert ack_of(proto.handle(GCS, MissionCount(count=2, mission_type=7), 0)).result == (
+    assert ack_of(proto.handle(GCS, messages.MissionCount(count=2, mission_type=7), 0)).result == (
         MissionResult.UNSUPPORTED
     )
 
 
 def test_second_uploader_is_denied_and_the_first_completes() -> None:
     proto = MissionProtocol(mission=OLD)
-    first = proto.handle(GCS, MissionCount(count=2), 0)
-    assert sends(first) == [MissionRequest(seq=0)]
-    denied = proto.handle(OTHER, MissionCount(count=1), 0)
+    first = proto.handle(GCS, messages.MissionCount(count=2), 0)
+    assert sends(first) == [messages.MissionRequest(seq=0)]
+    denied = proto.handle(OTHER, messages.MissionCount(count=1), 0)
     assert [o.peer for o in denied if isinstance(o, Send)] == [OTHER]
     assert ack_of(denied).result == MissionResult.DENIED
-    assert ack_of(proto.handle(OTHER, MissionClearAll(), 0)).result == MissionResult.DENIED
-    assert proto.handle(OTHER, MissionItemMessage(seq=0, item=wp(1.0)), 0) == []
-    proto.handle(GCS, MissionItemMessage(seq=0, item=NEW[0]), 0)
-    out = proto.handle(GCS, MissionItemMessage(seq=1, item=NEW[1]), 0)
+    assert ack_of(proto.handle(OTHER, messages.MissionClearAll(), 0)).result == MissionResult.DENIED
+    assert proto.handle(OTHER, messages.MissionItemMessage(seq=0, item=wp(1.0)), 0) == []
+    proto.handle(GCS, messages.MissionItemMessage(seq=0, item=NEW[0]), 0)
+    out = proto.handle(GCS, messages.MissionItemMessage(seq=1, item=NEW[1]), 0)
     assert ack_of(out).result == MissionResult.ACCEPTED
     assert proto.items(MissionType.MISSION) == NEW[:2]
 
 
 def test_item_requests_are_retried_then_the_upload_is_cancelled() -> None:
     proto = MissionProtocol(mission=OLD)
-    proto.handle(GCS, MissionCount(count=3), 0)
+    proto.handle(GCS, messages.MissionCount(count=3), 0)
     assert proto.tick(ITEM_TIMEOUT_NS - 1) == []
     retries = 0
     t = 0
     while True:
         t += ITEM_TIMEOUT_NS
         out = proto.tick(t)
-        if any(isinstance(m, MissionAck) for m in sends(out)):
+        if any(isinstance(m, messages.MissionAck) for m in sends(out)):
             break
-        assert sends(out) == [MissionRequest(seq=0)]
+        assert sends(out) == [messages.MissionRequest(seq=0)]
         retries += 1
     assert retries == MAX_RETRIES
     assert ack_of(out).result == MissionResult.OPERATION_CANCELLED
@@ -201,12 +195,12 @@ def test_item_requests_are_retried_then_the_upload_is_cancelled() -> None:
 
 def test_out_of_range_and_duplicate_items() -> None:
     proto = MissionProtocol(mission=OLD)
-    proto.handle(GCS, MissionCount(count=3), 0)
-    proto.handle(GCS, MissionItemMessage(seq=0, item=NEW[0]), 0)
-    assert proto.handle(GCS, MissionItemMessage(seq=0, item=NEW[0]), 0) == []  # duplicate
-    ahead = proto.handle(GCS, MissionItemMessage(seq=2, item=NEW[2]), 0)
-    assert sends(ahead) == [MissionRequest(seq=1)]  # out of order: ask for ours again
-    out = proto.handle(GCS, MissionItemMessage(seq=3, item=NEW[3]), 0)
+    proto.handle(GCS, messages.MissionCount(count=3), 0)
+    proto.handle(GCS, messages.MissionItemMessage(seq=0, item=NEW[0]), 0)
+    assert proto.handle(GCS, messages.MissionItemMessage(seq=0, item=NEW[0]), 0) == []  # duplicate
+    ahead = proto.handle(GCS, messages.MissionItemMessage(seq=2, item=NEW[2]), 0)
+    assert sends(ahead) == [messages.MissionRequest(seq=1)]  # out of order: ask for ours again
+    out = proto.handle(GCS, messages.MissionItemMessage(seq=3, item=NEW[3]), 0)
     assert ack_of(out).result == MissionResult.INVALID_SEQUENCE
     assert proto.items(MissionType.MISSION) == OLD
 
@@ -214,15 +208,15 @@ def test_out_of_range_and_duplicate_items() -> None:
 def test_lost_final_ack_is_sent_again() -> None:
     proto = MissionProtocol()
     out = upload(proto, NEW)
-    again = proto.handle(GCS, MissionItemMessage(seq=len(NEW) - 1, item=NEW[-1]), 0)
+    again = proto.handle(GCS, messages.MissionItemMessage(seq=len(NEW) - 1, item=NEW[-1]), 0)
     assert sends(again) == [ack_of(out)]
 
 
 def test_gcs_cancel_keeps_the_old_list() -> None:
     proto = MissionProtocol(mission=OLD)
-    proto.handle(GCS, MissionCount(count=3), 0)
-    proto.handle(GCS, MissionItemMessage(seq=0, item=NEW[0]), 0)
-    out = proto.handle(GCS, MissionAck(result=MissionResult.OPERATION_CANCELLED), 0)
+    proto.handle(GCS, messages.MissionCount(count=3), 0)
+    proto.handle(GCS, messages.MissionItemMessage(seq=0, item=NEW[0]), 0)
+    out = proto.handle(GCS, messages.MissionAck(result=MissionResult.OPERATION_CANCELLED), 0)
     assert [type(o) for o in out] == [Failed]
     assert proto.items(MissionType.MISSION) == OLD and not proto.busy
 
@@ -244,10 +238,10 @@ def test_mission_fence_and_rally_are_stored_separately() -> None:
     assert proto.items(MissionType.MISSION) == OLD
     assert proto.items(MissionType.FENCE) == fence
     assert proto.items(MissionType.RALLY) == rally
-    out = proto.handle(GCS, MissionClearAll(mission_type=MissionType.FENCE), 0)
+    out = proto.handle(GCS, messages.MissionClearAll(mission_type=MissionType.FENCE), 0)
     assert ack_of(out).result == MissionResult.ACCEPTED
     assert proto.items(MissionType.FENCE) == () and proto.items(MissionType.RALLY) == rally
-    proto.handle(GCS, MissionClearAll(mission_type=MISSION_TYPE_ALL), 0)
+    proto.handle(GCS, messages.MissionClearAll(mission_type=messages.MISSION_TYPE_ALL), 0)
     assert all(proto.items(t) == () for t in MissionType)
 
 
@@ -257,7 +251,7 @@ def test_mission_fence_and_rally_are_stored_separately() -> None:
 class LossyLink:
     """Encodes each message with pymavlink, then drops, duplicates, delays or corrupts it."""
 
-    def __init__(self, faults: list[int], sender: Peer, receiver: Peer) -> None:
+    def __init__(self, faults: list[int], sender: messages.Peer, receiver: messages.Peer) -> None:
         self.faults = faults
         self.encoder = Encoder(sender.system_id, sender.component_id)
         self.parser = Parser(ParseCounters())
@@ -265,7 +259,7 @@ class LossyLink:
         self.in_flight: list[bytes] = []
         self.delayed: list[bytes] = []
 
-    def send(self, message: MissionMessage) -> None:
+    def send(self, message: messages.MissionMessage) -> None:
         frame = self.encoder.encode(
             from_mission_message(message, self.receiver.system_id, self.receiver.component_id)
         )
@@ -285,7 +279,7 @@ class LossyLink:
         self.in_flight += self.delayed
         self.delayed = []
 
-    def receive(self) -> list[MissionMessage]:
+    def receive(self) -> list[messages.MissionMessage]:
         frames, self.in_flight = self.in_flight, []
         out = []
         for frame in frames:
@@ -304,7 +298,7 @@ class Uploader:
         self.link = link
         self.result: int | None = None
         self.gave_up = False
-        self.last: MissionMessage = MissionCount(count=len(items))
+        self.last: messages.MissionMessage = messages.MissionCount(count=len(items))
         self.last_sent_ns = 0
         self.retries = 0
         link.send(self.last)
@@ -313,13 +307,13 @@ class Uploader:
     def done(self) -> bool:
         return self.result is not None or self.gave_up
 
-    def on_message(self, msg: MissionMessage, now_ns: int) -> None:
+    def on_message(self, msg: messages.MissionMessage, now_ns: int) -> None:
         if self.done:
             return
-        if isinstance(msg, MissionAck):
+        if isinstance(msg, messages.MissionAck):
             self.result = msg.result
-        elif isinstance(msg, MissionRequest) and 0 <= msg.seq < len(self.items):
-            self.last = MissionItemMessage(seq=msg.seq, item=self.items[msg.seq])
+        elif isinstance(msg, messages.MissionRequest) and 0 <= msg.seq < len(self.items):
+            self.last = messages.MissionItemMessage(seq=msg.seq, item=self.items[msg.seq])
             self._send(now_ns)
             self.retries = 0
 
@@ -359,7 +353,7 @@ def test_lossy_upload_is_all_or_nothing(
     down_faults: list[int],
 ) -> None:
     """Dropped, duplicated, reordered, corrupted frames: exactly the new items, or the old."""
-    vehicle = Peer(1, 1)
+    vehicle = messages.Peer(1, 1)
     proto = MissionProtocol(mission=old)
     up = LossyLink(up_faults, GCS, vehicle)
     down = LossyLink(down_faults, vehicle, GCS)
@@ -383,10 +377,10 @@ def test_lossy_upload_is_all_or_nothing(
     stored = proto.items(MissionType.MISSION)
     # float32 altitude on the wire: compare with what MISSION_ITEM_INT can carry
     sent = [
-        to_mission_message(from_mission_message(MissionItemMessage(seq=i, item=it), 1, 1))
+        to_mission_message(from_mission_message(messages.MissionItemMessage(seq=i, item=it), 1, 1))
         for i, it in enumerate(new)
     ]
-    sent_items = [m.item for m in sent if isinstance(m, MissionItemMessage)]
+    sent_items = [m.item for m in sent if isinstance(m, messages.MissionItemMessage)]
     old_items = tuple(old)
     assert same_items(stored, sent_items) or stored == old_items, (
         f"stored {len(stored)} items: neither the {len(new)} sent nor the {len(old)} old"
