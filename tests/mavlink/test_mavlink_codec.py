@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from mission_samples import LOITER_TURNS
 from pymavlink.dialects.v20 import common as mavlink2
 
 from air_sitl.errors import MavlinkError
@@ -22,7 +23,6 @@ from air_sitl.mavlink.codec import (
 )
 from air_sitl.mavlink.links import parse_link
 from air_sitl.mavlink.messages import MissionItemMessage
-from air_sitl.mission.items import MavCmd, MavFrame, MissionItem
 
 KEY = bytes(range(32))
 
@@ -122,16 +122,7 @@ def test_signing_key_from_hex_and_file(tmp_path: Path) -> None:
 
 
 def test_mission_item_round_trip_int_and_float() -> None:
-    item = MissionItem(
-        command=MavCmd.NAV_LOITER_TURNS,
-        frame=MavFrame.GLOBAL_RELATIVE_ALT,
-        param1=2.0,
-        param3=80.0,
-        lat_deg=38.5395312,
-        lon_deg=-121.4916543,
-        alt_m=200.0,
-        do_jump_id=4,
-    )
+    item = LOITER_TURNS
     for int_form in (True, False):
         msg = from_mission_message(MissionItemMessage(seq=3, item=item, int_form=int_form), 1, 1)
         frame = Encoder(255, 190).encode(msg)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
+from mission_samples import LOITER_TURNS
 
 from air_sitl.mission.geometry import (
     MAX_DO_STEPS,
@@ -104,17 +105,6 @@ def test_next_nav_index_ends_a_loop_without_navigation_items() -> None:
 
 
 def test_params_are_what_from_params_takes() -> None:
-    item = MissionItem(
-        command=MavCmd.NAV_LOITER_TURNS,
-        frame=MavFrame.GLOBAL,
-        param1=2.0,
-        param2=0.0,
-        param3=-90.0,
-        param4=math.nan,
-        lat_deg=54.7,
-        lon_deg=25.3,
-        alt_m=300.0,
-        do_jump_id=4,
-    )
+    item = LOITER_TURNS
     back = MissionItem.from_params(item.command, item.frame, item.params, autocontinue=True, seq=3)
     assert repr(back) == repr(item)
