@@ -79,6 +79,14 @@ def dirty() -> AidedStraight:
     return run
 
 
+@pytest.fixture
+def aided() -> AidedStraight:
+    """Two seconds on the aid alone (GNSS cut at 10 s): a filter to feed input to by hand."""
+    run = AidedStraight()
+    run.run(12.0)
+    return run
+
+
 def test_each_bad_input_has_its_verdict(dirty: AidedStraight) -> None:
     R = AidResult
     assert dirty.results == [
@@ -142,11 +150,9 @@ def test_flood_rejected_by_rate() -> None:
     assert run.error_m() < 1.0
 
 
-def test_horizon_bounds() -> None:
-    run = AidedStraight()
-    run.run(12.0)
-    now = run.t_ns
-    nav = run.nav
+def test_horizon_bounds(aided: AidedStraight) -> None:
+    now = aided.t_ns
+    nav = aided.nav
     assert nav.fuse_aid(good(now - 600_000_000, "late"), now) is AidResult.REJECTED_STALE
     assert nav.fuse_aid(good(now - 490_000_000, "late"), now) is AidResult.ACCEPTED
     assert nav.fuse_aid(good(now - 495_000_000, "late"), now) is AidResult.REJECTED_ORDER
@@ -207,12 +213,10 @@ def test_gnss_and_baro_bad_input_counted() -> None:
     assert run.error_m() < 0.5
 
 
-def test_odd_types_never_raise() -> None:
+def test_odd_types_never_raise(aided: AidedStraight) -> None:
     import numpy as np
 
-    run = AidedStraight()
-    run.run(11.0)
-    nav, t = run.nav, run.t_ns
+    nav, t = aided.nav, aided.t_ns
     n, e, d = truth_ned(t)
     odd = [
         AidMeasurement(name="x", sim_time_ns=np.int64(t), position=np.array([e, n, -d])),  # type: ignore[arg-type]
@@ -236,8 +240,8 @@ def test_odd_types_never_raise() -> None:
         R.REJECTED_INVALID,
         R.REJECTED_INVALID,
     ]
-    run.run(1.0)
-    assert run.error_m() < 0.5
+    aided.run(1.0)
+    assert aided.error_m() < 0.5
 
 
 def test_baro_step_rejected_then_reset_after_timeout() -> None:
