@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 import short_plans
 import yaml
+from cli_errors import one_line_error
 
 from air_sitl.bench.config import parse_localizer
 from air_sitl.cli import main
@@ -110,9 +111,7 @@ def test_bad_options_get_one_line_and_exit_2(
 ) -> None:
     argv = ["bench", "--scenarios", "UT-200", "--methods", "vo", "--missions", str(missions)]
     argv += ["--out", str(tmp_path / "b"), *extra]
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and expected in err, err
+    assert expected in one_line_error(argv, capsys)
     assert not (tmp_path / "b").exists()  # nothing flown or written
 
 

@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 import pytest
 import short_plans
+from cli_errors import one_line_error
 
 import air_sitl.dataset
 from air_sitl.cli import main
@@ -272,9 +273,8 @@ def test_resume_with_other_inputs_is_refused(
     shutil.copytree(clean, out)
     (out / "manifest.json").unlink()
     (out / ".air-sitl-recording.json").write_text('{"run_key": {"flight": {"seed": 99}}}')
-    assert main([*fly_args(plan, out), "--resume"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and "--resume with different inputs" in err
+    err = one_line_error([*fly_args(plan, out), "--resume"], capsys)
+    assert "--resume with different inputs" in err
 
 
 def _limit_file_size() -> None:
@@ -358,6 +358,5 @@ def test_bad_input_is_one_line_and_exit_2(
     (tmp_path / "nonempty").mkdir()
     (tmp_path / "nonempty" / "f").write_text("x")
     values = {"missing": str(tmp_path / "no_such.plan"), "tmp": str(tmp_path), "plan": str(plan)}
-    assert main([a.format(**values) for a in argv]) == 2
-    err = capsys.readouterr().err.strip()
-    assert err.startswith("air-sitl: error:") and "\n" not in err and expected in err, err
+    err = one_line_error([a.format(**values) for a in argv], capsys)
+    assert expected in err, err

@@ -6,8 +6,7 @@ import socket
 from pathlib import Path
 
 import pytest
-
-from air_sitl.cli import main
+from cli_errors import one_line_error
 
 
 @pytest.mark.parametrize(
@@ -26,22 +25,19 @@ from air_sitl.cli import main
 def test_bad_options_exit_2_with_one_line(
     args: list[str], expected: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert main(["serve", "--mavlink", "udpin:127.0.0.1:0", *args]) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("air-sitl: error: ") and expected in err, err
-    assert err.count("\n") == 1
+    err = one_line_error(["serve", "--mavlink", "udpin:127.0.0.1:0", *args], capsys)
+    assert expected in err, err
 
 
 def test_a_port_in_use_is_a_one_line_error(capsys: pytest.CaptureFixture[str]) -> None:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
         taken.bind(("127.0.0.1", 0))
         port = taken.getsockname()[1]
-        assert main(["serve", "--mavlink", f"udpin:127.0.0.1:{port}"]) == 2
-    err = capsys.readouterr().err
+        err = one_line_error(["serve", "--mavlink", f"udpin:127.0.0.1:{port}"], capsys)
     assert f"udpin:127.0.0.1:{port}: cannot open the UDP socket" in err
 
 
 def test_signing_key_file_is_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     missing = tmp_path / "nokey"
-    assert main(["serve", "--mavlink", "udpin:127.0.0.1:0", "--signing-key", f"@{missing}"]) == 2
-    assert "cannot read the key file" in capsys.readouterr().err
+    argv = ["serve", "--mavlink", "udpin:127.0.0.1:0", "--signing-key", f"@{missing}"]
+    assert "cannot read the key file" in one_line_error(argv, capsys)
