@@ -46,7 +46,6 @@ from air_sitl.localize.external import (
     ExternalLocalizer,
     adopt_estimates,
     fly_in_lockstep,
-    free_port,
     same_flight,
 )
 from air_sitl.maps.open import default_map_for_plan
@@ -141,10 +140,10 @@ def _cached_map(setup: Any) -> Any:
 
 
 def _with_free_port(argv: list[str]) -> list[str]:
-    """A bus on a free loopback port unless the SPEC gave one (runs side by side never
-    share 7447)."""
+    """A bus on a loopback port the system picks as it listens (port 0: nothing can take it
+    first) unless the SPEC gave one: runs side by side never share 7447."""
     if "--zenoh" in argv and not any(a.startswith("--zenoh-listen") for a in argv):
-        return [*argv, f"--zenoh-listen=tcp/127.0.0.1:{free_port()}"]
+        return [*argv, "--zenoh-listen=tcp/127.0.0.1:0"]
     return argv
 
 
