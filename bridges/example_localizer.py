@@ -6,11 +6,9 @@ The pattern every estimator follows: join the bus, read ``camera/info`` and the 
 one estimate per frame on ``air/<vehicle>/estimate/<name>`` (no position when it cannot tell:
 lockstep counts that as an answer too).
 
-One subscription on ``air/<vehicle>/**``, not one per key: zenoh-python calls each
-subscriber back on a thread of its own, so with one subscriber per key the IMU sample or GNSS
-fix of an exposure can arrive after its frame, a different one from run to run. On one
-subscriber the samples come in the order the simulator published them: a frame after the IMU
-and GNSS of its own step, so its inputs are already there and a lockstep run
+It reads the bus in publishing order (``subscribe_in_order``: one subscription on
+``air/<vehicle>/**``, not one per key, whose callbacks zenoh-python runs on threads of their
+own): a frame comes after the IMU and GNSS of its own step, so a lockstep run
 (``fly --wait-for NAME``) gives the same estimates every time.
 
 The method is :class:`air_sitl.localize.vo.VisualOdometry` (attitude-compensated
@@ -36,7 +34,13 @@ from air_sitl.bus.session import Bus, Message, open_bus
 from air_sitl.bus.signals import wait_until_signalled
 from air_sitl.errors import AirSitlError, BusError
 from air_sitl.localize.base import GnssFix, LocalizerContext, Observation
-from air_sitl.localize.online import ask, camera_from_info, feed_latest, gnss_fix_of
+from air_sitl.localize.online import (
+    ask,
+    camera_from_info,
+    feed_latest,
+    gnss_fix_of,
+    subscribe_in_order,
+)
 from air_sitl.localize.vo import VisualOdometry
 from air_sitl.state import GeoPoint, Quat
 
@@ -56,7 +60,7 @@ class Localizer:
             keys.imu: self._on_imu,
             keys.gps: self._on_gps,
         }
-        bus.subscribe(f"{keys.root}/**", self._on_message)
+        subscribe_in_order(bus, keys, self._handlers)
         info = codec.decode_camera_info(ask(bus, keys.info, wait_s).payload)
         status = codec.loads(ask(bus, keys.mission_status, wait_s).payload, keys.mission_status)
         h = status.get("home")
@@ -69,11 +73,6 @@ class Localizer:
         feed_latest(bus, {keys.gps: self._on_gps, keys.imu: self._on_imu})
         self._out = bus.publisher(self.key_out, encoding=codec.JSON_ENCODING, block=True)
         self._handlers[keys.image] = self._on_image  # frames only once ready to answer
-
-    def _on_message(self, message: Message) -> None:
-        handler = self._handlers.get(message.key)
-        if handler is not None:
-            handler(message)
 
     def _on_imu(self, message: Message) -> None:
         imu = codec.decode_imu(message.payload)

@@ -100,6 +100,28 @@ def feed_latest(bus: Bus, handlers: Mapping[str, Callable[[Message], None]]) -> 
             handler(Message(key, bus.query(key, timeout_s=2.0).payload, None))
 
 
+def subscribe_in_order(
+    bus: Bus, keys: KeySpace, handlers: Mapping[str, Callable[[Message], None]]
+) -> None:
+    """Hand each message of the vehicle's keys to the handler of its key, in the order the
+    simulator published them.
+
+    One subscription on ``air/<vehicle>/**``, not one per key: zenoh-python calls each
+    subscriber back on a thread of its own, so with one subscriber per key the GNSS fix or
+    IMU sample of an exposure can arrive after its frame, from run to run a different one.
+    On one subscriber the frame of ``t`` comes after the IMU and GNSS of ``t``, so a frame
+    finds all of its inputs (by simulated time) already there. ``handlers`` is read at every
+    message: a key added to it later is handed out from then on.
+    """
+
+    def dispatch(message: Message) -> None:
+        handler = handlers.get(message.key)
+        if handler is not None:
+            handler(message)
+
+    bus.subscribe(f"{keys.root}/**", dispatch)
+
+
 def gnss_fix_of(message: Message) -> base.GnssFix | None:
     """The 3D fix a ``gps`` message holds, None without one; BusError naming the key when bad."""
     m = codec.loads(message.payload, message.key)
@@ -167,19 +189,14 @@ class BusLocalizer:
         self._last_fix_t_ns: int | None = None
         self.step_s = 0.0  # wall time spent in the method
 
-        # One subscription for the whole key space, not one per key: zenoh-python runs each
-        # subscriber's callbacks on a thread of its own, so the ``gps`` fix of an exposure
-        # could come after the frame (and after later IMU samples) and be given to a later
-        # frame, from run to run a different one. On one subscriber the samples keep the
-        # order the simulator published them in: the frame of ``t`` after the IMU and GNSS of
-        # ``t``, so a frame finds all of its inputs (by simulated time) already there.
+        # Read in publishing order: a frame finds the IMU and GNSS of its step already there.
         self._handlers: dict[str, Callable[[Message], None]] = {
             keys.imu: self._on_imu,
             keys.gps: self._on_gps,
             keys.mission_status: self._on_status,
             keys.image: self._on_image,  # queued until :meth:`run`
         }
-        bus.subscribe(f"{keys.root}/**", self._on_message)
+        subscribe_in_order(bus, keys, self._handlers)
         info = codec.decode_camera_info(ask(bus, keys.info, wait_s).payload)
         status = ask(bus, keys.mission_status, wait_s)
         self._on_status(status)
@@ -205,11 +222,6 @@ class BusLocalizer:
         self._out = bus.publisher(self.key_out, encoding=codec.JSON_ENCODING, block=True)
 
     # -- zenoh threads: decode and queue, nothing else ------------------------------------
-
-    def _on_message(self, message: Message) -> None:
-        handler = self._handlers.get(message.key)
-        if handler is not None:
-            handler(message)
 
     def _on_imu(self, message: Message) -> None:
         reading = codec.decode_imu(message.payload)
