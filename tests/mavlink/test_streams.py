@@ -45,6 +45,15 @@ def only(gcs: Gcs, keep: int) -> None:
             )
 
 
+def request_data_stream(gcs: Gcs, stream: int, rate_hz: int, start: int) -> None:
+    """REQUEST_DATA_STREAM (no answer in MAVLink), then an acknowledged command on the same
+    link: the vehicle handles a link's messages in order, so once that ACK is here the stream
+    change has been made (a busy machine may take longer than a simulated second for it)."""
+    gcs.conn.mav.request_data_stream_send(1, 1, stream, rate_hz, start)
+    version = M.MAVLINK_MSG_ID_AUTOPILOT_VERSION
+    assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, version) == M.MAV_RESULT_ACCEPTED
+
+
 @pytest.fixture
 def two_links() -> Iterator[tuple[Gcs, Gcs]]:
     """A vehicle at 10x real time, without wall-clock cap, with one GCS on each of two links."""
@@ -87,16 +96,16 @@ def test_request_data_stream_sets_groups_per_link_as_ardupilot(two_links: tuple[
     a, b = two_links
     only(b, ATTITUDE)
     # MAVProxy's way: every group at its stream rate, then one group changed.
-    a.conn.mav.request_data_stream_send(1, 1, M.MAV_DATA_STREAM_ALL, 4, 1)
+    request_data_stream(a, M.MAV_DATA_STREAM_ALL, 4, 1)
     assert per_sim_second(a, "GLOBAL_POSITION_INT", 10.0) == pytest.approx(4.0, rel=0.05)
-    a.conn.mav.request_data_stream_send(1, 1, M.MAV_DATA_STREAM_EXTRA1, 25, 1)
+    request_data_stream(a, M.MAV_DATA_STREAM_EXTRA1, 25, 1)
     assert per_sim_second(a, "ATTITUDE", 10.0) == pytest.approx(25.0, rel=0.05)
     assert per_sim_second(a, "VFR_HUD", 10.0) == pytest.approx(4.0, rel=0.05)
     assert per_sim_second(b, "ATTITUDE", 10.0) == pytest.approx(20.0, rel=0.05)
     # Stopping a group (start_stop 0) stops its messages on that link only.
-    a.conn.mav.request_data_stream_send(1, 1, M.MAV_DATA_STREAM_POSITION, 0, 0)
+    request_data_stream(a, M.MAV_DATA_STREAM_POSITION, 0, 0)
     a.drain()
-    a.collect(["GLOBAL_POSITION_INT"], 1.0)
+    a.collect(["GLOBAL_POSITION_INT"], 1.0)  # what was queued before the stop
     start = a.sim_ms
     later = a.collect(["GLOBAL_POSITION_INT", "ATTITUDE"], 3.0)
     assert not [
