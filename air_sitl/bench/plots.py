@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import numpy.typing as npt
+from matplotlib.figure import Figure
 
 from air_sitl.bench.leaderboard import SCENARIO_CLASSES, scenario_class
 
@@ -30,6 +31,18 @@ def error_boxes(
 
     ``errors[(entry, scenario)]`` are the per-frame errors of the estimated frames.
     """
+    fig = draw_error_boxes(errors, entries, scenarios)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=120)
+    plt.close(fig)
+    return out
+
+
+def draw_error_boxes(
+    errors: Mapping[tuple[str, str], F64], entries: Sequence[str], scenarios: Sequence[str]
+) -> Figure:
+    """The figure :func:`error_boxes` writes; a method without any estimate is named in the
+    legend as such."""
     # The AIR classes in their usual order, then any other scenario under its own name.
     present = {scenario_class(s) for s in scenarios}
     classes = [c for c in SCENARIO_CLASSES.values() if c in present]
@@ -52,7 +65,8 @@ def error_boxes(
             if values.size:
                 data.append(np.maximum(values, 1e-2))
                 positions.append(c + (k - (len(entries) - 1) / 2) * width)
-        if not data:
+        if not data:  # a method that failed or estimated nothing: named, not drawn
+            ax.plot([], [], "s", mfc="none", color=colours(k % 10), label=f"{entry} (no estimates)")
             continue
         box = ax.boxplot(
             data,
@@ -70,6 +84,7 @@ def error_boxes(
             median.set_color("black")
         ax.plot([], [], "s", color=colours(k % 10), label=entry)
     ax.set_xticks(range(len(classes)), classes)
+    ax.set_xlim(-0.5, len(classes) - 0.5)  # every class's slot, whichever boxes were drawn
     ax.set_yscale("log")
     ax.set_ylabel("horizontal error (m)\nbox 25-75 %, whiskers 5-95 %")
     ax.axhline(25.0, color="grey", lw=0.8, ls="--")
@@ -78,7 +93,4 @@ def error_boxes(
     ax.legend(loc="upper left", fontsize=8, ncols=min(4, len(entries)))
     ax.set_title("Horizontal error per method and scenario class", fontsize=11)
     fig.tight_layout()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
-    return out
+    return fig
