@@ -114,6 +114,7 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
     """Stop a pool now: pending runs cancelled, running workers killed (their run folders
     are done again on resume)."""
     processes = list((getattr(pool, "_processes", None) or {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in processes:
         with contextlib.suppress(Exception):
@@ -121,6 +122,11 @@ def _terminate(pool: ProcessPoolExecutor) -> None:
     for proc in processes:
         with contextlib.suppress(Exception):
             proc.join(5)
+    # Let the pool's manager thread finish its clean-up now: left running, it closes its
+    # wake-up pipe while the interpreter's exit hook (concurrent.futures' _python_exit) writes
+    # to it, and Ctrl-C ends in a traceback "OSError: [Errno 9] Bad file descriptor".
+    if manager is not None:
+        manager.join(5)
 
 
 def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
