@@ -332,6 +332,9 @@ class Bus(Closeable):
         self._session.close()  # type: ignore[no-untyped-call]
 
 
+OPEN_FAILED = "cannot open the zenoh session"  # the start of open_bus's error line
+
+
 def open_bus(cfg: BusConfig) -> Bus:
     """Open a session (BusError with the endpoint when zenoh refuses, e.g. a port in use)."""
     conf = zenoh_config(cfg)
@@ -342,6 +345,6 @@ def open_bus(cfg: BusConfig) -> Bus:
         if listen is None and cfg.connect is None and cfg.config_file is None and cfg.serves:
             listen = (DEFAULT_ENDPOINT,)
         where = ", ".join((*(listen or ()), *(cfg.connect or ()))) or "default endpoints"
-        msg = f"cannot open the zenoh session ({cfg.mode}, {where}): {_one_line(err)}"
+        msg = f"{OPEN_FAILED} ({cfg.mode}, {where}): {_one_line(err)}"
         raise BusError(msg) from None
     return Bus(session, cfg)

@@ -24,13 +24,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
+from air_sitl.bus.session import OPEN_FAILED
 from air_sitl.dataset.air_schema import ESTIMATES_DIR, TRAJECTORY_CSV
 from air_sitl.dataset.manifest import refresh_manifest, sha256_bytes
 from air_sitl.files import write_bytes_atomic
 
 SHUTDOWN_GRACE_S = 10.0  # a program gets this long to exit after SIGINT (then SIGKILL)
 PORT_ATTEMPTS = 5  # ports tried when the one picked was taken before the flight listened
-LISTEN_FAILED = "cannot open the zenoh session"  # fly's error then (bus.session.open_bus)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -120,7 +120,7 @@ def _fly_once(
         return None, False
     lines = fly_err.decode("utf-8", "replace").strip().splitlines()
     last = lines[-1] if lines else f"fly exited with {fly.returncode}"
-    return last, LISTEN_FAILED in last and endpoint in last
+    return last, OPEN_FAILED in last and endpoint in last
 
 
 def same_flight(flight: Path, archive: Path) -> bool:
