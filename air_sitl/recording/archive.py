@@ -59,7 +59,7 @@ class RecordingRequest:
     io_thread: bool = True
     # What summary.json's ``plan`` names: None, the file flown (``setup.plan``); a sweep run
     # flies a copy of its SPEC's plan from a temporary folder and names the SPEC's plan here.
-    plan_label: str | None = None
+    summary_plan: str | None = None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -231,7 +231,7 @@ def record_flight(
         progress=progress,
     )
     summary = dict(result.summary)
-    summary["plan"] = request.plan_label if request.plan_label is not None else str(setup.plan)
+    summary["plan"] = request.summary_plan if request.summary_plan is not None else str(setup.plan)
     if request.bus is not None:
         summary.update(request.bus.after_flight())
     manifest = None

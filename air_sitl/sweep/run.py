@@ -165,7 +165,7 @@ def _fly(task: RunTask, plan: Path, out: Path) -> dict[str, Any]:
         out=out,
         bus=bus_sinks_from_args(args),
         io_thread=False,
-        plan_label=task.plan_path,
+        summary_plan=task.plan_path,
     )
     with request.bus or contextlib.nullcontext():
         record_flight(request)
