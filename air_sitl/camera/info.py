@@ -23,20 +23,25 @@ DEFAULT_MOUNTING = (
 )
 
 
-def camera_yaml_dict(
-    *,
-    width_px: int,
-    height_px: int,
-    fx_px: float,
-    fy_px: float,
-    cx_px: float,
-    cy_px: float,
-    q_camera_to_body_wxyz: Sequence[float],
-    mounting: str = DEFAULT_MOUNTING,
-    extra: Mapping[str, Any] | None = None,
-    distortion: Sequence[float] = (0.0, 0.0, 0.0, 0.0, 0.0),
-) -> dict[str, Any]:
-    """The camera description as a plain dict in ROS camera_info YAML order."""
+def camera_yaml_dict(camera: CameraModel) -> dict[str, Any]:
+    """The camera description as a plain dict in ROS camera_info YAML order, then our FOV,
+    mounting, noise and effects."""
+    width_px, height_px = camera.width_px, camera.height_px
+    fx_px, fy_px, cx_px, cy_px = camera.fx_px, camera.fy_px, camera.cx_px, camera.cy_px
+    mounting = DEFAULT_MOUNTING
+    if any(a != 0.0 for a in camera.mount_rpy_deg):
+        mounting = f"{DEFAULT_MOUNTING}; then rotated by roll/pitch/yaw {camera.mount_rpy_deg} deg"
+    extra: dict[str, Any] = {
+        "mount_rpy_deg": [float(a) for a in camera.mount_rpy_deg],
+        "noise_sigma": float(camera.noise_sigma),
+        "jpeg_quality": int(camera.jpeg_quality),
+    }
+    distortion: tuple[float, ...] = (0.0,) * 5
+    if camera.effects is not None:
+        effects = camera.effects
+        distortion = effects.distortion
+        extra["exposure_time_s"] = float(effects.exposure_time_s)
+        extra["effects"] = effects.settings()
     hfov = math.degrees(2.0 * math.atan(width_px / (2.0 * fx_px)))
     vfov = math.degrees(2.0 * math.atan(height_px / (2.0 * fy_px)))
     content: dict[str, Any] = {
@@ -81,13 +86,12 @@ def camera_yaml_dict(
         "vfov_deg": round(vfov, 6),
         "rate_hz": 50,
         "mounting": {
-            "q_camera_to_body_frd_wxyz": [round(float(c), 12) for c in q_camera_to_body_wxyz],
+            "q_camera_to_body_frd_wxyz": [round(float(c), 12) for c in q_cam_to_body_wxyz(camera)],
             "description": mounting,
         },
     }
     content["camera_matrix"]["data"] = [float(x) for x in content["camera_matrix"]["data"]]
-    if extra:
-        content.update(extra)
+    content.update(extra)
     return content
 
 
@@ -149,30 +153,4 @@ def camera_fields(camera: CameraModel) -> dict[str, Any]:
 
 def camera_yaml_for(camera: CameraModel) -> str:
     """``camera.yaml`` of a camera model (ROS camera_info layout + FOV, mounting, noise)."""
-    mounting = DEFAULT_MOUNTING
-    if any(a != 0.0 for a in camera.mount_rpy_deg):
-        mounting = f"{DEFAULT_MOUNTING}; then rotated by roll/pitch/yaw {camera.mount_rpy_deg} deg"
-    extra: dict[str, Any] = {
-        "mount_rpy_deg": [float(a) for a in camera.mount_rpy_deg],
-        "noise_sigma": float(camera.noise_sigma),
-        "jpeg_quality": int(camera.jpeg_quality),
-    }
-    distortion: tuple[float, ...] = (0.0,) * 5
-    if camera.effects is not None:
-        fx = camera.effects
-        distortion = fx.distortion
-        extra["exposure_time_s"] = float(fx.exposure_time_s)
-        extra["effects"] = fx.settings()
-    content = camera_yaml_dict(
-        distortion=distortion,
-        width_px=camera.width_px,
-        height_px=camera.height_px,
-        fx_px=camera.fx_px,
-        fy_px=camera.fy_px,
-        cx_px=camera.cx_px,
-        cy_px=camera.cy_px,
-        q_camera_to_body_wxyz=q_cam_to_body_wxyz(camera),
-        mounting=mounting,
-        extra=extra,
-    )
-    return camera_yaml_text(content)
+    return camera_yaml_text(camera_yaml_dict(camera))

@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 import air_sitl.dataset
-from air_sitl.camera.info import camera_yaml_dict, camera_yaml_text
+from air_sitl.camera.info import camera_yaml_for
+from air_sitl.camera.model import CameraModel
 from air_sitl.dataset.air_schema import AIR_COLUMNS, frame_filename
 from air_sitl.dataset.check import check_archive
 from air_sitl.dataset.estimates import fill_svo_columns
@@ -28,17 +29,7 @@ FRAMES = 120
 
 
 def _info() -> ArchiveInfo:
-    camera = camera_yaml_text(
-        camera_yaml_dict(
-            width_px=W,
-            height_px=H,
-            fx_px=100.0,
-            fy_px=100.0,
-            cx_px=(W - 1) / 2,
-            cy_px=(H - 1) / 2,
-            q_camera_to_body_wxyz=(1.0, 0.0, 0.0, 0.0),
-        )
-    )
+    camera = camera_yaml_for(CameraModel(width_px=W, height_px=H))
     home = {"lat_deg": HOME.lat_deg, "lon_deg": HOME.lon_deg, "alt_amsl_m": HOME.alt_amsl_m}
     return ArchiveInfo(
         scenario="TEST",
