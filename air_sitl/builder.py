@@ -15,8 +15,12 @@ from pathlib import Path
 
 from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
-from air_sitl.camera.options import close_map, open_chosen_map, open_chosen_surface
-from air_sitl.camera.render import Renderer
+from air_sitl.camera.options import (
+    close_map,
+    open_chosen_map,
+    open_chosen_renderer,
+    open_chosen_surface,
+)
 from air_sitl.maps.base import MapSource
 from air_sitl.maps.surface import SurfaceModel
 from air_sitl.mission.geometry import shift_altitudes
@@ -150,12 +154,7 @@ def open_setup_map(setup: FlightSetup) -> MapSource:
 def open_camera(setup: FlightSetup, map_source: MapSource) -> CameraBridge:
     """The camera rendering ``map_source`` for ``setup`` (FrameSource; needs a camera model)."""
     assert setup.camera is not None, "open_camera: the setup flies without a camera"
-    renderer = Renderer(
-        map_source,
-        setup.camera,
-        seed=setup.options.seed,
-        surface=open_chosen_surface(setup.map, map_source),
-    )
+    renderer = open_chosen_renderer(setup.map, map_source, setup.camera, setup.options.seed)
     return CameraBridge(renderer, workers=setup.render_workers)
 
 

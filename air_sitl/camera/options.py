@@ -8,6 +8,7 @@ import argparse
 from air_sitl.camera.effects import NAMES as EFFECT_NAMES
 from air_sitl.camera.effects import effects_from_options
 from air_sitl.camera.model import DEFAULT_JPEG_QUALITY, DEFAULT_NOISE_SIGMA, CameraModel
+from air_sitl.camera.render import Renderer
 from air_sitl.errors import CameraError
 from air_sitl.maps.base import MapSource
 from air_sitl.maps.open import default_map_for_plan, open_map, open_surface
@@ -99,6 +100,13 @@ def open_chosen_map(choice: MapChoice, home: GeoPoint, plan_name: str = "") -> M
 def open_chosen_surface(choice: MapChoice, map_source: MapSource) -> SurfaceModel | None:
     """The surface ``choice.dem`` names over ``map_source`` (None: the flat ground)."""
     return open_surface(choice.dem, map_source)
+
+
+def open_chosen_renderer(
+    choice: MapChoice, map_source: MapSource, camera: CameraModel, seed: int
+) -> Renderer:
+    """The Renderer of ``map_source`` for ``camera``, over the surface ``choice.dem`` names."""
+    return Renderer(map_source, camera, seed=seed, surface=open_chosen_surface(choice, map_source))
 
 
 def close_map(source: object) -> None:

@@ -10,6 +10,7 @@ so run on another host. Runs until SIGINT or SIGTERM.
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 from air_sitl.bus.args import add_connection_arguments, bus_config_from_args
 from air_sitl.bus.keys import KeySpace
@@ -22,10 +23,10 @@ from air_sitl.camera.options import (
     add_map_arguments,
     camera_from_args,
     close_map,
+    map_choice_from_args,
     open_chosen_map,
-    open_chosen_surface,
+    open_chosen_renderer,
 )
-from air_sitl.camera.render import Renderer
 from air_sitl.errors import BusError
 from air_sitl.maps.base import MapSource
 from air_sitl.options import MapChoice
@@ -53,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     keys = KeySpace(args.vehicle)
     camera = camera_from_args(args)  # validates the options before joining the bus
     spec = args.map or "urban"
-    choice = MapChoice(spec=spec, seed=args.map_seed, date=args.map_date, dem=args.dem)
+    choice = replace(map_choice_from_args(args), spec=spec)
     maps: list[MapSource] = []
 
     def factory(settings: RenderSettings) -> RenderFn:
@@ -91,9 +92,7 @@ def _renderer(choice: MapChoice, settings: RenderSettings, maps: list[MapSource]
         raise BusError(msg) from None
     map_source = open_chosen_map(choice, settings.home)
     maps.append(map_source)
-    renderer = Renderer(
-        map_source, camera, seed=settings.seed, surface=open_chosen_surface(choice, map_source)
-    )
+    renderer = open_chosen_renderer(choice, map_source, camera, settings.seed)
 
     def render(state: VehicleState, index: int) -> RenderedFrame:
         jpeg, xy = renderer.frame_jpeg(state, index)

@@ -15,9 +15,9 @@ from air_sitl.camera.options import (
     camera_from_args,
     map_choice_from_args,
     open_chosen_map,
-    open_chosen_surface,
+    open_chosen_renderer,
 )
-from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.camera.render import pose_state
 from air_sitl.errors import OptionError
 from air_sitl.files import write_bytes_atomic
 from air_sitl.state import GeoPoint
@@ -81,8 +81,8 @@ def run(args: argparse.Namespace) -> int:
     camera = camera_from_args(args)
     choice = map_choice_from_args(args)
     map_source = open_chosen_map(choice, home)
-    surface = open_chosen_surface(choice, map_source)
-    renderer = Renderer(map_source, camera, seed=args.seed, surface=surface)
+    renderer = open_chosen_renderer(choice, map_source, camera, args.seed)
+    surface = renderer.surface
     ground = args.ground_alt_m if surface is None else surface.height_at(args.lat, args.lon)
     alt_amsl = args.alt_amsl if args.alt_amsl is not None else ground + args.alt_agl
     if alt_amsl <= ground:
