@@ -131,6 +131,20 @@ def build(name: str) -> Scenario:
             alt_m=alt,
         )
 
+    def capture(command: int, interval_s: float, images: float) -> MissionItem:
+        """IMAGE_START_CAPTURE / IMAGE_STOP_CAPTURE of camera 0, no position (QGC: null)."""
+        return MissionItem(
+            command=command,
+            frame=MavFrame.MISSION,
+            param1=0.0,
+            param2=interval_s,
+            param3=images,
+            param4=math.nan,
+            lat_deg=math.nan,
+            lon_deg=math.nan,
+            alt_m=math.nan,
+        )
+
     t_lat, t_lon = at(TAKEOFF_POINT_M, 0.0)
     s = HOME_TO_START_M  # S is at (s, 0)
     items = [
@@ -153,17 +167,7 @@ def build(name: str) -> Scenario:
         ),
         waypoint(s - RUN_IN_M, 0.0),
         waypoint(s, 0.0),
-        MissionItem(
-            command=MavCmd.IMAGE_START_CAPTURE,
-            frame=MavFrame.MISSION,
-            param1=0.0,
-            param2=CAPTURE_INTERVAL_S,
-            param3=0.0,
-            param4=math.nan,
-            lat_deg=math.nan,
-            lon_deg=math.nan,
-            alt_m=math.nan,
-        ),
+        capture(MavCmd.IMAGE_START_CAPTURE, CAPTURE_INTERVAL_S, 0.0),
     ]
     if shape == "L":
         items.append(waypoint(s + distance, 0.0))
@@ -203,17 +207,7 @@ def build(name: str) -> Scenario:
     else:  # pragma: no cover - PAPER has only L, R, C
         raise ValueError(name)
     items += [
-        MissionItem(
-            command=MavCmd.IMAGE_STOP_CAPTURE,
-            frame=MavFrame.MISSION,
-            param1=0.0,
-            param2=math.nan,
-            param3=math.nan,
-            param4=math.nan,
-            lat_deg=math.nan,
-            lon_deg=math.nan,
-            alt_m=math.nan,
-        ),
+        capture(MavCmd.IMAGE_STOP_CAPTURE, math.nan, math.nan),
         MissionItem(command=MavCmd.NAV_RETURN_TO_LAUNCH, frame=MavFrame.MISSION, param4=0.0),
     ]
     mission = Mission(
