@@ -18,6 +18,7 @@ for its second half.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 import time
@@ -156,6 +157,7 @@ def archive(folder: Path) -> None:
     from types import SimpleNamespace
 
     from air_sitl.frames import quat2euler
+    from air_sitl.localize.archive import gnss_fix_of_row
     from air_sitl.nav import NavFilter
     from air_sitl.nav.sensors_extra import AirspeedSensor, Barometer, Magnetometer
     from air_sitl.state import GeoPoint, GpsFix, ImuSample
@@ -181,15 +183,7 @@ def archive(folder: Path) -> None:
         t = int(r["gps_time_ns"] or -1)
         if t >= 0 and t not in fixes and r["gps_fix_type"] == "3":
             fixes[t] = GpsFix(
-                sim_time_ns=t,
-                lat_deg=float(r["gps_lat_deg"]),
-                lon_deg=float(r["gps_lon_deg"]),
-                alt_amsl_m=float(r["gps_alt_amsl_m"]),
-                vel_ned_m_s=(
-                    float(r["gps_vn_m_s"]),
-                    float(r["gps_ve_m_s"]),
-                    float(r["gps_vd_m_s"]),
-                ),
+                **dataclasses.asdict(gnss_fix_of_row(r)),  # time, position, velocity
                 fix_type=3,
                 satellites=int(r["gps_satellites"]),
                 eph_m=float(r["gps_eph_m"]),

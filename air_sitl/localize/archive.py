@@ -238,6 +238,22 @@ def observations(
         prev_t = t
 
 
+def gnss_fix_of_row(row: Mapping[str, str]) -> base.GnssFix:
+    """The GNSS time, position and velocity of one ``frames.csv`` row (KeyError or ValueError
+    when it has none)."""
+    return base.GnssFix(
+        sim_time_ns=int(row["gps_time_ns"]),
+        lat_deg=float(row["gps_lat_deg"]),
+        lon_deg=float(row["gps_lon_deg"]),
+        alt_amsl_m=float(row["gps_alt_amsl_m"]),
+        vel_ned_m_s=(
+            float(row["gps_vn_m_s"]),
+            float(row["gps_ve_m_s"]),
+            float(row["gps_vd_m_s"]),
+        ),
+    )
+
+
 def _fix_of(
     row: dict[str, str],
     k: int,
@@ -252,20 +268,10 @@ def _fix_of(
     try:
         if row.get("gps_fix_type", "") in ("", "0", "1") or not row.get("gps_time_ns"):
             return None
-        fix_t = int(row["gps_time_ns"])
-        fix = base.GnssFix(
-            sim_time_ns=fix_t,
-            lat_deg=float(row["gps_lat_deg"]),
-            lon_deg=float(row["gps_lon_deg"]),
-            alt_amsl_m=float(row["gps_alt_amsl_m"]),
-            vel_ned_m_s=(
-                float(row["gps_vn_m_s"]),
-                float(row["gps_ve_m_s"]),
-                float(row["gps_vd_m_s"]),
-            ),
-        )
+        fix = gnss_fix_of_row(row)
     except (KeyError, ValueError):
         return None
+    fix_t = fix.sim_time_ns
     if k == 0:
         return fix
     if fix_t == last_fix_t or any(a <= fix_t < b or a <= t_ns < b for a, b in windows):
