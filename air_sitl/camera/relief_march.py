@@ -13,12 +13,11 @@ at (px0 - z * ax, py0 - z * ay). Heights are sampled bilinearly, edges repeated 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
 
-import numba
 import numpy as np
 import numpy.typing as npt
+
+from air_sitl.compiled import compiled
 
 F32 = npt.NDArray[np.float32]
 _TILE_BITS = 3
@@ -31,25 +30,7 @@ SECANT = 3  # secant steps at most (after the first, each staying within TOL_M)
 EDGE_PX = 2.0  # a cell is re-solved where the parallax bends by more at a corner (px)
 FLAT_M = 0.25  # a 2-pixel cell whose corners' hits differ by less is interpolated (m)
 _MIN_DOWN = 1e-6
-
-
-def _compiled() -> Callable[[Callable[..., Any]], Any]:
-    """numba.njit without the GIL, IEEE division (error_model "numpy": a division by zero
-    gives inf, no Python check per division; the code divides only by non-zero values),
-    and machine code cached on disk where numba finds a writable place (next to this file
-    or in the user's cache directory); where it finds none, compiled anew in each process
-    rather than failing."""
-
-    def wrap(fn: Callable[..., Any]) -> Any:
-        try:
-            return numba.njit(fn, cache=True, nogil=True, error_model="numpy")
-        except RuntimeError:  # numba: "cannot cache function ...: no locator available"
-            return numba.njit(fn, nogil=True, error_model="numpy")
-
-    return wrap
-
-
-_jit = _compiled()
+_jit = compiled
 
 
 @_jit

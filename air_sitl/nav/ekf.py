@@ -133,18 +133,6 @@ def unit_product(
     return (qw * inv, qx * inv, qy * inv, qz * inv)
 
 
-# Index arrays of the entries of F that change at each covariance step: position-velocity,
-# position-attitude, velocity-attitude, velocity-accel bias, attitude-gyro bias.
-_F_ROWS = np.array(
-    (0, 1, 2, 0, 0, 1, 1, 2, 2, 3, 3, 4, 4, 5, 5, 3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7,
-     8, 8, 8)
-)  # fmt: skip
-_F_COLS = np.array(
-    (3, 4, 5, 7, 8, 6, 8, 6, 7, 7, 8, 6, 8, 6, 7, 12, 13, 14, 12, 13, 14, 12, 13, 14, 9, 10, 11,
-     9, 10, 11, 9, 10, 11)
-)  # fmt: skip
-
-
 class ErrorStateEkf:
     """Nominal state as floats, covariance as a 17x17 numpy array; no time handling here."""
 
@@ -158,7 +146,6 @@ class ErrorStateEkf:
         self.ba: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self.wind: tuple[float, float] = (0.0, 0.0)
         self.P: Matrix = np.zeros((N_STATES, N_STATES))
-        self._F: Matrix = np.eye(N_STATES)
         # Deltas summed since the last covariance step.
         self._cov_dt = 0.0
         self._cov_dv = [0.0, 0.0, 0.0]
@@ -169,7 +156,12 @@ class ErrorStateEkf:
         self._q_diag: Matrix = np.zeros(N_STATES)
         # Corrections since the output predictor last took them (summed: first order).
         self.pending: Matrix = np.zeros(N_STATES)
+        self.dx: Matrix = np.zeros(N_STATES)  # the last measurement update's correction
         self._corrected = False
+        # numba (0.4 s to import, compiled code loaded from its cache) only where a filter runs.
+        from air_sitl.nav import kernels
+
+        self.kernels = kernels
 
     def init_covariance(self) -> None:
         p = self.params
@@ -199,16 +191,9 @@ class ErrorStateEkf:
     def _predict_covariance(self) -> None:
         T = self._cov_dt
         dvx, dvy, dvz = self._cov_dv
-        r = rotation_matrix(self.q)
-        mrt = [-e * T for e in r]
-        hx, hy, hz = 0.5 * T * dvx, 0.5 * T * dvy, 0.5 * T * dvz
-        values = [T, T, T, hz, -hy, -hz, hx, hy, -hx, dvz, -dvy, -dvz, dvx, dvy, -dvx]
-        values += mrt + mrt
-        F = self._F
-        F[_F_ROWS, _F_COLS] = values
-        P = F @ self.P @ F.T
-        P.ravel()[:: N_STATES + 1] += self._process_noise(T)  # the diagonal, in place
-        self.P = 0.5 * (P + P.T)
+        self.kernels.predict_covariance(
+            self.P, rotation_matrix(self.q), T, dvx, dvy, dvz, self._process_noise(T)
+        )
         self._cov_dt = 0.0
         self._cov_dv = [0.0, 0.0, 0.0]
         self._cov_steps = 0
@@ -227,11 +212,17 @@ class ErrorStateEkf:
             self._q_T = T
         return self._q_diag
 
-    def correct(self, correction: Matrix | list[float]) -> None:
-        """Inject an error-state correction into the nominal state."""
-        self.pending += correction
+    def correct(self, dx: list[float]) -> None:
+        """Inject an error-state correction into the nominal state and the pending sum."""
+        pending = self.pending
+        for i, d in enumerate(dx):
+            pending[i] += d
+        self.inject(dx)
+
+    def inject(self, dx: list[float]) -> None:
+        """Inject a correction into the nominal state (a measurement update has already
+        added it to ``pending``)."""
         self._corrected = True
-        dx = correction.tolist() if isinstance(correction, np.ndarray) else correction
         p, v, bg, ba, w = self.p, self.v, self.bg, self.ba, self.wind
         self.p = (p[0] + dx[0], p[1] + dx[1], p[2] + dx[2])
         self.v = (v[0] + dx[3], v[1] + dx[4], v[2] + dx[5])

@@ -307,7 +307,8 @@ class NavFilter:
                 out.g,
             )
         lat, lon, alt = self._local.to_geodetic(p[0], p[1], p[2])
-        (a, b), (_, c) = ekf.P[:2, :2].tolist()
+        P = ekf.P
+        a, b, c = P.item(0, 0), P.item(0, 1), P.item(1, 1)
         big = 0.5 * (a + c) + math.sqrt(max(0.0, 0.25 * (a - c) ** 2 + b * b))
         return nav_estimate(  # positional, in NavEstimate's field order (every filter period)
             t,
@@ -318,7 +319,7 @@ class NavFilter:
             lon,
             alt,
             math.sqrt(max(big, 0.0)),
-            math.sqrt(max(ekf.P.item(2, 2), 0.0)),
+            math.sqrt(max(P.item(2, 2), 0.0)),
             ekf.wind,
             ekf.bg,
             ekf.ba,

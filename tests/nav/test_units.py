@@ -10,8 +10,8 @@ import pytest
 
 from air_sitl.frames import WGS84_A_M, WGS84_E2, euler2quat, geodetic2ecef, geodetic_lat_alt
 from air_sitl.nav import NavFilter
-from air_sitl.nav.ekf import ErrorStateEkf, integrate
-from air_sitl.nav.fusion import _inverse, fuse_direct, fuse_scalar
+from air_sitl.nav.ekf import ErrorStateEkf, integrate, rotation_matrix
+from air_sitl.nav.fusion import fuse_direct, fuse_scalar
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.sensors_extra import AirspeedSensor, Barometer, Magnetometer
 from air_sitl.state import ImuSample, NavEstimate, VehicleState
@@ -27,26 +27,32 @@ def _ekf(seed: int) -> ErrorStateEkf:
 
 
 @pytest.mark.parametrize("m", [1, 2, 3])
-def test_inverse_matches_numpy(m: int) -> None:
-    rng = np.random.default_rng(m)
-    a = rng.standard_normal((m, m))
-    s = a @ a.T + np.eye(m)
-    assert np.allclose(_inverse(s.tolist()), np.linalg.inv(s))  # type: ignore[arg-type]
-    assert _inverse((-s).tolist()) is None
-
-
-def test_fuse_direct_is_the_textbook_update() -> None:
-    ekf = _ekf(1)
+def test_fuse_direct_is_the_textbook_update(m: int) -> None:
+    ekf = _ekf(m)
     P0 = ekf.P.copy()
-    H = np.zeros((2, 17))
-    H[0, 3] = H[1, 4] = 1.0
-    R = np.array([[2.0, 0.3], [0.3, 1.0]])
-    y = np.array([0.5, -0.2])
-    K = P0 @ H.T @ np.linalg.inv(H @ P0 @ H.T + R)
+    H = np.zeros((m, 17))
+    for i in range(m):
+        H[i, 3 + i] = 1.0
+    R = np.array([[2.0, 0.3, -0.1], [0.3, 1.0, 0.2], [-0.1, 0.2, 1.5]])[:m, :m]
+    y = np.array([0.5, -0.2, 0.1])[:m]
+    S = H @ P0 @ H.T + R
+    K = P0 @ H.T @ np.linalg.inv(S)
     res = fuse_direct(ekf, 3, y.tolist(), R.tolist(), gate=100.0)
     assert res.fused
+    assert res.test_ratio == pytest.approx(float(y @ np.linalg.solve(S, y)) / 1e4)
     assert np.allclose(ekf.P, (np.eye(17) - K @ H) @ P0)
     assert np.allclose(ekf.pending, K @ y)
+    assert ekf.v == pytest.approx((K @ y)[3:6])  # injected into the nominal state
+
+
+@pytest.mark.parametrize("m", [1, 2, 3])
+def test_fuse_direct_refuses_an_unusable_innovation_covariance(m: int) -> None:
+    ekf = _ekf(m)
+    P0 = ekf.P.copy()
+    R = (-1e9 * np.eye(m)).tolist()  # S = P block + R is not positive
+    res = fuse_direct(ekf, 3, [0.1] * m, R, gate=100.0, force=True)
+    assert not res.fused and res.test_ratio == math.inf
+    assert np.array_equal(ekf.P, P0) and not ekf.pending.any()
 
 
 def test_fuse_scalar_is_the_textbook_update_and_gates() -> None:
@@ -256,3 +262,27 @@ def test_positional_builders_are_the_dataclass(cls: type) -> None:
     assert {f.name: getattr(built, f.name) for f in fields(built)} == values
     with pytest.raises(FrozenInstanceError):
         built.lat_deg = 0.0
+
+
+def test_covariance_step_is_f_p_ft_plus_q() -> None:
+    """The compiled sparse step equals the dense F P F' + Q of the error-state model."""
+    ekf = _ekf(4)
+    P0 = ekf.P.copy()
+    ekf.q = euler2quat(0.2, -0.1, 1.3)
+    T, dv = 0.08, (0.3, -0.2, -0.78)
+    ekf._cov_dt, ekf._cov_dv = T, list(dv)
+    ekf._predict_covariance()
+
+    def skew(x: float, y: float, z: float) -> np.ndarray:
+        return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+    R = np.array(rotation_matrix(ekf.q)).reshape(3, 3)
+    F = np.eye(17)
+    F[0:3, 3:6] = T * np.eye(3)
+    F[0:3, 6:9] = -skew(*(0.5 * T * d for d in dv))
+    F[3:6, 6:9] = -skew(*dv)
+    F[3:6, 12:15] = -R * T
+    F[6:9, 9:12] = -R * T
+    expected = F @ P0 @ F.T + np.diag(ekf._process_noise(T))
+    assert np.allclose(ekf.P, 0.5 * (expected + expected.T), rtol=1e-12, atol=1e-12)
+    assert np.array_equal(ekf.P, ekf.P.T)
