@@ -24,6 +24,22 @@ Matrix = npt.NDArray[np.float64]
 
 
 @compiled
+def _f_times(M: Matrix, cols: npt.NDArray[np.int64], vals: Matrix) -> Matrix:
+    """F M for F = I + the off-diagonal entries (``cols``, ``vals``: per row, -1 ends)."""
+    n = M.shape[0]
+    out = M.copy()
+    for i in range(n):
+        for e in range(cols.shape[1]):
+            c = cols[i, e]
+            if c < 0:
+                break
+            f = vals[i, e]
+            for j in range(n):
+                out[i, j] += f * M[c, j]
+    return out
+
+
+@compiled
 def predict_covariance(
     P: Matrix, r: tuple[float, ...], T: float, dvx: float, dvy: float, dvz: float,
     q_diag: Matrix,
@@ -56,31 +72,13 @@ def predict_covariance(
             vals[3 + i, 2 + j] = m
             cols[6 + i, j] = 9 + j
             vals[6 + i, j] = m
-    # A = F P
-    A = P.copy()
-    for i in range(n):
-        for e in range(6):
-            c = cols[i, e]
-            if c < 0:
-                break
-            f = vals[i, e]
-            for j in range(n):
-                A[i, j] += f * P[c, j]
-    # B = A F'
-    B = A.copy()
-    for j in range(n):
-        for e in range(6):
-            c = cols[j, e]
-            if c < 0:
-                break
-            f = vals[j, e]
-            for i in range(n):
-                B[i, j] += A[i, c] * f
+    # F P F' = F (F P)' (F P is A, A' its transpose): F applied to rows, twice.
+    B = _f_times(_f_times(P, cols, vals).T, cols, vals)  # = (A F')', transposed back below
     for i in range(n):
         B[i, i] += q_diag[i]
     for i in range(n):
         for j in range(i, n):
-            s = 0.5 * (B[i, j] + B[j, i])
+            s = 0.5 * (B[j, i] + B[i, j])
             P[i, j] = s
             P[j, i] = s
 
