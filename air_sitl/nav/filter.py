@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from typing import Protocol, TypeVar
 
 from air_sitl.frames import LocalNed, euler2quat
 from air_sitl.nav.aid import AidControl
@@ -30,6 +31,22 @@ from air_sitl.nav.types import (
 )
 from air_sitl.nav.vehicle import nav_estimate
 from air_sitl.state import GeoPoint, GpsFix, ImuSample, NavEstimate, NavFlags
+
+
+class _Stamped(Protocol):
+    @property
+    def sim_time_ns(self) -> int: ...
+
+
+S_contra = TypeVar("S_contra", bound=_Stamped, contravariant=True)
+S = TypeVar("S", bound=_Stamped)
+
+
+class _Source(Protocol[S_contra]):
+    """A source's buffer of measurements: GNSS, barometer, airspeed, compass."""
+
+    def push(self, sample: S_contra, now_ns: int, horizon_start_ns: int) -> bool: ...
+
 
 MAX_AIDS = 16
 REPLAY_PERIOD_NS = 1_000_000_000
@@ -214,29 +231,25 @@ class NavFilter:
             start = max(start, self._t_delayed + 1)
         return start
 
-    def _arrival(self, now_ns: int | None, stamp_ns: int) -> tuple[int, int]:
-        """(arrival time, start of the horizon then) of a measurement stamped ``stamp_ns``;
-        the arrival defaults to the newest IMU time."""
+    def _buffer(self, source: _Source[S], sample: S, now_ns: int | None) -> bool:
+        """Hand a measurement to its source with the arrival time (default: the newest IMU
+        time) and the start of the delayed horizon then."""
         if now_ns is None:
-            now_ns = self._t_imu if self._t_imu is not None else stamp_ns
-        return now_ns, self._horizon_start(now_ns)
+            now_ns = self._t_imu if self._t_imu is not None else sample.sim_time_ns
+        return source.push(sample, now_ns, self._horizon_start(now_ns))
 
     def fuse_gnss(self, fix: GpsFix, now_ns: int | None = None) -> bool:
         """Buffer one GNSS fix (arrived at ``now_ns``, default: the newest IMU time)."""
-        now, start = self._arrival(now_ns, fix.sim_time_ns)
-        return self.gnss.push(fix, now, start)
+        return self._buffer(self.gnss, fix, now_ns)
 
     def fuse_baro(self, sample: BaroSample, now_ns: int | None = None) -> bool:
-        now, start = self._arrival(now_ns, sample.sim_time_ns)
-        return self.baro.push(sample, now, start)
+        return self._buffer(self.baro, sample, now_ns)
 
     def fuse_airspeed(self, sample: AirspeedSample, now_ns: int | None = None) -> bool:
-        now, start = self._arrival(now_ns, sample.sim_time_ns)
-        return self.airspeed.push(sample, now, start)
+        return self._buffer(self.airspeed, sample, now_ns)
 
     def fuse_heading(self, sample: HeadingSample, now_ns: int | None = None) -> bool:
-        now, start = self._arrival(now_ns, sample.sim_time_ns)
-        return self.mag.push(sample, now, start)
+        return self._buffer(self.mag, sample, now_ns)
 
     def fuse_aid(self, measurement: AidMeasurement, now_ns: int) -> AidResult:
         """Check and buffer one external position (never raises on bad content).
