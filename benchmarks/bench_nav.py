@@ -206,6 +206,14 @@ def archive(folder: Path) -> None:
     }
     capture = [int(r["sim_time_ns"]) for r in frames]
     c0, c1 = capture[0], capture[-1]
+    last_fix = max((t for t in fixes if t <= c1), default=None)
+    if last_fix is None or c1 - last_fix > 5 * 10**9:
+        since = "the whole capture window" if last_fix is None else f"{last_fix / 1e9:.0f} s on"
+        print(
+            f"{folder.name}: frames.csv has no GNSS fix from {since} (GNSS denied in this "
+            "flight?): the scores below dead-reckon there and do not say how the filter does "
+            "with GNSS"
+        )
     samples = [
         ImuSample(
             sim_time_ns=int(r["sim_time_ns"]),
