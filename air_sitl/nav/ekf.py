@@ -161,6 +161,7 @@ class ErrorStateEkf:
         # numba (0.4 s to import, compiled code loaded from its cache) only where a filter runs.
         from air_sitl.nav import kernels
 
+        kernels.warm()
         self.kernels = kernels
 
     def init_covariance(self) -> None:
