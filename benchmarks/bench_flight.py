@@ -23,7 +23,10 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from air_sitl.builder import FlightSetup, build_flight
+from air_sitl.builder import FlightSetup, build_flight, load_setup
+from air_sitl.clock import NS_PER_S
+from air_sitl.options import FlightOptions, MapChoice
+from air_sitl.state import ActuatorCommand
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -56,11 +59,6 @@ def paired_cost(setup: FlightSetup, steps: int) -> tuple[float, float, float, in
 
 
 def main() -> None:
-    from air_sitl.builder import load_setup
-    from air_sitl.clock import NS_PER_S
-    from air_sitl.options import FlightOptions, MapChoice
-    from air_sitl.state import ActuatorCommand
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenario", nargs="?", default="FR-300")
     parser.add_argument("--seconds", type=float, default=600.0)

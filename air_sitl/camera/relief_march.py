@@ -30,10 +30,9 @@ SECANT = 3  # secant steps at most (after the first, each staying within TOL_M)
 EDGE_PX = 2.0  # a cell is re-solved where the parallax bends by more at a corner (px)
 FLAT_M = 0.25  # a 2-pixel cell whose corners' hits differ by less is interpolated (m)
 _MIN_DOWN = 1e-6
-_jit = compiled
 
 
-@_jit
+@compiled
 def tile_max(values: F32) -> F32:
     """Highest height of each TILE x TILE tile, its far edges included (what a bilinear
     sample inside the tile can reach)."""
@@ -51,7 +50,7 @@ def tile_max(values: F32) -> F32:
     return out
 
 
-@_jit
+@compiled
 def _height(values: F32, x: float, y: float) -> float:
     """Bilinear height at level pixel (x, y) of the window, edges repeated outward."""
     h, w = values.shape
@@ -65,7 +64,7 @@ def _height(values: F32, x: float, y: float) -> float:
     return top * (1.0 - fy) + bottom * fy
 
 
-@_jit
+@compiled
 def _refine(
     values: F32, px0: float, py0: float, ax: float, ay: float,
     z_lo: float, f_lo: float, z_hi: float, f_hi: float,
@@ -85,7 +84,7 @@ def _refine(
     return z_lo
 
 
-@_jit
+@compiled
 def march_ray(
     values: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
     z_top: float, z_bot: float,
@@ -139,7 +138,7 @@ def march_ray(
         z, f = zn, fn
 
 
-@_jit
+@compiled
 def settle_ray(
     values: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
     corners: npt.NDArray[np.float64], cam_z: float, h_min: float, h_max: float,
@@ -192,7 +191,7 @@ def settle_ray(
     return z_hit, found
 
 
-@_jit
+@compiled
 def _ray(
     r: npt.NDArray[np.float64], jac: npt.NDArray[np.float64], s: float, u: float, v: float
 ) -> tuple[float, float]:
@@ -207,7 +206,7 @@ def _ray(
     return (jac[0] * dn + jac[1] * de) * inv, (jac[2] * dn + jac[3] * de) * inv
 
 
-@_jit
+@compiled
 def _edges(grid: F32, h_min: float, parent: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     """Cells next to a sample where the parallax (pixels of lean) bends by more than
     EDGE_PX: its second difference along rows and columns, zero on a plane or a steady
@@ -238,7 +237,7 @@ def _edges(grid: F32, h_min: float, parent: npt.NDArray[np.bool_]) -> npt.NDArra
     return edge
 
 
-@_jit
+@compiled
 def _upsample(grid: F32) -> F32:
     """Nested x2 upsampling of each plane: old samples kept, midpoints and centres averaged
     (bilinear)."""
@@ -257,7 +256,7 @@ def _upsample(grid: F32) -> F32:
     return out
 
 
-@_jit
+@compiled
 def sample_grid(
     values: F32, tmax: F32, r: npt.NDArray[np.float64], jac: npt.NDArray[np.float64],
     s: float, ox: float, oy: float, cam_z: float, h_min: float, h_max: float,
@@ -320,7 +319,7 @@ def sample_grid(
     return grid, edge, ny * nx, solved
 
 
-@_jit
+@compiled
 def strip_bounds(grid: F32, pad: int, height: int, rows: int) -> F32:
     """(x min, y min, x max, y max) of the map points of each strip of ``rows`` image rows
     (rows [k * rows, (k + 1) * rows)), from the stride-2 samples its pixels interpolate
@@ -344,7 +343,7 @@ def strip_bounds(grid: F32, pad: int, height: int, rows: int) -> F32:
     return out
 
 
-@_jit
+@compiled
 def solve_edge_pixels(
     full: F32, grid: F32, edge: npt.NDArray[np.bool_], values: F32, tmax: F32,
     r: npt.NDArray[np.float64], jac: npt.NDArray[np.float64], s: float, ox: float,
@@ -386,7 +385,7 @@ def solve_edge_pixels(
     return solved
 
 
-@_jit
+@compiled
 def march_rays(
     values: F32, tmax: F32, px0: F32, py0: F32, ax: F32, ay: F32, z_top: F32, z_bot: F32,
 ) -> tuple[F32, npt.NDArray[np.bool_]]:  # fmt: skip
