@@ -3,9 +3,9 @@
 Start: the first reading sets the height (minus an offset taken against GNSS when a fix is
 there). Fuse: height above home = baro altitude - offset - home altitude, as a down position
 in the tangent plane at home (which the Earth curves away from: d^2 / 2R, 2.7 m at 6 km, is
-added). The offset (turn-on
-error plus slow drift) is tracked by a scalar Kalman filter against GNSS altitude while GNSS
-is fusing, and frozen during denial (EKF2 estimates a baro bias the same way). Reset: after
+added; the model: :func:`air_sitl.nav.kernels.fuse_height`). The offset (turn-on error plus
+slow drift) is tracked by a scalar Kalman filter against GNSS altitude while GNSS is fusing,
+and frozen during denial (EKF2 estimates a baro bias the same way). Reset: after
 ``baro_reset_timeout_ns`` of continuous rejection the height jumps to the barometer.
 """
 
@@ -14,12 +14,12 @@ from __future__ import annotations
 import math
 
 from air_sitl.nav.ekf import POS, ErrorStateEkf
-from air_sitl.nav.fusion import fuse_direct
+from air_sitl.nav.fusion import result
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.status import ScalarSource
 from air_sitl.nav.types import BaroSample
 
-CURVATURE_1_M = 0.5 / 6_371_000.0  # 1 / (2 R), mean Earth radius
+CURVATURE_1_M = 0.5 / 6_371_000.0  # 1 / (2 R), mean Earth radius (kernels.fuse_height too)
 
 
 class BaroControl(ScalarSource):
@@ -77,9 +77,11 @@ class BaroControl(ScalarSource):
                 self.counters.fused += 1
                 continue
             lag = (t_ns - t_m) * 1e-9
-            # Measured down position minus the predicted one at the reading's time.
-            y = self._down_m(ekf, alt) - (ekf.p[2] - ekf.v[2] * lag)
-            r = fuse_direct(ekf, POS + 2, [y], [[p.baro_noise_m**2]], p.baro_gate)
+            height = alt - self.offset_m - self.home_alt_m
+            outcome = ekf.kernels.fuse_height(
+                ekf.P, ekf.x, height, lag, p.baro_noise_m**2, p.baro_gate, ekf.dx, ekf.pending
+            )
+            r = result(ekf, outcome)
             self.ratio = r.test_ratio
             if self.counters.gated(r):
                 self.last_fused_ns = t_m

@@ -9,15 +9,15 @@ flags, test ratios). Measurements are buffered and fused when the delayed filter
 from __future__ import annotations
 
 import math
-from collections import deque
 from typing import Protocol, TypeVar
+
+import numpy as np
 
 from air_sitl.frames import LocalNed, euler2quat
 from air_sitl.nav.aid import AidControl
 from air_sitl.nav.airspeed import AirspeedControl
 from air_sitl.nav.baro import BaroControl
-from air_sitl.nav.buffer import ImuDelta, OutputPredictor
-from air_sitl.nav.ekf import POS, VEL, ErrorStateEkf, integrate, normal_gravity_m_s2
+from air_sitl.nav.ekf import POS, VEL, ErrorStateEkf, normal_gravity_m_s2
 from air_sitl.nav.gnss import GnssControl
 from air_sitl.nav.mag import MagControl
 from air_sitl.nav.params import NavParams
@@ -61,10 +61,19 @@ class NavFilter:
         self.home = home
         self._local = LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
         self.params = p = params or NavParams()
-        g = normal_gravity_m_s2(home.lat_deg, home.alt_amsl_m)
-        self.ekf = ErrorStateEkf(p, g)
-        self.output = OutputPredictor(g)
-        self.deltas: deque[ImuDelta] = deque()
+        self.g = g = normal_gravity_m_s2(home.lat_deg, home.alt_amsl_m)
+        self.ekf = ekf = ErrorStateEkf(p, g)
+        self._strapdown = sd = ekf.strapdown
+        # The output predictor (the state at the newest filter period, see strapdown), the
+        # ring of IMU deltas the delayed filter has not reached yet, and its indices.
+        self.output = np.zeros(sd.NO)
+        self.output[6] = 1.0
+        self.output_t_ns = 0
+        ring_len = p.fusion_horizon_ns // p.filter_period_ns + 8
+        self._ring = np.zeros((ring_len, sd.RING_COLS))
+        self._ring_index = np.zeros(2 + ring_len, dtype=np.int64)
+        self._last = np.zeros(sd.LAST)  # the output's running sums at the delayed time
+        self._estimate = np.zeros(20)
         self.gnss = GnssControl(p, home)
         self.baro = BaroControl(p, home.alt_amsl_m)
         self.airspeed = AirspeedControl(p)
@@ -122,26 +131,31 @@ class NavFilter:
             self._push_delta(t)
 
     def _push_delta(self, t: int) -> None:
+        """One filter period: the output predictor and the ring, then the delayed filter over
+        every delta the horizon has reached (one, in steady flight)."""
         a = self._acc
-        dang = (a[0], a[1], a[2])
-        dvel = (a[3], a[4], a[5])
-        dt = self._acc_dt
-        out = self.output
-        ekf = self.ekf
-        out.advance(t, dang, dvel, dt, ekf.bg, ekf.ba)
-        self.deltas.append(ImuDelta(t, dang, dvel, dt, out.cv, out.cp))
+        ekf, sd, ring, ri = self.ekf, self._strapdown, self._ring, self._ring_index
+        sd.advance(
+            self.output, ekf.x, ring, ri, t, a[0], a[1], a[2], a[3], a[4], a[5], self._acc_dt,
+            self.g,
+        )  # fmt: skip
+        self.output_t_ns = t
         self._acc = [0.0] * 6
         self._acc_dt = 0.0
         self._acc_t0 = t
         horizon = t - self._horizon_ns
-        deltas = self.deltas
-        while deltas and deltas[0].t_ns <= horizon:
-            self._delayed_step(deltas.popleft())
+        while True:
+            t_d, dt = sd.delayed_predict(
+                ekf.x, ekf.P, ekf.cov, ring, ri, horizon, ekf.consts, self._last
+            )
+            if t_d < 0:
+                return
+            self._delayed_step(t_d, dt)
 
-    def _delayed_step(self, d: ImuDelta) -> None:
+    def _delayed_step(self, t_d: int, dt: float) -> None:
+        """After the delayed state's prediction to ``t_d``: the measurements due, then the
+        corrections carried to the output predictor (or, once a second, the output replayed)."""
         ekf = self.ekf
-        ekf.predict(d.dang, d.dvel, d.dt)
-        t_d = d.t_ns
         self._t_delayed = t_d
         # A source is asked only once the horizon has reached its oldest measurement.
         if self.mag.buffer.due_ns <= t_d:
@@ -158,14 +172,19 @@ class NavFilter:
             if self.airspeed.wind_started and not self.vel_valid:
                 self.vel_valid = True
         if gnss.started and not gnss.fusing(t_d):
-            self.gnss_denied_ns += round(d.dt * 1e9)
-        out = self.output
-        pending = ekf.take_pending()
+            self.gnss_denied_ns += round(dt * 1e9)
         if t_d - self._last_replay_ns >= REPLAY_PERIOD_NS:
             self._last_replay_ns = t_d
-            out.replay(ekf.p, ekf.v, ekf.q, self.deltas, ekf.bg, ekf.ba)
-        elif pending is not None:
-            out.carry(pending, (out.t_ns - t_d) * 1e-9, d.cv, d.cp)
+            self.replay_output()
+        elif ekf.corrected:
+            window_s = (self.output_t_ns - t_d) * 1e-9
+            self._strapdown.carry(self.output, ekf.pending, window_s, self._last)
+        ekf.corrected = False
+
+    def replay_output(self) -> None:
+        """Recompute the output predictor exactly: the delayed state advanced over the ring."""
+        ekf, ring, ri = self.ekf, self._ring, self._ring_index
+        self._strapdown.replay(self.output, ekf.x, ring, ri, self.g, ekf.pending)
 
     def _fuse_gnss_due(self, t_d: int) -> None:
         gnss = self.gnss
@@ -215,9 +234,10 @@ class NavFilter:
             ekf.P[VEL + k, VEL + k] = UNKNOWN_VEL_M_S**2
         if heading is None:
             ekf.P[8, 8] = math.pi**2
-        ekf.take_pending()
-        out = self.output
-        out.p, out.v, out.q, out.t_ns = ekf.p, ekf.v, ekf.q, t
+        ekf.pending.fill(0.0)
+        ekf.corrected = False
+        self.output[0:10] = ekf.x[0:10]
+        self.output_t_ns = t
         self.aligned = True
         self._acc_t0 = t
         self._t_delayed = t
@@ -303,39 +323,29 @@ class NavFilter:
     def estimate(self) -> NavEstimate:
         """The state at the newest IMU time: the output predictor advanced over the IMU
         samples summed since its last step (fewer than one filter period)."""
-        out = self.output
         ekf = self.ekf
         t = self._t_imu if self._t_imu is not None else 0
-        p, v, q = out.p, out.v, out.q
-        dt = self._acc_dt
-        if self.aligned and dt > 0.0:
-            s, bg, ba = self._acc, ekf.bg, ekf.ba
-            p, v, q, _ = integrate(
-                p,
-                v,
-                q,
-                (s[0] - bg[0] * dt, s[1] - bg[1] * dt, s[2] - bg[2] * dt),
-                (s[3] - ba[0] * dt, s[4] - ba[1] * dt, s[5] - ba[2] * dt),
-                dt,
-                out.g,
-            )
-        lat, lon, alt = self._local.to_geodetic(p[0], p[1], p[2])
-        P = ekf.P
-        a, b, c = P.item(0, 0), P.item(0, 1), P.item(1, 1)
-        big = 0.5 * (a + c) + math.sqrt(max(0.0, 0.25 * (a - c) ** 2 + b * b))
+        s = self._acc
+        dt = self._acc_dt if self.aligned else 0.0
+        res = self._estimate
+        self._strapdown.output_estimate(
+            self.output, ekf.x, ekf.P, s[0], s[1], s[2], s[3], s[4], s[5], dt, self.g, res
+        )
+        r = res.tolist()
+        lat, lon, alt = self._local.to_geodetic(r[0], r[1], r[2])
         return nav_estimate(  # positional, in NavEstimate's field order (every filter period)
             t,
-            p,
-            v,
-            q,
+            (r[0], r[1], r[2]),
+            (r[3], r[4], r[5]),
+            (r[6], r[7], r[8], r[9]),
             lat,
             lon,
             alt,
-            math.sqrt(max(big, 0.0)),
-            math.sqrt(max(P.item(2, 2), 0.0)),
-            ekf.wind,
-            ekf.bg,
-            ekf.ba,
+            r[10],
+            r[11],
+            (r[12], r[13]),
+            (r[14], r[15], r[16]),
+            (r[17], r[18], r[19]),
             self._flags(),
         )
 

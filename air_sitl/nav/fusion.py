@@ -6,7 +6,9 @@ deviations; above 1 the measurement is rejected and the state is left untouched.
 Two entry points, shaped for CPython speed (the maths is one compiled call each: see
 :mod:`air_sitl.nav.kernels`): :func:`fuse_direct` for a measurement of contiguous error states
 (position, velocity, height: H is a selection, S a sub-block of P) and :func:`fuse_scalar`
-for one nonlinear scalar with a dense Jacobian row.
+for one nonlinear scalar with a dense Jacobian row; the compass and airspeed models are
+compiled with their update (:func:`air_sitl.nav.kernels.fuse_heading` ...), their outcome read
+by :func:`result`.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ import numpy as np
 
 from air_sitl.nav.ekf import ErrorStateEkf
 
+NO_MODEL = -1  # a compiled model's outcome when the measurement is undefined at the state
+
 
 @dataclass(frozen=True, slots=True)
 class FusionResult:
@@ -26,10 +30,12 @@ class FusionResult:
     test_ratio: float  # inf when the innovation covariance was unusable
 
 
-def _result(ekf: ErrorStateEkf, outcome: tuple[float, bool]) -> FusionResult:
-    ratio, fused = outcome
+def result(ekf: ErrorStateEkf, outcome: tuple[float, bool | int]) -> FusionResult:
+    """The outcome of a compiled update (which has injected its correction when it fused)."""
+    ratio, code = outcome
+    fused = code == 1  # True, or a model's 1 (0 rejected; NO_MODEL is the caller's to handle)
     if fused:
-        ekf.inject(ekf.dx.tolist())
+        ekf.corrected = True
     return FusionResult(fused, ratio)
 
 
@@ -49,13 +55,12 @@ def fuse_direct(
     k = ekf.kernels
     if len(innovation) == 1:  # the common scalar case (height): no arrays to make
         outcome = k.fuse_column(
-            ekf.P, first, R[0][0], innovation[0], gate, force, ekf.dx, ekf.pending
+            ekf.P, ekf.x, first, R[0][0], innovation[0], gate, force, ekf.dx, ekf.pending
         )
     else:
-        outcome = k.fuse_block(
-            ekf.P, first, np.array(innovation), np.array(R), gate, force, ekf.dx, ekf.pending
-        )
-    return _result(ekf, outcome)
+        y, r = np.array(innovation), np.array(R)
+        outcome = k.fuse_block(ekf.P, ekf.x, first, y, r, gate, force, ekf.dx, ekf.pending)
+    return result(ekf, outcome)
 
 
 def fuse_scalar(
@@ -69,6 +74,6 @@ def fuse_scalar(
 ) -> FusionResult:
     """Fuse one scalar measurement with Jacobian row ``h`` (all error states)."""
     outcome = ekf.kernels.fuse_row(
-        ekf.P, np.array(h), R, innovation, gate, force, ekf.dx, ekf.pending
+        ekf.P, ekf.x, np.array(h), R, innovation, gate, force, ekf.dx, ekf.pending
     )
-    return _result(ekf, outcome)
+    return result(ekf, outcome)

@@ -2,11 +2,13 @@
 
 Each is one call where numpy needed five to ten (a numpy call on a 17x17 array costs about
 a microsecond, and its machinery crowds the caches the rest of the step runs from). P is
-updated in place; a measurement update also writes its correction into ``dx`` and adds it to
-``pending`` (what the output predictor has not taken yet), and returns its test ratio and
+updated in place; a measurement update also writes its correction into ``dx``, adds it to
+``pending`` (what the output predictor has not taken yet) and injects it into the nominal
+state ``x`` (layout in :mod:`air_sitl.nav.strapdown`), and returns its test ratio and
 whether it was fused: ``(inf, False)`` when the innovation covariance is unusable, ``(ratio,
-False)`` when the gate rejects it (``force`` skips the gate). The caller injects ``dx`` into
-the nominal state (``ErrorStateEkf.inject``).
+False)`` when the gate rejects it (``force`` skips the gate). The measurement models of the
+compass and the airspeed sensor (heading, true airspeed, synthetic sideslip) are compiled
+with their update: ``(ratio, NO_MODEL)`` when the model is undefined at the state.
 
 Sums run in index order; no fastmath, so every run gives the same bits.
 """
@@ -20,8 +22,12 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.compiled import compiled
+from air_sitl.nav.baro import CURVATURE_1_M
+from air_sitl.nav.fusion import NO_MODEL
+from air_sitl.nav.quaternion import rotate_global, rotation, wrap_pi
 
 Matrix = npt.NDArray[np.float64]
+Vector = npt.NDArray[np.float64]
 
 
 @compiled
@@ -85,8 +91,18 @@ def predict_covariance(
 
 
 @compiled
+def inject(x: Vector, dx: Vector) -> None:
+    """Add an error-state correction to the nominal state (attitude: exp(dtheta) * q)."""
+    for i in range(6):  # position, velocity
+        x[i] += dx[i]
+    rotate_global(x, 6, dx[6], dx[7], dx[8])
+    for i in range(8):  # gyro bias, accel bias, wind
+        x[10 + i] += dx[9 + i]
+
+
+@compiled
 def _update(
-    P: Matrix, pht: Matrix, s: float, innovation: float, gate: float, force: bool,
+    P: Matrix, x: Vector, pht: Matrix, s: float, innovation: float, gate: float, force: bool,
     dx: Matrix, pending: Matrix,
 ) -> tuple[float, bool]:  # fmt: skip
     """The gate and update of one scalar measurement: ``pht`` = P h' (a copy), ``s`` =
@@ -104,22 +120,23 @@ def _update(
             P[i, j] -= k * pht[j]
         dx[i] = k * innovation
         pending[i] += dx[i]
+    inject(x, dx)
     return ratio, True
 
 
 @compiled
 def fuse_column(
-    P: Matrix, first: int, R: float, innovation: float, gate: float, force: bool,
+    P: Matrix, x: Vector, first: int, R: float, innovation: float, gate: float, force: bool,
     dx: Matrix, pending: Matrix,
 ) -> tuple[float, bool]:  # fmt: skip
     """One scalar measurement of the error state ``first`` (H selects it)."""
     pht = P[:, first].copy()
-    return _update(P, pht, pht[first] + R, innovation, gate, force, dx, pending)  # type: ignore[no-any-return]
+    return _update(P, x, pht, pht[first] + R, innovation, gate, force, dx, pending)  # type: ignore[no-any-return]
 
 
 @compiled
 def fuse_row(
-    P: Matrix, h: Matrix, R: float, innovation: float, gate: float, force: bool,
+    P: Matrix, x: Vector, h: Matrix, R: float, innovation: float, gate: float, force: bool,
     dx: Matrix, pending: Matrix,
 ) -> tuple[float, bool]:  # fmt: skip
     """One scalar measurement with the dense Jacobian row ``h``."""
@@ -135,12 +152,12 @@ def fuse_row(
     s = R
     for i in range(n):
         s += h[i] * pht[i]
-    return _update(P, pht, s, innovation, gate, force, dx, pending)  # type: ignore[no-any-return]
+    return _update(P, x, pht, s, innovation, gate, force, dx, pending)  # type: ignore[no-any-return]
 
 
 @compiled
 def fuse_block(
-    P: Matrix, first: int, y: Matrix, R: Matrix, gate: float, force: bool,
+    P: Matrix, x: Vector, first: int, y: Matrix, R: Matrix, gate: float, force: bool,
     dx: Matrix, pending: Matrix,
 ) -> tuple[float, bool]:  # fmt: skip
     """A vector measurement (2 or 3) of the error states ``first ..``, R its covariance:
@@ -200,7 +217,118 @@ def fuse_block(
             for b in range(m):
                 acc += K[i, b] * pht[j, b]
             P[i, j] -= acc
+    inject(x, dx)
     return ratio, True
+
+
+@compiled
+def fuse_height(
+    P: Matrix, x: Vector, height_m: float, lag_s: float, R: float, gate: float, dx: Vector,
+    pending: Vector,
+) -> tuple[float, bool]:  # fmt: skip
+    """A barometric height above home taken ``lag_s`` before the state's time: the down
+    position in the tangent plane at home, the Earth's curvature added, against the
+    predicted down position then."""
+    down = -height_m + (x[0] * x[0] + x[1] * x[1]) * CURVATURE_1_M
+    y = down - (x[2] - x[5] * lag_s)
+    return fuse_column(P, x, 2, R, y, gate, False, dx, pending)  # type: ignore[no-any-return]
+
+
+@compiled
+def heading_model(x: Vector) -> tuple[bool, float, Vector]:
+    """(defined, yaw (ZYX) of the attitude, its Jacobian on the error state): undefined when
+    the body x axis is vertical."""
+    h = np.zeros(17)
+    r = rotation(x[6], x[7], x[8], x[9])
+    r00, r10, r20 = r[0], r[3], r[6]
+    d = r00 * r00 + r10 * r10
+    if d < 1e-6:
+        return False, 0.0, h
+    h[6] = -r00 * r20 / d
+    h[7] = -r10 * r20 / d
+    h[8] = 1.0
+    return True, math.atan2(r10, r00), h
+
+
+@compiled
+def airspeed_model(x: Vector) -> tuple[bool, float, Vector]:
+    """(defined, true airspeed |v - wind| with the wind horizontal, its Jacobian): undefined
+    below 1 m/s of air (no direction to measure along)."""
+    h = np.zeros(17)
+    vn, ve, vd = x[3], x[4], x[5]
+    rn, re = vn - x[16], ve - x[17]
+    pred = math.sqrt(rn * rn + re * re + vd * vd)
+    if pred < 1.0:
+        return False, pred, h
+    inv = 1.0 / pred
+    h[3], h[4], h[5] = rn * inv, re * inv, vd * inv
+    h[15], h[16] = -rn * inv, -re * inv
+    return True, pred, h
+
+
+@compiled
+def sideslip_model(x: Vector) -> tuple[bool, float, Vector]:
+    """(defined, sideslip = body y / body x air velocity, its Jacobian): undefined when the
+    air does not come from ahead (below 1 m/s along the body x axis)."""
+    h = np.zeros(17)
+    r = rotation(x[6], x[7], x[8], x[9])
+    a0, a1, a2 = x[3] - x[16], x[4] - x[17], x[5]
+    # Body air velocity = R^T a; column i of R is body axis i in NED.
+    c0 = (r[0], r[3], r[6])
+    c1 = (r[1], r[4], r[7])
+    bx = c0[0] * a0 + c0[1] * a1 + c0[2] * a2
+    by = c1[0] * a0 + c1[1] * a1 + c1[2] * a2
+    if bx < 1.0:
+        return False, 0.0, h
+    beta = by / bx
+    # d(body_i)/d(dtheta) = c_i x a (global attitude error); d/dv = c_i; d/dwind = -c_i;
+    # d(beta) = d(by) / bx - by d(bx) / bx^2.
+    x0 = (c0[1] * a2 - c0[2] * a1, c0[2] * a0 - c0[0] * a2, c0[0] * a1 - c0[1] * a0)
+    x1 = (c1[1] * a2 - c1[2] * a1, c1[2] * a0 - c1[0] * a2, c1[0] * a1 - c1[1] * a0)
+    inv = 1.0 / bx
+    k = by * inv * inv
+    for i in range(3):
+        h[3 + i] = c1[i] * inv - c0[i] * k
+        h[6 + i] = x1[i] * inv - x0[i] * k
+    h[15], h[16] = -h[3], -h[4]
+    return True, beta, h
+
+
+@compiled
+def fuse_heading(
+    P: Matrix, x: Vector, yaw_meas: float, R: float, gate: float, dx: Vector, pending: Vector
+) -> tuple[float, int]:
+    """A compass heading (plus declination), the innovation wrapped to [-pi, pi]."""
+    defined, yaw, h = heading_model(x)
+    if not defined:
+        return 0.0, NO_MODEL
+    y = wrap_pi(yaw_meas - yaw)
+    ratio, fused = fuse_row(P, x, h, R, y, gate, False, dx, pending)
+    return ratio, int(fused)
+
+
+@compiled
+def fuse_airspeed(
+    P: Matrix, x: Vector, tas: float, R: float, gate: float, dx: Vector, pending: Vector
+) -> tuple[float, int]:
+    """A true airspeed reading."""
+    defined, pred, h = airspeed_model(x)
+    if not defined:
+        return 0.0, NO_MODEL
+    ratio, fused = fuse_row(P, x, h, R, tas - pred, gate, False, dx, pending)
+    return ratio, int(fused)
+
+
+@compiled
+def fuse_sideslip(
+    P: Matrix, x: Vector, R: float, gate: float, dx: Vector, pending: Vector
+) -> tuple[float, int]:
+    """The synthetic sideslip of a fixed wing: zero measured."""
+    defined, beta, h = sideslip_model(x)
+    if not defined:
+        return 0.0, NO_MODEL
+    ratio, fused = fuse_row(P, x, h, R, -beta, gate, False, dx, pending)
+    return ratio, int(fused)
 
 
 @functools.cache
@@ -210,8 +338,15 @@ def warm() -> None:
     stall the simulation thread mid-flight (0.4 s from the cache, seconds compiling)."""
     n = 17
     P, dx, pending = np.eye(n), np.zeros(n), np.zeros(n)
+    x = np.zeros(18)
+    x[3], x[6] = 20.0, 1.0
     predict_covariance(P, (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), 0.1, 0.0, 0.0, 0.0, dx)
-    fuse_column(P, 0, 1.0, 0.0, 1.0, False, dx, pending)
-    fuse_row(P, np.ones(n), 1.0, 0.0, 1.0, False, dx, pending)
-    fuse_block(P, 0, np.zeros(2), np.eye(2), 1.0, False, dx, pending)
-    fuse_block(P, 0, np.zeros(3), np.eye(3), 1.0, False, dx, pending)
+    fuse_column(P, x, 0, 1.0, 0.0, 1.0, False, dx, pending)
+    fuse_row(P, x, np.ones(n), 1.0, 0.0, 1.0, False, dx, pending)
+    fuse_block(P, x, 0, np.zeros(2), np.eye(2), 1.0, False, dx, pending)
+    fuse_block(P, x, 0, np.zeros(3), np.eye(3), 1.0, False, dx, pending)
+    fuse_height(P, x, 100.0, 0.1, 1.0, 1.0, dx, pending)
+    fuse_heading(P, x, 0.0, 1.0, 1.0, dx, pending)
+    fuse_airspeed(P, x, 20.0, 1.0, 1.0, dx, pending)
+    fuse_sideslip(P, x, 1.0, 1.0, dx, pending)
+    inject(x, dx)

@@ -1,16 +1,17 @@
 """Magnetic heading control (EKF2 mag heading fusion, EKF2_MAG_TYPE = heading).
 
 Start: the first reading resets the yaw (tilt kept). Fuse: yaw = heading + declination,
-the innovation wrapped to [-pi, pi). Reset: after 5 s of continuous rejection, yaw jumps to
-the compass (a filter that lost its heading would otherwise never recover without GNSS).
+the innovation wrapped to [-pi, pi] (the model: :func:`air_sitl.nav.kernels.fuse_heading`).
+Reset: after 5 s of continuous rejection, yaw jumps to the compass (a filter that lost its
+heading would otherwise never recover without GNSS).
 """
 
 from __future__ import annotations
 
 import math
 
-from air_sitl.nav.ekf import ATT, N_STATES, ErrorStateEkf, rotation_matrix
-from air_sitl.nav.fusion import fuse_scalar
+from air_sitl.nav.ekf import ErrorStateEkf
+from air_sitl.nav.fusion import NO_MODEL, result
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.status import ScalarSource
 from air_sitl.nav.types import HeadingSample
@@ -48,30 +49,16 @@ class MagControl(ScalarSource):
                 self.first_reject_ns = None
                 self.counters.fused += 1
                 continue
-            model = yaw_model(ekf.q)
-            if model is None:  # pointing straight up or down: heading undefined
+            outcome = ekf.kernels.fuse_heading(
+                ekf.P, ekf.x, yaw_meas, p.heading_noise_rad**2, p.heading_gate, ekf.dx,
+                ekf.pending,
+            )  # fmt: skip
+            if outcome[1] == NO_MODEL:  # pointing straight up or down: heading undefined
                 self.counters.empty += 1
                 continue
-            yaw, h = model
-            y = math.remainder(yaw_meas - yaw, 2.0 * math.pi)
-            res = fuse_scalar(ekf, h, y, p.heading_noise_rad**2, p.heading_gate)
+            res = result(ekf, outcome)
             self.ratio = res.test_ratio
             if self.counters.gated(res):
                 self.first_reject_ns = None
             elif self.first_reject_ns is None:
                 self.first_reject_ns = t_m
-
-
-def yaw_model(q: tuple[float, float, float, float]) -> tuple[float, list[float]] | None:
-    """Yaw (ZYX heading) of q and its Jacobian on the global attitude error; None when the
-    body x axis is vertical."""
-    r = rotation_matrix(q)
-    r00, r10, r20 = r[0], r[3], r[6]
-    d = r00 * r00 + r10 * r10
-    if d < 1e-6:
-        return None
-    h = [0.0] * N_STATES
-    h[ATT] = -r00 * r20 / d
-    h[ATT + 1] = -r10 * r20 / d
-    h[ATT + 2] = 1.0
-    return math.atan2(r10, r00), h

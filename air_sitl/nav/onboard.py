@@ -190,7 +190,7 @@ class OnboardNav:
             )
             if not self.valid:
                 return truth
-        out_t = nav.output.t_ns
+        out_t = nav.output_t_ns
         est = self.estimate
         if est is None or out_t != self._out_t:
             # A filter period passed (every 20 ms): the full estimate.

@@ -10,9 +10,10 @@ import pytest
 
 from air_sitl.frames import WGS84_A_M, WGS84_E2, euler2quat, geodetic2ecef, geodetic_lat_alt
 from air_sitl.nav import NavFilter
-from air_sitl.nav.ekf import ErrorStateEkf, integrate, rotation_matrix
+from air_sitl.nav.ekf import ErrorStateEkf
 from air_sitl.nav.fusion import fuse_direct, fuse_scalar
 from air_sitl.nav.params import NavParams
+from air_sitl.nav.quaternion import rotation
 from air_sitl.nav.sensors_extra import AirspeedSensor, Barometer, Magnetometer
 from air_sitl.state import ImuSample, NavEstimate, VehicleState
 from tests.nav.synthetic import Straight
@@ -95,17 +96,19 @@ def _six_steps(p: float, z: float) -> tuple[float, float]:
 
 
 def test_integrate_holds_level_flight_and_turns() -> None:
+    from air_sitl.nav.strapdown import integrate
+
     g = 9.8
-    q = euler2quat(0.0, 0.0, 0.0)
-    p, v = (0.0, 0.0, 0.0), (15.0, 0.0, 0.0)
+    s = np.zeros(10)  # p, v, q
+    s[3], s[6:10] = 15.0, euler2quat(0.0, 0.0, 0.0)
     for _ in range(50):  # 1 s of level flight at 15 m/s north, 20 ms deltas
-        p, v, q, _dv = integrate(p, v, q, (0.0, 0.0, 0.0), (0.0, 0.0, -g * 0.02), 0.02, g)
-    assert p == pytest.approx((15.0, 0.0, 0.0), abs=1e-9)
+        integrate(s, 0.0, 0.0, 0.0, 0.0, 0.0, -g * 0.02, 0.02, g)
+    assert s[0:3].tolist() == pytest.approx([15.0, 0.0, 0.0], abs=1e-9)
     # A pure yaw rate of 0.1 rad/s for 10 s turns the attitude by 1 rad.
-    q = (1.0, 0.0, 0.0, 0.0)
+    s[6:10] = (1.0, 0.0, 0.0, 0.0)
     for _ in range(500):
-        _p, _v, q, _dv = integrate(p, v, q, (0.0, 0.0, 0.002), (0.0, 0.0, 0.0), 0.02, g)
-    assert 2.0 * math.atan2(q[3], q[0]) == pytest.approx(1.0)
+        integrate(s, 0.0, 0.0, 0.002, 0.0, 0.0, 0.0, 0.02, g)
+    assert 2.0 * math.atan2(s[9], s[6]) == pytest.approx(1.0)
 
 
 def _state(t_ns: int) -> VehicleState:
@@ -183,44 +186,48 @@ def test_same_inputs_same_outputs() -> None:
     assert one == two
 
 
-def _perturbed(q, v, wind, k: int, eps: float):  # type: ignore[no-untyped-def]
+def _perturbed(x: np.ndarray, k: int, eps: float) -> np.ndarray:
     """The nominal state moved by ``eps`` along error-state component k."""
-    from air_sitl.nav.ekf import rotate_global
+    from air_sitl.nav.quaternion import rotate_global
 
-    v, wind = list(v), list(wind)
+    x = x.copy()
     if 3 <= k < 6:
-        v[k - 3] += eps
+        x[k] += eps
     elif 6 <= k < 9:
         dtheta = [0.0, 0.0, 0.0]
         dtheta[k - 6] = eps
-        q = rotate_global(q, tuple(dtheta))
+        rotate_global(x, 6, *dtheta)
     elif k >= 15:
-        wind[k - 15] += eps
-    return q, tuple(v), tuple(wind)
+        x[k + 1] += eps  # wind: 16-17 in the nominal state
+    return x
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_sideslip_and_yaw_jacobians_match_finite_differences(seed: int) -> None:
-    from air_sitl.nav.airspeed import sideslip
-    from air_sitl.nav.mag import yaw_model
+def test_compass_and_airspeed_jacobians_match_finite_differences(seed: int) -> None:
+    from air_sitl.nav.kernels import airspeed_model, heading_model, sideslip_model
 
     rng = np.random.default_rng(seed)
     roll, pitch, yaw = rng.uniform(-0.5, 0.5), rng.uniform(-0.3, 0.3), rng.uniform(-3, 3)
-    q = euler2quat(roll, pitch, yaw)
-    v = (15 * math.cos(yaw) + 1.0, 15 * math.sin(yaw) - 2.0, 0.5)
-    wind = (rng.normal(), rng.normal())
+    x = np.zeros(18)
+    x[3:6] = (15 * math.cos(yaw) + 1.0, 15 * math.sin(yaw) - 2.0, 0.5)
+    x[6:10] = euler2quat(roll, pitch, yaw)
+    x[16:18] = (rng.normal(), rng.normal())
     eps = 1e-6
-
-    def yaw_of(q, v, w):  # type: ignore[no-untyped-def]
-        return yaw_model(q)
-
-    for name, model in (("sideslip", sideslip), ("yaw", yaw_of)):
-        _, h = model(q, v, wind)
+    for model in (sideslip_model, heading_model, airspeed_model):
+        defined, _, h = model(x)
+        assert defined
         for k in [*range(3, 9), 15, 16]:
-            up = model(*_perturbed(q, v, wind, k, eps))[0]
-            down = model(*_perturbed(q, v, wind, k, -eps))[0]
+            up = model(_perturbed(x, k, eps))[1]
+            down = model(_perturbed(x, k, -eps))[1]
             numeric = (up - down) / (2 * eps)
-            assert h[k] == pytest.approx(numeric, abs=1e-6), (name, k)
+            assert h[k] == pytest.approx(numeric, abs=1e-6), (model, k)
+    # Undefined where the measurement has no meaning: still air, the nose straight up.
+    calm = x.copy()
+    calm[3:6], calm[16:18] = 0.0, 0.0
+    assert not airspeed_model(calm)[0] and not sideslip_model(calm)[0]
+    up = x.copy()
+    up[6:10] = euler2quat(0.0, math.pi / 2, 0.0)
+    assert not heading_model(up)[0]
 
 
 def test_estimated_state_for_the_autopilot() -> None:
@@ -270,19 +277,25 @@ def test_covariance_step_is_f_p_ft_plus_q() -> None:
     P0 = ekf.P.copy()
     ekf.q = euler2quat(0.2, -0.1, 1.3)
     T, dv = 0.08, (0.3, -0.2, -0.78)
-    ekf._cov_dt, ekf._cov_dv = T, list(dv)
-    ekf._predict_covariance()
+    ekf.cov[:] = (T, *dv, 4.0)  # the deltas summed since the last step
+    ekf.strapdown.covariance_step(ekf.x, ekf.P, ekf.cov, ekf.consts)
+    assert not ekf.cov.any()
 
     def skew(x: float, y: float, z: float) -> np.ndarray:
         return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
-    R = np.array(rotation_matrix(ekf.q)).reshape(3, 3)
+    R = np.array(rotation(*ekf.q)).reshape(3, 3)
     F = np.eye(17)
     F[0:3, 3:6] = T * np.eye(3)
     F[0:3, 6:9] = -skew(*(0.5 * T * d for d in dv))
     F[3:6, 6:9] = -skew(*dv)
     F[3:6, 12:15] = -R * T
     F[6:9, 9:12] = -R * T
-    expected = F @ P0 @ F.T + np.diag(ekf._process_noise(T))
+    p, imu_dt = NavParams(), NavParams().imu_period_ns * 1e-9
+    qv, qa = p.accel_noise_m_s2**2 * imu_dt * T, p.gyro_noise_rad_s**2 * imu_dt * T
+    qbg, qba = p.gyro_bias_noise_rad_s2**2 * T, p.accel_bias_noise_m_s3**2 * T
+    qw = p.wind_noise_m_s2**2 * T
+    Q = [0, 0, 0, qv, qv, qv, qa, qa, qa, qbg, qbg, qbg, qba, qba, qba, qw, qw]
+    expected = F @ P0 @ F.T + np.diag(Q)
     assert np.allclose(ekf.P, 0.5 * (expected + expected.T), rtol=1e-12, atol=1e-12)
     assert np.array_equal(ekf.P, ekf.P.T)
