@@ -96,6 +96,11 @@ def _cruise(t: Tick, bank: float, alt: float, course: float) -> ControlTarget:
     )
 
 
+def _split(point: Point) -> tuple[tuple[float, float], float]:
+    """A point as its (north, east) in metres and its altitude AMSL."""
+    return (point[0], point[1]), point[2]
+
+
 class IdleTask(Task):
     """On the ground: motor off, brakes on."""
 
@@ -201,10 +206,8 @@ class LegTask(Task):
         *,
         from_here: bool = False,
     ) -> None:
-        self.a = (a[0], a[1])
-        self.alt_a = a[2]
-        self.b = (b[0], b[1])
-        self.alt_b = b[2]
+        self.a, self.alt_a = _split(a)
+        self.b, self.alt_b = _split(b)
         self.acc = acc_radius_m
         self.course_out = course_out_rad
         self.aligning = from_here
@@ -277,8 +280,7 @@ class LoiterTask(Task):
         kind: str = LoiterKind.UNLIMITED,
         amount: float = 0.0,
     ) -> None:
-        self.center = (center[0], center[1])
-        self.alt = center[2]
+        self.center, self.alt = _split(center)
         self.radius = radius_m
         self.direction = 1 if direction >= 0 else -1
         self.kind = kind
@@ -346,10 +348,8 @@ class LandTask(Task):
     """
 
     def __init__(self, a: Point, touchdown: Point, ground_amsl_m: float) -> None:
-        self.a = (a[0], a[1])
-        self.alt_a = a[2]
-        self.td = (touchdown[0], touchdown[1])
-        self.td_alt = touchdown[2]
+        self.a, self.alt_a = _split(a)
+        self.td, self.td_alt = _split(touchdown)
         self.ground_m = ground_amsl_m
         self.touched = False
 
