@@ -4,8 +4,8 @@ Start: when flying (airspeed above ``airspeed_min_m_s``) with a valid velocity, 
 reset to ground velocity minus airspeed along the heading (EKF2 resetWindUsingAirspeed).
 Fuse: true airspeed |v - wind| and, for a fixed wing, a synthetic zero sideslip; together
 they bound the velocity through heading and wind when GNSS is gone, and they make the wind
-observable while GNSS is there (the models: :func:`air_sitl.nav.kernels.fuse_airspeed`,
-:func:`air_sitl.nav.kernels.fuse_sideslip`).
+observable while GNSS is there (the models: :func:`air_sitl.nav.kernels.airspeed_model`,
+:func:`air_sitl.nav.kernels.sideslip_model`).
 """
 
 from __future__ import annotations
@@ -51,9 +51,11 @@ class AirspeedControl(ScalarSource):
                     ekf.reset_states(VEL, air, p.init_wind_m_s**2)
                     ekf.reset_states(WIND, (0.0, 0.0), p.init_wind_m_s**2)
                 self.wind_started = True
-            outcome = ekf.kernels.fuse_airspeed(
-                ekf.P, ekf.x, tas, p.airspeed_noise_m_s**2, p.airspeed_gate, ekf.dx, ekf.pending
-            )
+            k = ekf.kernels
+            outcome = k.fuse_model(
+                ekf.P, ekf.x, k.AIRSPEED, tas, p.airspeed_noise_m_s**2, p.airspeed_gate, ekf.dx,
+                ekf.pending,
+            )  # fmt: skip
             if outcome[1] == NO_MODEL:  # below 1 m/s of air: no direction to measure along
                 self.counters.reject("model")
                 continue
@@ -67,8 +69,9 @@ class AirspeedControl(ScalarSource):
     def _fuse_beta(self, ekf: ErrorStateEkf) -> None:
         """Synthetic sideslip: the air velocity has no body-y component (beta = 0)."""
         p = self.params
-        outcome = ekf.kernels.fuse_sideslip(
-            ekf.P, ekf.x, p.beta_noise_rad**2, p.beta_gate, ekf.dx, ekf.pending
+        k = ekf.kernels
+        outcome = k.fuse_model(
+            ekf.P, ekf.x, k.SIDESLIP, 0.0, p.beta_noise_rad**2, p.beta_gate, ekf.dx, ekf.pending
         )
         if outcome[1] != NO_MODEL:  # the air comes from ahead
             self.beta_ratio = result(ekf, outcome).test_ratio

@@ -75,8 +75,8 @@ class ErrorStateEkf:
         self.dx: Vector = np.zeros(N_STATES)  # the last measurement update's correction
         self.corrected = False  # pending holds something
 
-    # The nominal state as tuples (for the control logic of the sources; the hot paths work
-    # on ``x`` in compiled code).
+    # Parts of the nominal state as tuples, for the control logic of the sources (resets,
+    # delayed innovations); the hot paths work on ``x`` in compiled code.
     @property
     def p(self) -> tuple[float, float, float]:
         x = self.x
@@ -95,16 +95,6 @@ class ErrorStateEkf:
     @q.setter
     def q(self, q: tuple[float, float, float, float]) -> None:
         self.x[6:10] = q
-
-    @property
-    def bg(self) -> tuple[float, float, float]:
-        x = self.x
-        return (x.item(10), x.item(11), x.item(12))
-
-    @property
-    def ba(self) -> tuple[float, float, float]:
-        x = self.x
-        return (x.item(13), x.item(14), x.item(15))
 
     @property
     def wind(self) -> tuple[float, float]:

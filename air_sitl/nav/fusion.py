@@ -3,12 +3,10 @@
 Test ratio as in EKF2: ``innovation' S^-1 innovation / gate^2`` with the gate in standard
 deviations; above 1 the measurement is rejected and the state is left untouched.
 
-Two entry points, shaped for CPython speed (the maths is one compiled call each: see
-:mod:`air_sitl.nav.kernels`): :func:`fuse_direct` for a measurement of contiguous error states
-(position, velocity, height: H is a selection, S a sub-block of P) and :func:`fuse_scalar`
-for one nonlinear scalar with a dense Jacobian row; the compass and airspeed models are
-compiled with their update (:func:`air_sitl.nav.kernels.fuse_heading` ...), their outcome read
-by :func:`result`.
+The maths is one compiled call each (:mod:`air_sitl.nav.kernels`): :func:`fuse_direct` for a
+measurement of contiguous error states (GNSS and aid position and velocity: H is a selection,
+S a sub-block of P); the nonlinear models (compass, airspeed, sideslip, barometric height) are
+compiled with their update, their outcome read by :func:`result`.
 """
 
 from __future__ import annotations
@@ -60,20 +58,4 @@ def fuse_direct(
     else:
         y, r = np.array(innovation), np.array(R)
         outcome = k.fuse_block(ekf.P, ekf.x, first, y, r, gate, force, ekf.dx, ekf.pending)
-    return result(ekf, outcome)
-
-
-def fuse_scalar(
-    ekf: ErrorStateEkf,
-    h: list[float],
-    innovation: float,
-    R: float,
-    gate: float,
-    *,
-    force: bool = False,
-) -> FusionResult:
-    """Fuse one scalar measurement with Jacobian row ``h`` (all error states)."""
-    outcome = ekf.kernels.fuse_row(
-        ekf.P, ekf.x, np.array(h), R, innovation, gate, force, ekf.dx, ekf.pending
-    )
     return result(ekf, outcome)

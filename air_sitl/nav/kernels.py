@@ -8,7 +8,8 @@ state ``x`` (layout in :mod:`air_sitl.nav.strapdown`), and returns its test rati
 whether it was fused: ``(inf, False)`` when the innovation covariance is unusable, ``(ratio,
 False)`` when the gate rejects it (``force`` skips the gate). The measurement models of the
 compass and the airspeed sensor (heading, true airspeed, synthetic sideslip) are compiled
-with their update: ``(ratio, NO_MODEL)`` when the model is undefined at the state.
+with their update (:func:`fuse_model`): ``(ratio, NO_MODEL)`` when the model is undefined at
+the state.
 
 Sums run in index order; no fastmath, so every run gives the same bits.
 """
@@ -28,6 +29,7 @@ from air_sitl.nav.quaternion import rotate_global, rotation, wrap_pi
 
 Matrix = npt.NDArray[np.float64]
 Vector = npt.NDArray[np.float64]
+HEADING, AIRSPEED, SIDESLIP = 0, 1, 2  # the compiled measurement models (fuse_model)
 
 
 @compiled
@@ -295,39 +297,28 @@ def sideslip_model(x: Vector) -> tuple[bool, float, Vector]:
 
 
 @compiled
-def fuse_heading(
-    P: Matrix, x: Vector, yaw_meas: float, R: float, gate: float, dx: Vector, pending: Vector
-) -> tuple[float, int]:
-    """A compass heading (plus declination), the innovation wrapped to [-pi, pi]."""
-    defined, yaw, h = heading_model(x)
+def fuse_model(
+    P: Matrix, x: Vector, model: int, measured: float, R: float, gate: float, dx: Vector,
+    pending: Vector,
+) -> tuple[float, int]:  # fmt: skip
+    """One reading of a compiled model: HEADING (a compass heading plus declination, the
+    innovation wrapped to [-pi, pi]), AIRSPEED (true airspeed) or SIDESLIP (zero, synthetic:
+    ``measured`` unused)."""
+    if model == HEADING:
+        defined, value, h = heading_model(x)
+    elif model == AIRSPEED:
+        defined, value, h = airspeed_model(x)
+    else:
+        defined, value, h = sideslip_model(x)
     if not defined:
         return 0.0, NO_MODEL
-    y = wrap_pi(yaw_meas - yaw)
+    if model == HEADING:
+        y = wrap_pi(measured - value)
+    elif model == AIRSPEED:
+        y = measured - value
+    else:
+        y = -value
     ratio, fused = fuse_row(P, x, h, R, y, gate, False, dx, pending)
-    return ratio, int(fused)
-
-
-@compiled
-def fuse_airspeed(
-    P: Matrix, x: Vector, tas: float, R: float, gate: float, dx: Vector, pending: Vector
-) -> tuple[float, int]:
-    """A true airspeed reading."""
-    defined, pred, h = airspeed_model(x)
-    if not defined:
-        return 0.0, NO_MODEL
-    ratio, fused = fuse_row(P, x, h, R, tas - pred, gate, False, dx, pending)
-    return ratio, int(fused)
-
-
-@compiled
-def fuse_sideslip(
-    P: Matrix, x: Vector, R: float, gate: float, dx: Vector, pending: Vector
-) -> tuple[float, int]:
-    """The synthetic sideslip of a fixed wing: zero measured."""
-    defined, beta, h = sideslip_model(x)
-    if not defined:
-        return 0.0, NO_MODEL
-    ratio, fused = fuse_row(P, x, h, R, -beta, gate, False, dx, pending)
     return ratio, int(fused)
 
 
@@ -346,7 +337,6 @@ def warm() -> None:
     fuse_block(P, x, 0, np.zeros(2), np.eye(2), 1.0, False, dx, pending)
     fuse_block(P, x, 0, np.zeros(3), np.eye(3), 1.0, False, dx, pending)
     fuse_height(P, x, 100.0, 0.1, 1.0, 1.0, dx, pending)
-    fuse_heading(P, x, 0.0, 1.0, 1.0, dx, pending)
-    fuse_airspeed(P, x, 20.0, 1.0, 1.0, dx, pending)
-    fuse_sideslip(P, x, 1.0, 1.0, dx, pending)
+    for model in (HEADING, AIRSPEED, SIDESLIP):
+        fuse_model(P, x, model, 0.0, 1.0, 1.0, dx, pending)
     inject(x, dx)

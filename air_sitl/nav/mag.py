@@ -1,7 +1,7 @@
 """Magnetic heading control (EKF2 mag heading fusion, EKF2_MAG_TYPE = heading).
 
 Start: the first reading resets the yaw (tilt kept). Fuse: yaw = heading + declination,
-the innovation wrapped to [-pi, pi] (the model: :func:`air_sitl.nav.kernels.fuse_heading`).
+the innovation wrapped to [-pi, pi] (the model: :func:`air_sitl.nav.kernels.heading_model`).
 Reset: after 5 s of continuous rejection, yaw jumps to the compass (a filter that lost its
 heading would otherwise never recover without GNSS).
 """
@@ -49,9 +49,10 @@ class MagControl(ScalarSource):
                 self.first_reject_ns = None
                 self.counters.fused += 1
                 continue
-            outcome = ekf.kernels.fuse_heading(
-                ekf.P, ekf.x, yaw_meas, p.heading_noise_rad**2, p.heading_gate, ekf.dx,
-                ekf.pending,
+            k = ekf.kernels
+            outcome = k.fuse_model(
+                ekf.P, ekf.x, k.HEADING, yaw_meas, p.heading_noise_rad**2, p.heading_gate,
+                ekf.dx, ekf.pending,
             )  # fmt: skip
             if outcome[1] == NO_MODEL:  # pointing straight up or down: heading undefined
                 self.counters.empty += 1

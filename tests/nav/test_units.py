@@ -11,7 +11,7 @@ import pytest
 from air_sitl.frames import WGS84_A_M, WGS84_E2, euler2quat, geodetic2ecef, geodetic_lat_alt
 from air_sitl.nav import NavFilter
 from air_sitl.nav.ekf import ErrorStateEkf
-from air_sitl.nav.fusion import fuse_direct, fuse_scalar
+from air_sitl.nav.fusion import FusionResult, fuse_direct, result
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.quaternion import rotation
 from air_sitl.nav.sensors_extra import AirspeedSensor, Barometer, Magnetometer
@@ -56,17 +56,23 @@ def test_fuse_direct_refuses_an_unusable_innovation_covariance(m: int) -> None:
     assert np.array_equal(ekf.P, P0) and not ekf.pending.any()
 
 
-def test_fuse_scalar_is_the_textbook_update_and_gates() -> None:
+def _fuse_row(ekf: ErrorStateEkf, h: np.ndarray, y: float, r: float, gate: float) -> FusionResult:
+    """One scalar update with the dense Jacobian row ``h`` (what the models' fusions run)."""
+    k = ekf.kernels
+    return result(ekf, k.fuse_row(ekf.P, ekf.x, h, r, y, gate, False, ekf.dx, ekf.pending))
+
+
+def test_fuse_row_is_the_textbook_update_and_gates() -> None:
     ekf = _ekf(2)
     P0 = ekf.P.copy()
     h = np.random.default_rng(3).standard_normal(17)
     s = float(h @ P0 @ h) + 0.5
-    res = fuse_scalar(ekf, h.tolist(), 0.7, 0.5, gate=100.0)
+    res = _fuse_row(ekf, h, 0.7, 0.5, gate=100.0)
     assert res.fused and res.test_ratio == pytest.approx(0.49 / s / 1e4)
     k = P0 @ h / s
     assert np.allclose(ekf.P, P0 - np.outer(k, h @ P0))
     assert np.allclose(ekf.pending, k * 0.7)
-    big = fuse_scalar(ekf, h.tolist(), 1e6, 0.5, gate=5.0)
+    big = _fuse_row(ekf, h, 1e6, 0.5, gate=5.0)
     assert not big.fused and big.test_ratio > 1.0
 
 
