@@ -24,7 +24,7 @@ import numpy as np
 from air_sitl.frames import LocalNed
 from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.nav.ekf import POS, ErrorStateEkf
-from air_sitl.nav.fusion import fuse_direct
+from air_sitl.nav.fusion import result
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.status import SourceCounters
 from air_sitl.nav.types import AidFrame, AidMeasurement, AidResult
@@ -175,9 +175,12 @@ class AidControl:
                 self.last_fused_ns = t_m
                 continue
             lag = (t_ns - t_m) * 1e-9
-            pn = ekf.p[0] - ekf.v[0] * lag
-            pe = ekf.p[1] - ekf.v[1] * lag
-            res = fuse_direct(ekf, POS, [n - pn, e - pe], [[vnn, vne], [vne, vee]], p.aid_gate)
+            res = result(
+                ekf,
+                ekf.kernels.fuse_position(
+                    ekf.P, ekf.x, n, e, lag, vnn, vne, vee, p.aid_gate, ekf.dx, ekf.pending
+                ),
+            )
             if c.gated(res):
                 self.last_fused_ns = t_m
                 self.first_reject_ns = None

@@ -135,7 +135,7 @@ class NavFilter:
         every delta the horizon has reached (one, in steady flight)."""
         a = self._acc
         ekf, sd, ring, ri = self.ekf, self._strapdown, self._ring, self._ring_index
-        sd.advance(
+        due = sd.advance(
             self.output, ekf.x, ring, ri, t, a[0], a[1], a[2], a[3], a[4], a[5], self._acc_dt,
             self.g,
         )  # fmt: skip
@@ -144,12 +144,10 @@ class NavFilter:
         self._acc_dt = 0.0
         self._acc_t0 = t
         horizon = t - self._horizon_ns
-        while True:
-            t_d, dt = sd.delayed_predict(
-                ekf.x, ekf.P, ekf.cov, ring, ri, horizon, ekf.consts, self._last
+        while due <= horizon:
+            t_d, dt, due = sd.delayed_predict(
+                ekf.x, ekf.P, ekf.cov, ring, ri, ekf.consts, self._last
             )
-            if t_d < 0:
-                return
             self._delayed_step(t_d, dt)
 
     def _delayed_step(self, t_d: int, dt: float) -> None:

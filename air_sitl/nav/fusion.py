@@ -1,19 +1,15 @@
-"""The one fusion routine every aiding source uses: innovation, test ratio, gated update.
+"""The outcome of a measurement update, as every aiding source reads it.
 
 Test ratio as in EKF2: ``innovation' S^-1 innovation / gate^2`` with the gate in standard
-deviations; above 1 the measurement is rejected and the state is left untouched.
-
-The maths is one compiled call each (:mod:`air_sitl.nav.kernels`): :func:`fuse_direct` for a
-measurement of contiguous error states (GNSS and aid position and velocity: H is a selection,
-S a sub-block of P); the nonlinear models (compass, airspeed, sideslip, barometric height) are
-compiled with their update, their outcome read by :func:`result`.
+deviations; above 1 the measurement is rejected and the state is left untouched. Each
+source's model and update is one compiled call (:mod:`air_sitl.nav.kernels`: position,
+velocity, barometric height, compass heading, true airspeed, synthetic sideslip); its
+``(ratio, fused)`` becomes a :class:`FusionResult` here.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-
-import numpy as np
 
 from air_sitl.nav.ekf import ErrorStateEkf
 
@@ -35,27 +31,3 @@ def result(ekf: ErrorStateEkf, outcome: tuple[float, bool | int]) -> FusionResul
     if fused:
         ekf.corrected = True
     return FusionResult(fused, ratio)
-
-
-def fuse_direct(
-    ekf: ErrorStateEkf,
-    first: int,
-    innovation: list[float],
-    R: list[list[float]],
-    gate: float,
-    *,
-    force: bool = False,
-) -> FusionResult:
-    """Fuse a direct measurement of error states ``first .. first + m - 1`` (m = 1, 2, 3).
-
-    ``force`` skips the gate (resets, tests).
-    """
-    k = ekf.kernels
-    if len(innovation) == 1:  # the common scalar case (height): no arrays to make
-        outcome = k.fuse_column(
-            ekf.P, ekf.x, first, R[0][0], innovation[0], gate, force, ekf.dx, ekf.pending
-        )
-    else:
-        y, r = np.array(innovation), np.array(R)
-        outcome = k.fuse_block(ekf.P, ekf.x, first, y, r, gate, force, ekf.dx, ekf.pending)
-    return result(ekf, outcome)

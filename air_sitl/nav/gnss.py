@@ -14,7 +14,7 @@ import math
 from air_sitl.frames import LocalNed
 from air_sitl.nav.buffer import TimedBuffer
 from air_sitl.nav.ekf import POS, VEL, ErrorStateEkf
-from air_sitl.nav.fusion import fuse_direct
+from air_sitl.nav.fusion import result
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.status import SourceCounters
 from air_sitl.state import GeoPoint, GpsFix
@@ -86,18 +86,16 @@ class GnssControl:
                 self._fused(t_m, alt, epv)
                 continue
             lag = (t_ns - t_m) * 1e-9
-            pn = ekf.p[0] - ekf.v[0] * lag
-            pe = ekf.p[1] - ekf.v[1] * lag
-            pos = fuse_direct(
-                ekf, POS, [n - pn, e - pe], [[pos_var, 0.0], [0.0, pos_var]], p.gnss_pos_gate
-            )
-            v = ekf.v
-            vel = fuse_direct(
+            k = ekf.kernels
+            P, x, dx, pending = ekf.P, ekf.x, ekf.dx, ekf.pending
+            pos = result(
                 ekf,
-                VEL,
-                [vn - v[0], ve - v[1], vd - v[2]],
-                [[vel_var, 0.0, 0.0], [0.0, vel_var, 0.0], [0.0, 0.0, vel_var]],
-                p.gnss_vel_gate,
+                k.fuse_position(
+                    P, x, n, e, lag, pos_var, 0.0, pos_var, p.gnss_pos_gate, dx, pending
+                ),
+            )
+            vel = result(
+                ekf, k.fuse_velocity(P, x, vn, ve, vd, vel_var, p.gnss_vel_gate, dx, pending)
             )
             self.pos_ratio, self.vel_ratio = pos.test_ratio, vel.test_ratio
             self.counters.test_ratio = pos.test_ratio

@@ -237,6 +237,34 @@ def fuse_height(
 
 
 @compiled
+def fuse_position(
+    P: Matrix, x: Vector, north: float, east: float, lag_s: float, vnn: float, vne: float,
+    vee: float, gate: float, dx: Vector, pending: Vector,
+) -> tuple[float, bool]:  # fmt: skip
+    """A horizontal position (GNSS, an external aid) taken ``lag_s`` before the state's time,
+    its covariance (vnn, vne, vee), against the predicted position then."""
+    y = np.empty(2)
+    y[0] = north - (x[0] - x[3] * lag_s)
+    y[1] = east - (x[1] - x[4] * lag_s)
+    R = np.empty((2, 2))
+    R[0, 0], R[0, 1], R[1, 0], R[1, 1] = vnn, vne, vne, vee
+    return fuse_block(P, x, 0, y, R, gate, False, dx, pending)  # type: ignore[no-any-return]
+
+
+@compiled
+def fuse_velocity(
+    P: Matrix, x: Vector, vn: float, ve: float, vd: float, var: float, gate: float, dx: Vector,
+    pending: Vector,
+) -> tuple[float, bool]:  # fmt: skip
+    """A 3-D velocity (GNSS), each component of variance ``var``."""
+    y = np.empty(3)
+    y[0], y[1], y[2] = vn - x[3], ve - x[4], vd - x[5]
+    R = np.zeros((3, 3))
+    R[0, 0], R[1, 1], R[2, 2] = var, var, var
+    return fuse_block(P, x, 3, y, R, gate, False, dx, pending)  # type: ignore[no-any-return]
+
+
+@compiled
 def heading_model(x: Vector) -> tuple[bool, float, Vector]:
     """(defined, yaw (ZYX) of the attitude, its Jacobian on the error state): undefined when
     the body x axis is vertical."""
@@ -337,6 +365,8 @@ def warm() -> None:
     fuse_block(P, x, 0, np.zeros(2), np.eye(2), 1.0, False, dx, pending)
     fuse_block(P, x, 0, np.zeros(3), np.eye(3), 1.0, False, dx, pending)
     fuse_height(P, x, 100.0, 0.1, 1.0, 1.0, dx, pending)
+    fuse_position(P, x, 1.0, 1.0, 0.1, 1.0, 0.0, 1.0, 1.0, dx, pending)
+    fuse_velocity(P, x, 20.0, 0.0, 0.0, 1.0, 1.0, dx, pending)
     for model in (HEADING, AIRSPEED, SIDESLIP):
         fuse_model(P, x, model, 0.0, 1.0, 1.0, dx, pending)
     inject(x, dx)

@@ -45,6 +45,7 @@ NX = 18  # the nominal state
 NO = 16  # the output predictor
 RING_COLS = 13
 LAST = 6  # the running sums of the last delta the delayed filter took
+NEVER = 2**62  # the end time of a delta after the last one: after any simulated time
 
 
 @compiled
@@ -113,9 +114,10 @@ def _integrate_unbiased(
 def advance(
     o: Vector, x: Vector, ring: Matrix, ri: Index, t_ns: int, a0: float, a1: float, a2: float,
     a3: float, a4: float, a5: float, dt: float, g: float,
-) -> None:  # fmt: skip
+) -> int:  # fmt: skip
     """The output predictor over one summed IMU delta (``a``: delta angle, delta velocity; the
-    biases of ``x``), and the delta pushed on the ring for the delayed filter."""
+    biases of ``x``), and the delta pushed on the ring for the delayed filter; returns the
+    end time of the ring's oldest delta."""
     cap = ring.shape[0]
     if ri[1] == cap:  # cannot happen with the ring sized to the horizon: drop the oldest
         ri[0] = (ri[0] + 1) % cap
@@ -133,23 +135,21 @@ def advance(
         row[7 + i] = o[10 + i]
     ri[2 + k] = t_ns
     ri[1] += 1
+    return ri[2 + ri[0]]  # type: ignore[no-any-return]
 
 
 @compiled
 def delayed_predict(
-    x: Vector, P: Matrix, cov: Vector, ring: Matrix, ri: Index, horizon_ns: int,
-    consts: Vector, last: Vector,
-) -> tuple[int, float]:  # fmt: skip
-    """Take the oldest delta of the ring if the horizon has reached it and predict the delayed
-    state over it (the covariance every ``consts[6]`` deltas, summed); (its end time, its dt),
-    or (-1, 0) when none is due. ``last`` keeps its output running sums (for :func:`carry`).
+    x: Vector, P: Matrix, cov: Vector, ring: Matrix, ri: Index, consts: Vector, last: Vector
+) -> tuple[int, float, int]:
+    """Take the oldest delta of the ring (there is one) and predict the delayed state over it
+    (the covariance every ``consts[6]`` deltas, summed); (its end time, its dt, the end time of
+    the next delta or NEVER). ``last`` keeps its output running sums (for :func:`carry`).
 
     ``cov`` sums the deltas since the last covariance step: dt, NED delta velocity, count.
     """
     cap = ring.shape[0]
     k = ri[0]
-    if ri[1] == 0 or ri[2 + k] > horizon_ns:
-        return -1, 0.0
     t_ns = ri[2 + k]
     ri[0] = (k + 1) % cap
     ri[1] -= 1
@@ -165,7 +165,7 @@ def delayed_predict(
         covariance_step(x, P, cov, consts)
     for i in range(LAST):
         last[i] = row[7 + i]
-    return t_ns, dt
+    return t_ns, dt, ri[2 + ri[0]] if ri[1] > 0 else NEVER
 
 
 @compiled
@@ -281,7 +281,7 @@ def warm() -> None:
     ring, ri = np.zeros((4, RING_COLS)), np.zeros(6, dtype=np.int64)
     consts, cov, last = np.ones(7), np.zeros(5), np.zeros(LAST)
     advance(o, x, ring, ri, 1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.02, 9.8)
-    delayed_predict(x, P, cov, ring, ri, 1, consts, last)
+    delayed_predict(x, P, cov, ring, ri, consts, last)
     carry(o, np.ones(17) * 1e-9, 0.1, last)
     replay(o, x, ring, ri, 9.8, np.zeros(17))
     output_estimate(o, x, P, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01, 9.8, np.zeros(20))

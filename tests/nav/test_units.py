@@ -11,7 +11,7 @@ import pytest
 from air_sitl.frames import WGS84_A_M, WGS84_E2, euler2quat, geodetic2ecef, geodetic_lat_alt
 from air_sitl.nav import NavFilter
 from air_sitl.nav.ekf import ErrorStateEkf
-from air_sitl.nav.fusion import FusionResult, fuse_direct, result
+from air_sitl.nav.fusion import FusionResult, result
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.quaternion import rotation
 from air_sitl.nav.sensors_extra import AirspeedSensor, Barometer, Magnetometer
@@ -27,8 +27,22 @@ def _ekf(seed: int) -> ErrorStateEkf:
     return ekf
 
 
+def _fuse_direct(
+    ekf: ErrorStateEkf, first: int, y: np.ndarray, R: np.ndarray, *, force: bool = False
+) -> FusionResult:
+    """A direct measurement of the error states ``first ..`` (H selects them): the column
+    update for one, the block update for two or three (what position, velocity and height
+    fusions run)."""
+    k, P, x, dx, pending = ekf.kernels, ekf.P, ekf.x, ekf.dx, ekf.pending
+    if len(y) == 1:
+        outcome = k.fuse_column(P, x, first, R[0, 0], y[0], 100.0, force, dx, pending)
+    else:
+        outcome = k.fuse_block(P, x, first, y, R, 100.0, force, dx, pending)
+    return result(ekf, outcome)
+
+
 @pytest.mark.parametrize("m", [1, 2, 3])
-def test_fuse_direct_is_the_textbook_update(m: int) -> None:
+def test_direct_updates_are_the_textbook_update(m: int) -> None:
     ekf = _ekf(m)
     P0 = ekf.P.copy()
     H = np.zeros((m, 17))
@@ -38,7 +52,7 @@ def test_fuse_direct_is_the_textbook_update(m: int) -> None:
     y = np.array([0.5, -0.2, 0.1])[:m]
     S = H @ P0 @ H.T + R
     K = P0 @ H.T @ np.linalg.inv(S)
-    res = fuse_direct(ekf, 3, y.tolist(), R.tolist(), gate=100.0)
+    res = _fuse_direct(ekf, 3, y, R)
     assert res.fused
     assert res.test_ratio == pytest.approx(float(y @ np.linalg.solve(S, y)) / 1e4)
     assert np.allclose(ekf.P, (np.eye(17) - K @ H) @ P0)
@@ -47,13 +61,31 @@ def test_fuse_direct_is_the_textbook_update(m: int) -> None:
 
 
 @pytest.mark.parametrize("m", [1, 2, 3])
-def test_fuse_direct_refuses_an_unusable_innovation_covariance(m: int) -> None:
+def test_direct_updates_refuse_an_unusable_innovation_covariance(m: int) -> None:
     ekf = _ekf(m)
     P0 = ekf.P.copy()
-    R = (-1e9 * np.eye(m)).tolist()  # S = P block + R is not positive
-    res = fuse_direct(ekf, 3, [0.1] * m, R, gate=100.0, force=True)
+    R = -1e9 * np.eye(m)  # S = P block + R is not positive
+    res = _fuse_direct(ekf, 3, np.full(m, 0.1), R, force=True)
     assert not res.fused and res.test_ratio == math.inf
     assert np.array_equal(ekf.P, P0) and not ekf.pending.any()
+
+
+def test_a_late_position_is_compared_with_the_state_it_was_taken_at() -> None:
+    """A position taken ``lag`` s ago is fused against the position predicted back along the
+    velocity: the block update with that innovation, bit for bit."""
+    ekf, twin = _ekf(5), _ekf(5)
+    for e in (ekf, twin):
+        e.x[0:6] = (10.0, 20.0, -100.0, 5.0, -3.0, 0.0)
+    k, lag = ekf.kernels, 0.4
+    R = np.array([[4.0, 0.5], [0.5, 9.0]])
+    res = result(
+        ekf, k.fuse_position(ekf.P, ekf.x, 12.0, 18.0, lag, 4.0, 0.5, 9.0, 100.0, ekf.dx,
+                             ekf.pending),
+    )  # fmt: skip
+    y = np.array([12.0 - (10.0 - 5.0 * lag), 18.0 - (20.0 - -3.0 * lag)])
+    expected = _fuse_direct(twin, 0, y, R)
+    assert res == expected and res.fused
+    assert np.array_equal(ekf.P, twin.P) and np.array_equal(ekf.x, twin.x)
 
 
 def _fuse_row(ekf: ErrorStateEkf, h: np.ndarray, y: float, r: float, gate: float) -> FusionResult:
