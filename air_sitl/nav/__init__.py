@@ -4,12 +4,15 @@ magnetic heading and external position aids, fused on a delayed horizon (PX4 EKF
 State (``ekf``): position and velocity NED from home, attitude body->NED, gyro and
 accelerometer biases, horizontal wind; 17 error states with a global attitude error (Sola
 2017). The IMU is summed into 20 ms deltas for the nominal state and the covariance is
-propagated every 80 ms. Every source goes through one gated update (``fusion``) and has a
-module deciding when to start, fuse, reset and stop it: ``gnss`` (horizontal position and 3-D
-velocity), ``baro`` (the height reference, its offset calibrated against GNSS), ``airspeed``
-(true airspeed and synthetic zero sideslip: wind), ``mag`` (heading), ``aid`` (external
-horizontal positions, one control per name). ``buffer`` holds the delayed horizon and the
-output predictor, ``status`` the counters, ``filter`` the public :class:`NavFilter`::
+propagated every 80 ms. Every source has a module deciding when to start, fuse, reset and
+stop it: ``gnss`` (horizontal position and 3-D velocity), ``baro`` (the height reference, its
+offset calibrated against GNSS), ``airspeed`` (true airspeed and synthetic zero sideslip:
+wind), ``mag`` (heading), ``aid`` (external horizontal positions, one control per name). The
+numerics are compiled: ``strapdown`` (the delayed state's prediction, the output predictor
+and its ring of IMU deltas), ``kernels`` (the covariance step, each measurement model with its
+gated update), ``quaternion``; ``fusion`` reads an update's outcome, ``buffer`` holds each
+source's measurements until the delayed horizon reaches them, ``status`` the counters,
+``filter`` is the public :class:`NavFilter`::
 
     nav = NavFilter(home)                        # NavParams() defaults
     for sample in flight:                        # every 5 ms physics step
