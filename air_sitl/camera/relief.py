@@ -19,8 +19,9 @@ samples whose corners all hit one height (within ``FLAT_M``) keep the interpolat
 march skips 8-pixel tiles whose highest point is below the ray (a max-height tile per
 window), steps one level pixel at a time near the surface, then refines. Then a remap
 from the map window (in strips). The samples sit half a pixel off the pixel grid, so the
-last step to full resolution is one ``cv2.resize``. The loops are compiled (``relief_march``, numba,
-imported on the first frame over relief).
+last step to full resolution is one ``cv2.resize``. The loops are compiled (``relief_march``,
+numba, imported and compiled or loaded from its cache by :func:`warm` when a renderer over
+relief is built, before the clock runs).
 
 Cost (bench_camera.py part 4, this 2-core machine, flat in the same run, load average 5.6
 falling to 3.4): 5.9 / 7.0 / 3.6x the flat render at 200 / 300 / 3000 m over the built-in
@@ -40,6 +41,7 @@ but costs twice the time. The 3x target needs fewer rays, not only faster ones.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -111,31 +113,6 @@ def read_window(
     return HeightWindow(values, ax0, ay0, float(values.min()), float(values.max()), tops)
 
 
-def march(
-    window: HeightWindow,
-    cx: float,
-    cy: float,
-    cam_z: float,
-    ax: F32,
-    ay: F32,
-    z_top: F32,
-    z_bottom: F32,
-) -> tuple[F32, npt.NDArray[np.bool_]]:
-    """Altitude of the first surface point of each ray within [z_bottom, z_top].
-
-    Returns (z_hit, found): rays already under the surface at z_top hit there; rays still
-    above it at z_bottom are not found (their z_hit is z_bottom).
-    """
-    cam = np.float64(cam_z)
-    px0 = (cx - window.x0) + cam * ax.astype(np.float64)  # the ray at altitude z: p0 - z * a
-    py0 = (cy - window.y0) + cam * ay.astype(np.float64)
-    f64 = np.float64
-    return _kernels().march_rays(  # type: ignore[no-any-return]
-        window.values, window.tile_max, px0, py0, ax.astype(f64), ay.astype(f64),
-        z_top.astype(f64), z_bottom.astype(f64),
-    )  # fmt: skip
-
-
 def march_one(window: HeightWindow, cx: float, cy: float, cam_z: float, ax: float,
               ay: float) -> float:  # fmt: skip
     """Altitude of the first surface point of one ray (level-pixel slopes ax, ay) between
@@ -192,7 +169,22 @@ def ground_maps(
 
 def _kernels() -> ModuleType:
     """The compiled kernels, imported on first use: numba's import (about a second) and
-    first compile are paid only by frames over relief."""
+    first compile are paid only by renderers over relief."""
     from air_sitl.camera import relief_march
 
     return relief_march
+
+
+@functools.cache
+def warm() -> None:
+    """Compile every kernel a relief frame runs (or load it from numba's disk cache) through
+    the very calls a frame makes, on a small window: a renderer over relief calls this when
+    it is built, before the clock runs, so its first frame does not stall the render threads
+    (seconds compiling after an install, about a second loading the cache)."""
+    k = _kernels()
+    values = np.zeros((2 * TILE_PX, 2 * TILE_PX), dtype=np.float32)
+    values[TILE_PX:, :] = 5.0  # a step: edge cells, so every path of the grid is typed
+    window = HeightWindow(values, 0, 0, 0.0, 5.0, k.tile_max(values))
+    nadir = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)  # image (u, v, 1) -> NED, looking down
+    ground_maps(window, nadir, (1.0, 0.0, 0.0, 1.0), 0, 8.0, 8.0, 100.0, 8, 8)
+    march_one(window, 8.0, 8.0, 100.0, 0.01, 0.01)

@@ -383,18 +383,3 @@ def solve_edge_pixels(
                         b[2], b[3] = max(b[2], x), max(b[3], y)
                     solved += 1
     return solved
-
-
-@compiled
-def march_rays(
-    values: F32, tmax: F32, px0: F32, py0: F32, ax: F32, ay: F32, z_top: F32, z_bot: F32,
-) -> tuple[F32, npt.NDArray[np.bool_]]:  # fmt: skip
-    """:func:`march_ray` for arrays of rays: (z_hit, found)."""
-    n = ax.shape[0]
-    z_hit = np.empty(n, dtype=np.float32)
-    found = np.empty(n, dtype=np.bool_)
-    for k in range(n):
-        z_hit[k], found[k] = march_ray(
-            values, tmax, px0[k], py0[k], ax[k], ay[k], z_top[k], z_bot[k]
-        )
-    return z_hit, found

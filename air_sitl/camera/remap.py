@@ -61,6 +61,8 @@ class RemapPaths:
         self.surface = owner.surface
         self.seed = owner.seed
         self._local = threading.local()  # this thread's last window of heights
+        if self.surface is not None:
+            relief.warm()  # the kernels compiled before the first frame, not during it
         self._pinhole: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
         self._vignette: npt.NDArray[np.float32] | None = None
         if camera.has_effects:

@@ -374,3 +374,37 @@ def test_relief_frames_in_strips_are_one_remap_of_the_whole_window(
                       cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                       borderValue=(0, 0, 0, 0))  # fmt: skip
     assert np.array_equal(got, cv2.cvtColor(whole, cv2.COLOR_BGRA2BGR))
+
+
+_WARM_CHECK = """
+import math
+from air_sitl.camera import relief
+from air_sitl.camera.model import CameraModel
+from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.maps.open import open_map, open_surface
+from georef_helpers import HOME
+
+entry = ("tile_max", "march_ray", "sample_grid", "strip_bounds", "solve_edge_pixels")
+m = open_map("urban", HOME)
+renderer = Renderer(m, CameraModel(), surface=open_surface("builtin", m))
+k = relief._kernels()
+built = [len(getattr(k, n).signatures) for n in entry]
+for alt, roll in ((200.0, 0.0), (300.0, 15.0)):
+    renderer.render(pose_state(HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m + alt, alt_agl_m=alt,
+                               roll_rad=math.radians(roll), pitch_rad=0.02, yaw_rad=0.3))
+print(built, [len(getattr(k, n).signatures) for n in entry])
+"""
+
+
+def test_a_relief_renderer_compiles_its_kernels_when_built_not_at_a_frame() -> None:
+    """The kernels are compiled (or loaded from numba's cache) when the renderer is built,
+    before any clock runs, each once: frames over relief never compile (a real-time serve
+    would stall its first frames for seconds after an install). A fresh process: this one
+    may have compiled them already."""
+    tests = Path(__file__).resolve().parents[1]  # where georef_helpers is
+    out = subprocess.run(
+        [sys.executable, "-c", _WARM_CHECK], capture_output=True, text=True, check=True,
+        cwd=tests,
+    )  # fmt: skip
+    built, after = out.stdout.strip().split("] [")
+    assert built == "[1, 1, 1, 1, 1" and after == "1, 1, 1, 1, 1]", out.stdout
