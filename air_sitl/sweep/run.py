@@ -26,9 +26,9 @@ import math
 import os
 import shutil
 import socket
-import tempfile
 import time
 from collections import OrderedDict
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -243,13 +243,29 @@ def _localize(task: RunTask, out: Path) -> tuple[dict[str, Any], str | None]:
     return reports, error
 
 
+@contextlib.contextmanager
+def _work_folder(task: RunTask, out: Path) -> Iterator[Path]:
+    """A working folder beside the run's archive, holding the run's plan (a worker may not
+    see the spec's folder; the path given is the plan's): removed when the block ends. Its
+    name is fixed, so a run killed inside it (a killed sweep, a dead worker) leaves it in the
+    sweep's own folder, not in /tmp, and the run's next attempt takes it over."""
+    folder = out.parent / f".work-{task.id}"
+    if folder.exists():
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True)
+    plan = folder / task.plan_name
+    plan.write_bytes(task.plan_text)
+    try:
+        yield plan
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def _run_external(task: RunTask, out: Path, localizer: ExternalLocalizer) -> str | None:
     """Fly the run again in lockstep with the localizer program on a free loopback port;
     its ``estimates/NAME.csv`` into the run's archive. None, or why it failed."""
-    with tempfile.TemporaryDirectory(prefix=f"sweep-{task.id}-") as tmp:
-        plan = Path(tmp) / task.plan_name
-        plan.write_bytes(task.plan_text)
-        flight = Path(tmp) / "flight"
+    with _work_folder(task, out) as plan:
+        flight = plan.parent / "flight"
         argv = [a for a in task.argv if not a.startswith("--zenoh")]
         log_path = out / f"{localizer.name}.log"
         why = fly_in_lockstep(plan, argv, flight, localizer, log_path)
@@ -292,9 +308,7 @@ def execute(task: RunTask) -> dict[str, Any]:
             if out.exists():  # what a killed sweep left of this run: done again from the start
                 shutil.rmtree(out)
             out.parent.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(prefix=f"sweep-{task.id}-") as tmp:
-                plan = Path(tmp) / task.plan_name
-                plan.write_bytes(task.plan_text)
+            with _work_folder(task, out) as plan:
                 summary = _row_summary(_fly(task, plan, out), task.plan_label)
         if task.methods or task.localizers:
             reports, error = _localize(task, out)

@@ -5,6 +5,7 @@ without redoing its finished runs; the report."""
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -118,7 +119,10 @@ def test_a_second_run_skips_every_done_run(spec: Path, pool2: Path) -> None:
 def test_a_killed_sweep_resumes_without_redoing_finished_runs(small: Path, tmp_path: Path) -> None:
     out = tmp_path / "s"
     cmd = [sys.executable, "-m", "air_sitl", "sweep", str(small), "--out", str(out), "-j", "1"]
-    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    tmp = tmp_path / "tmp"  # the killed sweep's temporary folder
+    tmp.mkdir()
+    env = {**os.environ, "TMPDIR": str(tmp)}
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True, env=env)
     assert proc.stderr is not None
     for line in proc.stderr:  # a progress line comes after its row is on disk
         if line.startswith("sweep ["):
@@ -126,6 +130,7 @@ def test_a_killed_sweep_resumes_without_redoing_finished_runs(small: Path, tmp_p
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     proc.stderr.close()
+    assert not list(tmp.glob("sweep-*"))  # a run killed mid-flight leaves nothing in /tmp
     first = (out / RESULTS).read_bytes()
     done = [r["id"] for r in read_rows(out / RESULTS)]
     assert 1 <= len(done) < 3
@@ -134,6 +139,7 @@ def test_a_killed_sweep_resumes_without_redoing_finished_runs(small: Path, tmp_p
     assert after.startswith(first)  # the finished rows kept as they were
     ids = [r["id"] for r in read_rows(out / RESULTS)]
     assert len(ids) == len(set(ids)) == 3  # and none of them run again
+    assert not list(out.rglob(".work-*"))  # the killed run's working folder taken over, gone
 
 
 def test_ctrl_c_stops_cleanly_with_whole_rows(spec: Path, tmp_path: Path) -> None:
