@@ -73,7 +73,7 @@ class NavFilter:
         self._ring = np.zeros((ring_len, sd.RING_COLS))
         self._ring_index = np.zeros(2 + ring_len, dtype=np.int64)
         self._last = np.zeros(sd.LAST)  # the output's running sums at the delayed time
-        self._estimate = np.zeros(20)
+        self._estimate = np.zeros(sd.NE)
         self.gnss = GnssControl(p, home)
         self.baro = BaroControl(p, home.alt_amsl_m)
         self.airspeed = AirspeedControl(p)

@@ -43,6 +43,7 @@ Index = npt.NDArray[np.int64]
 
 NX = 18  # the nominal state
 NO = 16  # the output predictor
+NE = 20  # the estimate output_estimate writes
 RING_COLS = 13
 LAST = 6  # the running sums of the last delta the delayed filter took
 NEVER = 2**62  # the end time of a delta after the last one: after any simulated time
@@ -284,4 +285,4 @@ def warm() -> None:
     delayed_predict(x, P, cov, ring, ri, consts, last)
     carry(o, np.ones(17) * 1e-9, 0.1, last)
     replay(o, x, ring, ri, 9.8, np.zeros(17))
-    output_estimate(o, x, P, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01, 9.8, np.zeros(20))
+    output_estimate(o, x, P, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.01, 9.8, np.zeros(NE))
