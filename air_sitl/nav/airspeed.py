@@ -40,8 +40,8 @@ class AirspeedControl(ScalarSource):
                 continue
             if not self.wind_started:
                 # Air velocity along the body x axis projected on the horizontal.
-                w, x, y, z = ekf.q
-                hx, hy = 1 - 2 * (y * y + z * z), 2 * (x * y + w * z)  # R's first column
+                r = ekf.rotation()
+                hx, hy = r[0], r[3]
                 norm = math.hypot(hx, hy) or 1.0
                 air = (tas * hx / norm, tas * hy / norm)
                 if velocity_valid:

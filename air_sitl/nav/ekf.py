@@ -42,12 +42,13 @@ class ErrorStateEkf:
     def __init__(self, params: NavParams, gravity_m_s2: float) -> None:
         # numba (0.4 s to import, compiled code loaded from its cache) only where a filter
         # runs: `air-sitl --help` and --nav truth flights never load it.
-        from air_sitl.nav import kernels, strapdown
+        from air_sitl.nav import kernels, quaternion, strapdown
 
         kernels.warm()
         strapdown.warm()
         self.kernels = kernels
         self.strapdown = strapdown
+        self._rotation = quaternion.rotation
         self.params = params
         self.g = gravity_m_s2
         self.x: Vector = np.zeros(strapdown.NX)
@@ -95,6 +96,10 @@ class ErrorStateEkf:
     @q.setter
     def q(self, q: tuple[float, float, float, float]) -> None:
         self.x[6:10] = q
+
+    def rotation(self) -> tuple[float, ...]:
+        """The body->NED rotation matrix of the attitude, row-major (9 floats)."""
+        return self._rotation(*self.q)  # type: ignore[no-any-return]
 
     @property
     def wind(self) -> tuple[float, float]:

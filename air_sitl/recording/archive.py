@@ -58,7 +58,7 @@ class RecordingRequest:
     # GIL). The bytes are the same.
     io_thread: bool = True
     # What summary.json's ``plan`` names: None, the file flown (``setup.plan``); a sweep run
-    # flies a copy of its SPEC's plan from a temporary folder and names the SPEC's plan here.
+    # flies a copy of its SPEC's plan from its working folder and names the SPEC's plan here.
     summary_plan: str | None = None
 
 

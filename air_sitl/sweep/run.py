@@ -71,7 +71,7 @@ class RunTask:
     plan_label: str
     plan_name: str  # file name of the plan (its stem names the scenario)
     # The plan file the SPEC named, on the driver (absolute): what the run's summary.json
-    # records as its plan, not the temporary copy the worker flies.
+    # records as its plan, not the copy the worker flies (from the run's working folder).
     plan_path: str
     plan_text: bytes
     argv: tuple[str, ...]
