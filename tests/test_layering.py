@@ -1,4 +1,4 @@
-"""The one-way flow of docs/architecture.md's "How it fits together", checked on the imports of air_sitl.
+"""The one-way flow of docs/architecture.md ("How it fits together"), checked on the imports.
 
 Each rule is a package that must not import another; a violation names the file and the line.
 """
@@ -13,7 +13,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parent.parent / "air_sitl"
 IMPORT = re.compile(r"^\s*(?:from|import)\s+air_sitl\.(\w+)", re.MULTILINE)
 
-# (package, packages it must not import): docs/architecture.md's table, the rules a change must keep.
+# (package, packages it must not import): docs/architecture.md's table, the rules to keep.
 RULES: list[tuple[str, set[str]]] = [
     ("state", {p.stem for p in PACKAGE.iterdir() if p.stem not in {"state", "__init__"}}),
     ("fdm", {"autopilot", "nav", "flightlog", "dataset", "recording", "mavlink", "bus", "camera"}),
