@@ -49,8 +49,10 @@ def _argument(action: argparse.Action) -> str:
     """How the option is written: ``--map MAP``, ``--quiet``, ``{ekf,truth}``."""
     if action.nargs == 0:
         return ""
+    if isinstance(action.metavar, tuple):
+        return " ".join(action.metavar)  # one name per value already
     if action.metavar is not None:
-        metavar = action.metavar if isinstance(action.metavar, str) else " ".join(action.metavar)
+        metavar = action.metavar
     elif action.choices is not None:
         metavar = "{" + ",".join(str(c) for c in action.choices) + "}"
     else:

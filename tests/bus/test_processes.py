@@ -314,7 +314,7 @@ def test_serve_publishes_on_the_bus_and_stops_cleanly(plan: Path) -> None:
         assert (info.width_px, info.height_px, info.hfov_deg) == (640, 480, 57.0)
 
 
-# The README's client example, verbatim but for the endpoint (raw zenoh, nothing of air-sitl).
+# docs/bus.md's client example, verbatim but for the endpoint (raw zenoh, nothing of air-sitl).
 README_CLIENT = """
 import json
 import zenoh
