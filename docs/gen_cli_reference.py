@@ -42,7 +42,8 @@ def _help(action: argparse.Action, prog: str) -> str:
 
 
 def _cell(text: str) -> str:
-    return text.replace("|", "\\|")
+    """Text for a Markdown table cell: a pipe ends a cell, ``<plan>`` would be an HTML tag."""
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;").replace("|", "\\|")
 
 
 def _argument(action: argparse.Action) -> str:
@@ -67,7 +68,8 @@ def _argument(action: argparse.Action) -> str:
 def _command(parser: argparse.ArgumentParser, level: int) -> list[str]:
     lines = [f"{'#' * level} `{parser.prog}`", ""]
     if parser.description:
-        lines += [parser.description[0].upper() + parser.description[1:] + ".", ""]
+        text = parser.description[0].upper() + parser.description[1:]
+        lines += [_cell(text) + ("" if text.endswith(".") else "."), ""]
     subcommands = _subcommands(parser)
     for group in parser._action_groups:
         rows = []
@@ -81,8 +83,9 @@ def _command(parser: argparse.ArgumentParser, level: int) -> list[str]:
             shown = f"`{_cell(arg)}`" if arg else ""
             rows.append(f"| {name} | {shown} | {_cell(_help(action, parser.prog))} |")
         if rows:
-            title = "arguments" if group.title == "positional arguments" else group.title
-            lines += [f"**{title}**", "", "| option | value | what it does |", "|---|---|---|"]
+            positional = group.title == "positional arguments"
+            title, column = ("arguments", "argument") if positional else (group.title, "option")
+            lines += [f"**{title}**", "", f"| {column} | value | what it does |", "|---|---|---|"]
             lines += [*rows, ""]
     for sub in subcommands.values():
         lines += _command(sub, level + 1)
