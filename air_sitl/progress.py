@@ -181,7 +181,8 @@ class JobsProgress:
         self.frames = dict.fromkeys(names, 0)
         self.finished = 0
         total = sum(expected.get(n, 0) for n in names)
-        width = max((len(n) for n in [*names, "overall"]), default=7)
+        # Aligned bars on a terminal; lines start with the name.
+        width = max((len(n) for n in [*names, "overall"]), default=7) if tty else 0
         self.overall = Progress(
             f"{'overall':>{width}}",
             total or None,

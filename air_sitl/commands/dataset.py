@@ -228,7 +228,8 @@ def check_disk(
     note = f" (and {', '.join(unknown)} of unknown size)" if unknown else ""
     if not args.quiet:
         print(
-            f"dataset: {len(jobs)} recordings, about {frames} frames: about {human_bytes(total)} "
+            f"dataset: {len(jobs)} recording{'' if len(jobs) == 1 else 's'}, about {frames} "
+            f"frames: about {human_bytes(total)} "
             f"into {root} at JPEG quality {quality}{note}; {human_bytes(free)} free there",
             file=sys.stderr,
             flush=True,

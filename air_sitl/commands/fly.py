@@ -139,6 +139,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         with request.bus or contextlib.nullcontext():
             result = record_flight(request, progress=progress, on_start=on_start)
+        if bars and result.mission_completed:  # the last item done
+            bars[0].update_to(bars[0].total or 0, bars[0].postfix)
     finally:
         for bar in bars:
             bar.close()
