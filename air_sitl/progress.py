@@ -57,23 +57,30 @@ class Progress:
         self.n = 0.0
         self.postfix = ""
         self.closed = False
-        self._start = clock()
-        self._last_line = self._start
+        self._started = False
+        self._start = self._last_line = clock()
         self._next_step = LINE_STEP
-        self._bar: tqdm[Any] | None = None
-        if enabled and self.tty:
-            self._bar = tqdm(
-                total=self.total,
-                desc=label,
-                unit=f" {unit}",
-                unit_scale=unit_scale,
-                file=self.stream,
-                position=position,
-                leave=True,
-                dynamic_ncols=True,
-                mininterval=0.2,
-                smoothing=0.1,
-            )
+        self.position = position
+        self._bar: tqdm[Any] | None = None  # on a terminal, from the first count
+
+    def _start_bar(self) -> None:
+        self._bar = tqdm(
+            total=self.total,
+            desc=self.label,
+            unit=f" {self.unit}",
+            unit_scale=self.unit_scale,
+            file=self.stream,
+            position=self.position,
+            leave=True,
+            dynamic_ncols=True,
+            mininterval=0.2,
+            smoothing=0.1,
+        )
+
+    @property
+    def started(self) -> bool:
+        """The first count came (the clock and the bar start then)."""
+        return self._started
 
     def set_total(self, total: float | None) -> None:
         """The total became known (or changed)."""
@@ -88,6 +95,11 @@ class Progress:
         self.postfix = postfix
         if not self.enabled or self.closed:
             return
+        if not self._started:  # the clock starts with the work (a job may wait for a worker)
+            self._started = True
+            self._start = self._last_line = self.clock()
+            if self.tty:
+                self._start_bar()
         if self._bar is not None:
             self._bar.set_postfix_str(postfix, refresh=False)
             self._bar.update(n - self._bar.n)
@@ -129,8 +141,8 @@ class Progress:
         """A line of its own (a warning, a job's result) that does not break the bars."""
         if not self.enabled:
             return
-        if self._bar is not None:
-            self._bar.write(line, file=self.stream)
+        if self.tty:
+            tqdm.write(line, file=self.stream)  # clears the bars, writes, draws them again
         else:
             self.stream.write(line + "\n")
             self.stream.flush()
@@ -140,6 +152,8 @@ class Progress:
         if self.closed:
             return
         self.closed = True
+        if not self._started:
+            return  # nothing was counted: nothing to say (an error before the work began)
         if self._bar is not None:
             self._bar.set_postfix_str(self.postfix, refresh=False)
             self._bar.close()
@@ -219,8 +233,8 @@ class JobsProgress:
         job = self.jobs[name]
         job.n = frames
         job.postfix = line
-        if job.tty or not job.enabled:
-            job.close()
+        if job.tty and job.started:
+            job.close()  # the bar stays with the line as its note
         else:
             job.closed = True
             job.note(f"[{self.finished}/{len(self.jobs)}] {name}: {frames} frames, {line}")

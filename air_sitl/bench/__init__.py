@@ -16,6 +16,7 @@ stopped. Last the leaderboard (:mod:`~air_sitl.bench.leaderboard`) and the box p
 
 from __future__ import annotations
 
+import collections
 import json
 import shlex
 import subprocess
@@ -50,7 +51,7 @@ BENCH_SPEC = "bench.yaml"  # the sweep SPEC a bench is, written beside its resul
 
 
 class BenchProgress:
-    """A line per measured cell (``[7/24] UC-200 mapmatch: median 2.1 m``) under a bar of the
+    """A line per measured cell (``bench [7/24] UC-200 mapmatch: median 2.1 m``) under a bar of the
     cells with their rate and ETA (:mod:`air_sitl.progress`)."""
 
     def __init__(self, total: int, stream: IO[str], quiet: bool, done: int = 0) -> None:
@@ -65,7 +66,7 @@ class BenchProgress:
         else:
             median = (result.report or {}).get("horizontal_error_m", {}).get("median")
             what = "no estimate" if median is None else f"median {median:.1f} m"
-        self.bar.note(f"[{self.done}/{self.total}] {result.scenario} {result.entry}: {what}")
+        self.bar.note(f"bench [{self.done}/{self.total}] {result.scenario} {result.entry}: {what}")
         self.bar.update_to(self.done)
 
 
@@ -84,10 +85,21 @@ def make_archives(config: BenchConfig) -> None:
     ]  # fmt: skip
     if config.quiet:
         cmd.append("--quiet")
-    proc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, check=False)
-    err = proc.stderr.decode("utf-8", "replace")
-    if not config.quiet or proc.returncode != 0:
-        sys.stderr.write(err)
+    # Its progress lines pass through as they come (a minute of flying is not silent); the
+    # last ones say why when it fails.
+    tail: collections.deque[str] = collections.deque(maxlen=50)
+    with subprocess.Popen(
+        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, errors="replace"
+    ) as proc:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            tail.append(line)
+            if not config.quiet:
+                sys.stderr.write(line)
+                sys.stderr.flush()
+    if config.quiet and proc.returncode != 0:
+        sys.stderr.write("".join(tail))
+    err = "".join(tail)
     if proc.returncode not in (0, 1):  # 1: a mission did not complete; still scored
         lines = [ln for ln in err.splitlines() if "error" in ln] or err.splitlines()[-1:]
         why = lines[-1] if lines else f"exit {proc.returncode}"

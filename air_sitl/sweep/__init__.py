@@ -111,7 +111,7 @@ def make_tasks(spec: SweepSpec, out: Path, keep: str = "all") -> list[RunTask]:
 
 
 class _Progress:
-    """A line per finished run (``[7/16] 3f2a.. map-date=1 seed=2: 1.4 s, deadreckon 2.1 m``)
+    """A line per finished run (``sweep [7/16] 3f2a.. map-date=1 seed=2: 1.4 s, deadreckon 2.1 m``)
     under a bar of the runs with their rate and ETA (:mod:`air_sitl.progress`)."""
 
     def __init__(self, total: int, done: int, stream: IO[str] | None, axes: Sequence[str]):
@@ -129,7 +129,7 @@ class _Progress:
                 median = ((report or {}).get("horizontal_error_m") or {}).get("median")
                 parts.append(f"{name} {'-' if median is None else f'{median:.1f} m'}")
             result = ", ".join(parts)
-        self.bar.note(f"[{self.done}/{self.total}] {what}: {result}")
+        self.bar.note(f"sweep [{self.done}/{self.total}] {what}: {result}")
         self.bar.update_to(self.done)
 
     def close(self) -> None:

@@ -56,6 +56,7 @@ def test_piped_lines_come_every_30_s_when_the_count_crawls() -> None:
         bar.update_to(n)
     assert len(out.getvalue().splitlines()) == 2  # at 30 s and 60 s
     unknown = Progress("localize vo", None, unit="frames", stream=out, clock=clock)
+    unknown.update_to(10)  # its clock starts with its first count
     clock.t += LINE_EVERY_S
     unknown.update_to(50)
     assert out.getvalue().splitlines()[-1].startswith("localize vo: 50 frames, ")
