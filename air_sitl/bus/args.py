@@ -5,12 +5,16 @@ from __future__ import annotations
 import argparse
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+from air_sitl.bus.defaults import DEFAULT_ENDPOINT
 from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace, check_chunk
-from air_sitl.bus.lockstep import WaitFor
-from air_sitl.bus.session import DEFAULT_ENDPOINT, BusConfig, Mode
 from air_sitl.errors import OptionError
 from air_sitl.options import positive_number
+
+if TYPE_CHECKING:  # zenoh loads when a command opens the bus, not for its --help
+    from air_sitl.bus.lockstep import WaitFor
+    from air_sitl.bus.session import BusConfig, Mode
 
 DEFAULT_WAIT_TIMEOUT_S = 10.0
 
@@ -120,6 +124,8 @@ class BusOptions:
 
 def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig:
     """The session configuration of the connection options."""
+    from air_sitl.bus.session import BusConfig
+
     config_file = None
     if args.zenoh_config:
         config_file = Path(args.zenoh_config)
@@ -144,6 +150,8 @@ def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig
 
 def parse_wait_for(text: str, timeout_s: float) -> WaitFor:
     """``NAME`` or ``NAME:MAX_LAG`` (MAX_LAG an integer >= 1)."""
+    from air_sitl.bus.lockstep import WaitFor
+
     name, _, lag_text = text.partition(":")
     check_chunk("--wait-for", name)
     lag = 1

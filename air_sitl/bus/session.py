@@ -23,11 +23,10 @@ from typing import Any, Literal
 
 import zenoh
 
+from air_sitl.bus.defaults import DEFAULT_ENDPOINT
 from air_sitl.closeable import Closeable
 from air_sitl.errors import BusError
 
-DEFAULT_PORT = 7447
-DEFAULT_ENDPOINT = f"tcp/127.0.0.1:{DEFAULT_PORT}"
 TX_QUEUE_BATCHES = 16  # zenoh's default is 2 batches of 64 kB per priority
 
 Mode = Literal["peer", "client", "router"]

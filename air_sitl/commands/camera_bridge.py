@@ -11,13 +11,10 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 from air_sitl.bus.args import add_connection_arguments, bus_config_from_args
 from air_sitl.bus.keys import KeySpace
-from air_sitl.bus.remote_camera import CameraBridgeServer, RenderedFrame, RenderFn, RenderSettings
-from air_sitl.bus.session import open_bus
-from air_sitl.bus.signals import wait_until_signalled
-from air_sitl.camera.info import camera_from_settings
 from air_sitl.camera.options import (
     add_camera_arguments,
     add_map_arguments,
@@ -28,9 +25,12 @@ from air_sitl.camera.options import (
     open_chosen_renderer,
 )
 from air_sitl.errors import BusError
-from air_sitl.maps.base import MapSource
 from air_sitl.options import MapChoice
 from air_sitl.state import GeoPoint, VehicleState
+
+if TYPE_CHECKING:  # zenoh and the renderer load when the bridge runs, not for --help
+    from air_sitl.bus.remote_camera import RenderFn, RenderSettings
+    from air_sitl.maps.base import MapSource
 
 HELP = "render camera frames for simulators over zenoh (fly --camera remote; truth -> camera/image)"
 
@@ -51,6 +51,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Serve renders until interrupted; exit 0 on SIGINT/SIGTERM."""
+    from air_sitl.bus.remote_camera import CameraBridgeServer, RenderSettings
+    from air_sitl.bus.session import open_bus
+    from air_sitl.bus.signals import wait_until_signalled
+
     keys = KeySpace(args.vehicle)
     camera = camera_from_args(args)  # validates the options before joining the bus
     spec = args.map or "urban"
@@ -85,6 +89,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _renderer(choice: MapChoice, settings: RenderSettings, maps: list[MapSource]) -> RenderFn:
     """A render function for one (home, camera, seed): the in-process camera's Renderer."""
+    from air_sitl.bus.remote_camera import RenderedFrame
+    from air_sitl.camera.info import camera_from_settings
+
     try:
         camera = camera_from_settings(settings.camera)
     except (KeyError, TypeError, ValueError, IndexError) as err:

@@ -13,20 +13,17 @@ import sys
 import threading
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
 
-from air_sitl.builder import FlightSetup, home_on_terrain
-from air_sitl.bus.hookup import bus_sinks_from_args
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import OptionError
-from air_sitl.mavlink.codec import load_signing_key
 from air_sitl.mavlink.links import DEFAULT_LINKS, parse_link
-from air_sitl.mission.items import Mission
-from air_sitl.mission.plan_file import load_mission
 from air_sitl.options import OPEN_END_NS, FlightOptions, flight_options_from_args
-from air_sitl.runner import home_of
-from air_sitl.serving import serve_vehicle
 from air_sitl.state import GeoPoint
+
+if TYPE_CHECKING:
+    from air_sitl.builder import FlightSetup
 
 HELP = "run a PX4-like MAVLink vehicle that ground stations connect to, upload missions to and fly"
 DEFAULT_HOME = (47.397742, 8.545594, 488.0)  # PX4 SITL's default home (Zurich)
@@ -78,6 +75,10 @@ def parse_home(text: str) -> GeoPoint:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until interrupted; exit 0 on SIGINT/SIGTERM."""
+    from air_sitl.bus.hookup import bus_sinks_from_args
+    from air_sitl.mavlink.codec import load_signing_key
+    from air_sitl.serving import serve_vehicle
+
     limited = args.max_sim_time is not None
     if not limited:
         # The options keep their default; the served flight gets no limit (OPEN_END_NS).
@@ -134,6 +135,11 @@ def _max_sim_ns(max_sim_time_s: float) -> int:
 
 def _setup(args: argparse.Namespace, options: FlightOptions) -> FlightSetup:
     """The served flight: the preloaded plan (or none) at ``--home``, the plan's, or PX4's."""
+    from air_sitl.builder import FlightSetup, home_on_terrain
+    from air_sitl.mission.items import Mission
+    from air_sitl.mission.plan_file import load_mission
+    from air_sitl.runner import home_of
+
     if args.plan:
         mission = load_mission(Path(args.plan), terrain=args.dem is not None)
         for note in mission.notes:  # item warnings come as STATUSTEXT from the executor
@@ -144,6 +150,13 @@ def _setup(args: argparse.Namespace, options: FlightOptions) -> FlightSetup:
         lat, lon, alt = DEFAULT_HOME
         default = GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
         home = parse_home(args.home) if args.home else default
+        if not args.home and not args.quiet:
+            print(
+                f"air-sitl serve: no --plan or --home: home at PX4 SITL's default, {lat:.6f}, "
+                f"{lon:.6f}, {alt:.0f} m AMSL (Zurich)",
+                file=sys.stderr,
+                flush=True,
+            )
     setup = FlightSetup(
         mission=mission,
         home=home,
