@@ -62,5 +62,5 @@ def test_the_page_runs_fly_localize_and_eval() -> None:
 
 @pytest.mark.parametrize("argv", commands(), ids=lambda a: " ".join(a[:2]))
 def test_every_command_on_the_page_parses(argv: list[str]) -> None:
-    args = build_parser(argv[0]).parse_args(argv)
+    args = build_parser().parse_args(argv)
     assert args.command == argv[0]
