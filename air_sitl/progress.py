@@ -3,8 +3,9 @@
 On a terminal each task is a tqdm bar (count, rate, ETA) redrawn in place. When the stream is
 not a terminal (a pipe, a CI log) an in-place bar is noise; the same text, from tqdm's own
 formatter, is written as one line each time another 10 % of the total is done, or after 30 s
-without a line, and once at the end. Presentation only: the work reports counts through
-callbacks and never imports this module.
+without a line, and once at the end. :class:`JobsProgress` is ``dataset``'s bar per scenario
+plus an overall one; :func:`print_summary` the screen after a flight. Presentation only: the
+work reports counts through callbacks and never imports this module.
 """
 
 from __future__ import annotations

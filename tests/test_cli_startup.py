@@ -8,6 +8,7 @@ and the value, and where its help is, with exit 2. Timing is benchmarks/bench_cl
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 from pathlib import Path
@@ -141,3 +142,41 @@ def test_the_help_constants_of_bench_are_the_real_ones() -> None:
     assert tuple(METHODS) == bench.METHOD_NAMES
     assert bench.ALIGNMENTS == ALIGNMENTS
     assert (bench.FLIGHT_DATE, bench.REFERENCE_DATE) == (config.FLIGHT_DATE, config.REFERENCE_DATE)
+
+
+def _command_parser(command: str) -> argparse.ArgumentParser:
+    from air_sitl.cli import _parser_for, build_parser
+
+    return _parser_for(build_parser(command), MINIMAL[command])
+
+
+CHOICES = [
+    (command, action.option_strings[-1], tuple(action.choices))
+    for command in MINIMAL
+    for action in _command_parser(command)._actions
+    if action.choices and action.option_strings
+]
+
+
+@pytest.mark.parametrize(("command", "option", "choices"), CHOICES, ids=str)
+def test_every_invalid_choice_is_one_line(
+    command: str, option: str, choices: tuple[str, ...], capsys: pytest.CaptureFixture[str]
+) -> None:
+    where = "map make" if command == "map" else command
+    line = one_line_error([*MINIMAL[command], option, "nope"], capsys)
+    assert line.startswith(f"air-sitl: error: {where}: argument {option}: invalid choice: 'nope'")
+    assert line.endswith(f"(see `air-sitl {where} --help`)")
+
+
+REQUIRED = [c for c in MINIMAL if len(MINIMAL[c]) > 1]
+
+
+@pytest.mark.parametrize("command", REQUIRED)
+def test_every_missing_argument_is_one_line(
+    command: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv = MINIMAL[command][:3] if command == "map" else [command]
+    where = "map make" if command == "map" else command
+    line = one_line_error(argv, capsys)
+    assert line.startswith(f"air-sitl: error: {where}: ")
+    assert "required" in line and line.endswith(f"(see `air-sitl {where} --help`)")
