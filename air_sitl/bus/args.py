@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace, check_chunk
 from air_sitl.bus.lockstep import WaitFor
+from air_sitl.bus.ros2.node import Ros2Options
+from air_sitl.bus.ros2.options import add_ros2_arguments, ros2_options_from_args
 from air_sitl.bus.session import DEFAULT_ENDPOINT, BusConfig, Mode
 from air_sitl.errors import OptionError
 from air_sitl.options import positive_number
@@ -99,6 +101,7 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
         default="local",
         help="render in this process (local, default) or ask `air-sitl camera-bridge` over zenoh",
     )
+    add_ros2_arguments(parser)
     add_connection_arguments(parser, serves=True)
 
 
@@ -116,6 +119,7 @@ class BusOptions:
     wait_timeout_s: float
     svo_columns: str | None
     remote_camera: bool
+    ros2: Ros2Options | None = None  # --ros2: the ROS 2 view beside our keys
 
 
 def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig:
@@ -171,11 +175,13 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
     explicit = bool(args.zenoh_listen or args.zenoh_connect or args.zenoh_config)
     aid = getattr(args, "nav_aid", None)
     zenoh_aid = aid is not None and aid != "mavlink"  # --nav-aid NAME implies --zenoh
-    publish = bool(args.zenoh or args.publish_truth or wait or svo or zenoh_aid)
+    ros2 = ros2_options_from_args(args)
+    publish = bool(args.zenoh or args.publish_truth or wait or svo or zenoh_aid or ros2)
+    config = bus_config_from_args(args, serves=True)
     return BusOptions(
         enabled=publish or remote or explicit,
         publish=publish or explicit,
-        config=bus_config_from_args(args, serves=True),
+        config=config if ros2 is None else replace(config, timestamping=True),
         keys=KeySpace(args.vehicle),
         publish_truth=bool(args.publish_truth),
         imu_rate_hz=imu_rate,
@@ -183,4 +189,5 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
         wait_timeout_s=timeout,
         svo_columns=svo,
         remote_camera=remote,
+        ros2=ros2,
     )

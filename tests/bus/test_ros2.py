@@ -1,0 +1,229 @@
+"""``--ros2``: the vehicle as a ROS 2 node, checked by a peer written from rmw_zenoh's design
+document alone (tests/bus/ros2_peer.py, no air_sitl ROS 2 code): discovery through liveliness
+tokens, data on the documented keys, every attachment, every payload decoded by rosbags."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import subprocess
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+import zenoh
+import zenoh.ext
+from short_plans import write_short_plan
+
+from .helpers import HOME, cli, free_endpoint, wait_until
+from .ros2_peer import (
+    CDR_LE_HEADER,
+    STORE,
+    RosPeer,
+    data_key,
+    dds_name,
+    gid,
+    read_attachment,
+)
+
+pytestmark = pytest.mark.integration
+
+NODE = "air_sitl_uav0"
+TOPICS = {
+    "/air/uav0/camera/image/compressed": "sensor_msgs/msg/CompressedImage",
+    "/air/uav0/camera/camera_info": "sensor_msgs/msg/CameraInfo",
+    "/air/uav0/imu": "sensor_msgs/msg/Imu",
+    "/air/uav0/gnss/fix": "sensor_msgs/msg/NavSatFix",
+    "/air/uav0/truth/odometry": "nav_msgs/msg/Odometry",
+    "/clock": "rosgraph_msgs/msg/Clock",
+    "/tf_static": "tf2_msgs/msg/TFMessage",
+}
+
+
+@pytest.fixture(scope="module")
+def plan(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_short_plan(tmp_path_factory.mktemp("plan") / "R2.plan", HOME, leg_m=40.0)
+
+
+def fly(plan: Path, out: Path, endpoint: str, *extra: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        cli("fly", str(plan), "--out", str(out), "--air-start", "--quiet", "--ros2",
+            "--zenoh-connect", endpoint, *extra),
+        capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def ns_of(stamp: Any) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def rotate(q: Any, v: tuple[float, float, float]) -> np.ndarray:
+    """v rotated by the geometry_msgs Quaternion q."""
+    w, x, y, z = q.w, q.x, q.y, q.z
+    r = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])  # fmt: skip
+    return r @ np.array(v)
+
+
+def test_a_ros2_subscriber_discovers_and_decodes_every_topic(plan: Path, tmp_path: Path) -> None:
+    endpoint = free_endpoint()
+    peer = RosPeer(listen=(endpoint,))
+    late: list[Any] = []
+    tf_key = data_key(0, "/tf_static", TOPICS["/tf_static"])
+    clock_key = data_key(0, "/clock", TOPICS["/clock"])
+    late_tf: list[bytes] = []
+
+    def join_late() -> None:
+        # A transient-local subscriber that joins after /tf_static went out still gets it.
+        if wait_until(lambda: len(peer.received(clock_key)) > 10):
+            late.append(zenoh.ext.declare_advanced_subscriber(
+                peer.session, tf_key, lambda s: late_tf.append(s.payload.to_bytes()),
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True),
+            ))  # fmt: skip
+
+    joiner = threading.Thread(target=join_late)
+    joiner.start()
+    out = tmp_path / "a"
+    wall_start = time.time_ns()
+    try:
+        run = fly(plan, out, endpoint, "--publish-truth", "--gps-denied-window", "2:4")
+        wall_end = time.time_ns()
+        joiner.join()
+        assert run.returncode == 0, run.stderr
+        wait_until(lambda: bool(late_tf), 10.0)
+    finally:
+        for sub in late:
+            sub.undeclare()
+        peer.close()
+
+    # Discovery: the node, and one publisher per topic with its type, hash and QoS.
+    nodes = [t for t in peer.tokens if t.kind == "NN" and t.node == NODE]
+    assert len(nodes) == 1 and nodes[0].namespace == "/" and nodes[0].enclave == "/", peer.tokens
+    pubs = {t.topic: t for t in peer.tokens if t.kind == "MP" and t.node == NODE}
+    assert set(pubs) == set(TOPICS), sorted(pubs)
+    for topic, typename in TOPICS.items():
+        token = pubs[topic]
+        assert token.zid == nodes[0].zid and token.namespace == "/"
+        assert token.type == dds_name(typename)
+        assert token.type_hash == STORE.hash_rihs01(typename)
+    assert pubs["/tf_static"].qos.split(":")[1] == "1"  # transient local
+    assert pubs["/air/uav0/imu"].qos.split(":")[1] == ""  # volatile (the default)
+
+    # Every sample: on a documented key, with a valid attachment from its publisher, CDR.
+    # Publishers drop under congestion (as rmw_zenoh's keep-last ones): a lost sample leaves a
+    # gap in the sequence numbers, which otherwise count 1, 2, 3 ...
+    decoded: dict[str, list[Any]] = {}
+    seq_of: dict[str, list[int]] = {}
+    for topic, typename in TOPICS.items():
+        key = data_key(0, topic, typename)
+        got = peer.received(key)
+        assert got, topic
+        want_gid = gid(pubs[topic].key)
+        seqs = []
+        for s in got:
+            assert s.attachment is not None, topic
+            seq, stamp, sender = read_attachment(s.attachment)
+            assert sender == want_gid, topic
+            assert wall_start <= stamp <= wall_end, topic
+            seqs.append(seq)
+            assert s.payload[:4] == CDR_LE_HEADER
+        assert seqs == sorted(set(seqs)) and seqs[0] >= 1, topic
+        assert len(seqs) >= 0.9 * seqs[-1], (topic, len(seqs), seqs[-1])
+        seq_of[topic] = seqs
+        decoded[topic] = [STORE.deserialize_cdr(s.payload, typename) for s in got]
+    assert {s.key.split("/", 1)[0] for s in peer.samples} == {"0"}
+
+    # /clock: simulation time, every 5 ms; every header stamp is one of its instants.
+    clock = [ns_of(m.clock) for m in decoded["/clock"]]
+    assert [t - 5_000_000 * s for t, s in zip(clock, seq_of["/clock"], strict=True)] == [
+        clock[0] - 5_000_000 * seq_of["/clock"][0]
+    ] * len(clock)
+    instants = set(range(clock[0] - 5_000_000 * seq_of["/clock"][0], clock[-1] + 1, 5_000_000))
+
+    # Images: the archive's JPEGs, in the camera's optical frame; camera_info beside them.
+    images = decoded["/air/uav0/camera/image/compressed"]
+    infos = decoded["/air/uav0/camera/camera_info"]
+    meta = read_csv(out / "metadata.csv")
+    image_seqs = seq_of["/air/uav0/camera/image/compressed"]
+    assert len(images) > 100 and image_seqs[-1] == len(meta)
+    rows = [meta[s - 1] for s in image_seqs]  # sample n is frame n - 1
+    for m, row in zip(images, rows, strict=True):
+        assert m.format == "jpeg"
+        assert m.data.tobytes() == (out / row["Filename"]).read_bytes()
+        assert m.header.frame_id == "camera_optical_frame"
+        assert ns_of(m.header.stamp) in instants
+    info_stamps = dict(zip(seq_of["/air/uav0/camera/camera_info"], infos, strict=True))
+    for m, seq in zip(images, image_seqs, strict=True):
+        if seq in info_stamps:
+            assert ns_of(info_stamps[seq].header.stamp) == ns_of(m.header.stamp)
+    cam = yaml.safe_load((out / "camera.yaml").read_text())
+    info = infos[0]
+    assert info.header.frame_id == images[0].header.frame_id
+    assert (info.width, info.height) == (cam["image_width"], cam["image_height"])
+    assert list(info.k) == pytest.approx(cam["camera_matrix"]["data"])
+    assert list(info.p) == pytest.approx(cam["projection_matrix"]["data"])
+    assert info.distortion_model == "plumb_bob"
+
+    # Truth odometry: base_link in map (ENU from home) = the archive's pose at each frame.
+    truth = {ns_of(m.header.stamp): m for m in decoded["/air/uav0/truth/odometry"]}
+    assert all(m.header.frame_id == "map" and m.child_frame_id == "base_link"
+               for m in truth.values())  # fmt: skip
+    for m, row in zip(images, rows, strict=True):
+        if ns_of(m.header.stamp) not in truth:
+            continue  # dropped under congestion
+        p = truth[ns_of(m.header.stamp)].pose.pose.position
+        assert (p.x, p.y, p.z) == pytest.approx(
+            (float(row["PoseX"]), float(row["PoseY"]), float(row["PoseZ"])), abs=1e-3
+        )
+    # FLU/ENU: flying east, the nose (base_link +x) points east and the velocity is forward.
+    mid = decoded["/air/uav0/truth/odometry"][len(truth) // 2]
+    nose = rotate(mid.pose.pose.orientation, (1.0, 0.0, 0.0))
+    assert nose[0] > 0.95, nose
+    assert mid.twist.twist.linear.x > 10.0
+
+    # IMU: in base_link, simulation time, the AHRS attitude close to the truth's.
+    imus = decoded["/air/uav0/imu"]
+    assert all(m.header.frame_id == "base_link" and ns_of(m.header.stamp) in instants
+               for m in imus)  # fmt: skip
+    for m in imus[::50]:
+        t = truth.get(ns_of(m.header.stamp))
+        if t is None:
+            continue
+        a = rotate(m.orientation, (1.0, 0.0, 0.0))
+        b = rotate(t.pose.pose.orientation, (1.0, 0.0, 0.0))
+        assert float(a @ b) > math.cos(math.radians(5.0))
+        assert m.linear_acceleration.z > 5.0  # FLU: the specific force of lift points up
+
+    # GNSS: NO_FIX inside the denial window (still published), fixes outside it.
+    fixes = decoded["/air/uav0/gnss/fix"]
+    no_fix = [ns_of(m.header.stamp) for m in fixes if m.status.status == -1]
+    fixed = [ns_of(m.header.stamp) for m in fixes if m.status.status >= 0]
+    assert len(no_fix) >= 8 and all(2e9 <= t < 4e9 for t in no_fix), no_fix
+    assert not [t for t in fixed if 2e9 <= t < 4e9]
+    assert [t for t in fixed if t < 2e9] and [t for t in fixed if t >= 4e9]
+
+    # TF: the camera mount; the optical axis points down, image right along the right wing.
+    (tf_msg,) = decoded["/tf_static"]
+    (tf,) = tf_msg.transforms
+    assert (tf.header.frame_id, tf.child_frame_id) == ("base_link", "camera_optical_frame")
+    assert rotate(tf.transform.rotation, (0.0, 0.0, 1.0)) == pytest.approx([0, 0, -1], abs=1e-9)
+    assert rotate(tf.transform.rotation, (1.0, 0.0, 0.0)) == pytest.approx([0, -1, 0], abs=1e-9)
+    assert late_tf, "a late transient-local subscriber got no /tf_static"
+    assert STORE.deserialize_cdr(late_tf[0], TOPICS["/tf_static"]).transforms[0].child_frame_id == (
+        "camera_optical_frame"
+    )
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["ros2"]["frames_published"] == len(meta)
