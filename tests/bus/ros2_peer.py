@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -113,6 +114,7 @@ class RosPeer:
     tokens: list[Token] = field(default_factory=list)
     samples: list[Received] = field(default_factory=list)
     lock: threading.Lock = field(default_factory=threading.Lock)
+    listeners: list[Callable[[Received], None]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         conf = zenoh.Config()
@@ -141,6 +143,8 @@ class RosPeer:
                        None if att is None else att.to_bytes(), time.time_ns())  # fmt: skip
         with self.lock:
             self.samples.append(got)
+        for listener in self.listeners:
+            listener(got)
 
     def received(self, key: str) -> list[Received]:
         with self.lock:

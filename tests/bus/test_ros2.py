@@ -20,7 +20,7 @@ import zenoh
 import zenoh.ext
 from short_plans import write_short_plan
 
-from .helpers import HOME, cli, free_endpoint, wait_until
+from .helpers import HOME, WAIT_SAFETY, cli, free_endpoint, wait_until
 from .ros2_peer import (
     CDR_LE_HEADER,
     STORE,
@@ -158,7 +158,7 @@ def test_a_ros2_subscriber_discovers_and_decodes_every_topic(plan: Path, tmp_pat
     infos = decoded["/air/uav0/camera/camera_info"]
     meta = read_csv(out / "metadata.csv")
     image_seqs = seq_of["/air/uav0/camera/image/compressed"]
-    assert len(images) > 100 and image_seqs[-1] == len(meta)
+    assert len(images) >= 50 and image_seqs[-1] == len(meta)
     rows = [meta[s - 1] for s in image_seqs]  # sample n is frame n - 1
     for m, row in zip(images, rows, strict=True):
         assert m.format == "jpeg"
@@ -227,3 +227,141 @@ def test_a_ros2_subscriber_discovers_and_decodes_every_topic(plan: Path, tmp_pat
     )
     summary = json.loads((out / "summary.json").read_text())
     assert summary["ros2"]["frames_published"] == len(meta)
+
+
+ODOM = "nav_msgs/msg/Odometry"
+POSE = "geometry_msgs/msg/PoseWithCovarianceStamped"
+IMAGE_KEY = data_key(
+    0, "/air/uav0/camera/image/compressed", TOPICS["/air/uav0/camera/image/compressed"]
+)
+TRUTH_KEY = data_key(0, "/air/uav0/truth/odometry", ODOM)
+
+
+class TruthVo:
+    """An estimator node: answers every image with the truth pose at the image's stamp (as
+    nav_msgs/Odometry in map, covariance 2 m), the way a VO node copies the image header."""
+
+    def __init__(self, peer: RosPeer, name: str) -> None:
+        peer.declare_node(f"vo_{name}")
+        self.pub = peer.declare_publisher(f"/air/uav0/estimates/{name}", ODOM)
+        self.truth: dict[int, Any] = {}
+        self.waiting: list[Any] = []
+        self.sent = 0
+        self.lock = threading.Lock()
+        peer.listeners.append(self.on_sample)
+
+    def on_sample(self, s: Any) -> None:
+        if s.key == TRUTH_KEY:
+            m = STORE.deserialize_cdr(s.payload, ODOM)
+            with self.lock:
+                self.truth[ns_of(m.header.stamp)] = m
+        elif s.key == IMAGE_KEY:
+            m = STORE.deserialize_cdr(s.payload, TOPICS["/air/uav0/camera/image/compressed"])
+            with self.lock:
+                self.waiting.append(m.header)
+        else:
+            return
+        with self.lock:
+            ready = [h for h in self.waiting if ns_of(h.stamp) in self.truth]
+            self.waiting = [h for h in self.waiting if ns_of(h.stamp) not in self.truth]
+            for header in ready:
+                truth = self.truth[ns_of(header.stamp)]
+                truth.header.stamp = header.stamp
+                truth.pose.covariance = np.diag([4.0, 4.0, 4.0, 0.1, 0.1, 0.1]).ravel()
+                self.pub.publish(bytes(STORE.serialize_cdr(truth, ODOM)))
+                self.sent += 1
+
+
+def test_a_ros2_estimator_aids_the_flight_under_denial_in_lockstep(
+    plan: Path, tmp_path: Path
+) -> None:
+    endpoint = free_endpoint()
+    peer = RosPeer(listen=(endpoint,))
+    vo = TruthVo(peer, "rosvo")
+    out = tmp_path / "a"
+    try:
+        run = fly(plan, out, endpoint, "--publish-truth", "--wait-for", "rosvo",
+                  "--nav-aid", "rosvo", "--gps-denied-after", "1", *WAIT_SAFETY)  # fmt: skip
+    finally:
+        peer.close()
+    assert run.returncode == 0, run.stderr
+    meta = read_csv(out / "metadata.csv")
+    rows = read_csv(out / "estimates" / "rosvo.csv")
+    n = len(meta)
+    assert n >= 50 and [int(r["frame"]) for r in rows] == list(range(n))
+    for r, m in zip(rows, meta, strict=True):
+        assert (float(r["east_m"]), float(r["north_m"]), float(r["up_m"])) == pytest.approx(
+            (float(m["PoseX"]), float(m["PoseY"]), float(m["PoseZ"])), abs=1e-3
+        )
+        assert r["latency_frames"] == "0"  # lockstep: frame k+1 waited for k
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["estimates"] == {"rosvo": n}
+    assert summary["ros2"]["estimates_accepted"] == vo.sent
+    assert summary["ros2"]["estimates_rejected"] == 0
+    aid = summary["nav"]["aid"]
+    # In lockstep the filter takes the estimate of frame k once frame k + 1 is out: the last
+    # ones come after the flight.
+    assert aid["name"] == "rosvo" and vo.sent - 2 <= aid["received"] <= vo.sent
+    assert aid["fused"] > 0.8 * vo.sent
+    assert summary["nav"]["gnss_denied_s"] > 3.0
+    assert summary["nav"]["horizontal_error_denied_m"]["max"] < 5.0
+    subs = [t for t in peer.tokens if t.kind == "MS" and t.node == NODE]
+    assert [(t.topic, t.type) for t in subs] == [("/air/uav0/estimates/rosvo", dds_name(ODOM))]
+
+
+def test_bad_ros2_estimates_are_counted_and_ignored(plan: Path, tmp_path: Path) -> None:
+    endpoint = free_endpoint()
+    peer = RosPeer(listen=(endpoint,))
+    peer.declare_node("bad_vo")
+    good = peer.declare_publisher("/air/uav0/estimates/vo", POSE)
+    odom = peer.declare_publisher("/air/uav0/estimates/vo", ODOM)
+    # The same Odometry on a key with another type hash (another distro's definition).
+    wrong_key = odom.key.rsplit("/", 1)[0] + "/RIHS01_" + "0" * 64
+    wrong = peer.session.declare_publisher(wrong_key)
+    sent = threading.Event()
+
+    def on_sample(s: Any) -> None:
+        if s.key != IMAGE_KEY or sent.is_set():
+            return
+        sent.set()
+        header = STORE.deserialize_cdr(
+            s.payload, TOPICS["/air/uav0/camera/image/compressed"]
+        ).header
+        header.frame_id = "map"
+        types = STORE.types
+        pose = types[POSE](header=header, pose=types["geometry_msgs/msg/PoseWithCovariance"](
+            pose=types["geometry_msgs/msg/Pose"](
+                position=types["geometry_msgs/msg/Point"](x=1.0, y=2.0, z=3.0),
+                orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)),
+            covariance=np.zeros(36)))  # fmt: skip
+        odometry = STORE.deserialize_cdr(
+            bytes(STORE.serialize_cdr(types[ODOM](
+                header=header, child_frame_id="base_link", pose=pose.pose,
+                twist=types["geometry_msgs/msg/TwistWithCovariance"](
+                    twist=types["geometry_msgs/msg/Twist"](
+                        linear=types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
+                        angular=types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)),
+                    covariance=np.zeros(36))), ODOM)), ODOM)  # fmt: skip
+        odom_cdr = bytes(STORE.serialize_cdr(odometry, ODOM))
+        odom.publish(b"\x00\x01\x00\x00garbage")  # not an Odometry
+        wrong.put(odom_cdr, attachment=b"")  # unknown type hash
+        odom.publish(odom_cdr, with_attachment=False)  # no attachment
+        good.publish(bytes(STORE.serialize_cdr(pose, POSE)))
+
+    peer.listeners.append(on_sample)
+    out = tmp_path / "a"
+    try:
+        run = fly(plan, out, endpoint)
+    finally:
+        peer.close()
+    assert run.returncode == 0, run.stderr
+    assert sent.is_set()
+    assert "3 ROS 2 estimate sample(s) ignored" in run.stderr, run.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["ros2"]["estimates_rejected"] == 3
+    assert summary["ros2"]["estimates_accepted"] == 1
+    rows = read_csv(out / "estimates" / "vo.csv")
+    assert [(r["east_m"], r["north_m"], r["up_m"]) for r in rows] == [
+        ("1.0000", "2.0000", "3.0000")
+    ]
+    assert summary["capture_frames"] == len(read_csv(out / "metadata.csv")) >= 50
