@@ -59,4 +59,7 @@ def ros2_options_from_args(args: argparse.Namespace) -> Ros2Options | None:
     for part in parts:
         ros_name_token(f"--ros-namespace {args.ros_namespace}", part)
     namespace = "/" + "/".join(parts)
+    vehicle = getattr(args, "vehicle", None)
+    if vehicle is not None:  # it names the node and the topics
+        ros_name_token("--vehicle (with --ros2)", vehicle)
     return Ros2Options(domain_id=domain, namespace=namespace, distro=args.ros_distro)
