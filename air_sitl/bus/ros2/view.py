@@ -96,6 +96,7 @@ class Ros2View(NullSink):
             # Kept: the cache answers late subscribers while the publisher lives.
             self._tf_static = node.publisher("/tf_static", TF, STATIC)
             self._tf_static.publish(self.msgs.serialize(self.msgs.camera_mount(0, camera), TF))
+        self._warm_up()
         self._imu_every = max(1, round(200.0 / max(imu_rate_hz, 1e-9)))
         self._step = 0
         self._last_fix_ns: int | None = None
@@ -104,6 +105,16 @@ class Ros2View(NullSink):
         self._last_frame = -1
         self._lock = threading.Lock()
         self.frames_published = 0
+
+    def _warm_up(self) -> None:
+        """Serialize one message of each type now: rosbags compiles a type's serializer on
+        its first use (tens of ms), which would otherwise delay the first samples."""
+        m = self.msgs
+        m.serialize(m.clock(0), CLOCK)
+        m.serialize(m.nav_sat_fix(0, None), NAV_SAT_FIX)
+        m.serialize(m.compressed_image(0, b""), COMPRESSED_IMAGE)
+        if self.camera is not None:
+            m.serialize(m.camera_info(0, self.camera), CAMERA_INFO)
 
     @property
     def image_matched(self) -> bool:
