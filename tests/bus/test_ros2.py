@@ -20,7 +20,22 @@ import zenoh
 import zenoh.ext
 from short_plans import write_short_plan
 
-from .helpers import HOME, WAIT_SAFETY, cli, free_endpoint, wait_until
+from air_sitl.bus import codec
+from air_sitl.bus.keys import KeySpace
+from air_sitl.bus.publisher import BusPublisher, PublishOptions
+from air_sitl.bus.session import BusConfig, Message, open_bus
+
+from .helpers import (
+    HOME,
+    WAIT_SAFETY,
+    cli,
+    free_endpoint,
+    make_sample,
+    start,
+    stop,
+    wait_for_line,
+    wait_until,
+)
 from .ros2_peer import (
     CDR_LE_HEADER,
     STORE,
@@ -230,6 +245,7 @@ def test_a_ros2_subscriber_discovers_and_decodes_every_topic(plan: Path, tmp_pat
 
 
 ODOM = "nav_msgs/msg/Odometry"
+IMAGE_TOPIC = "/air/uav0/camera/image/compressed"
 POSE = "geometry_msgs/msg/PoseWithCovarianceStamped"
 IMAGE_KEY = data_key(
     0, "/air/uav0/camera/image/compressed", TOPICS["/air/uav0/camera/image/compressed"]
@@ -365,3 +381,39 @@ def test_bad_ros2_estimates_are_counted_and_ignored(plan: Path, tmp_path: Path) 
         ("1.0000", "2.0000", "3.0000")
     ]
     assert summary["capture_frames"] == len(read_csv(out / "metadata.csv")) >= 50
+
+
+def test_camera_bridge_publishes_its_frames_as_ros2(tmp_path: Path) -> None:
+    sim_ep, bridge_ep = free_endpoint(), free_endpoint()
+    sim = open_bus(BusConfig(listen=(sim_ep,), connect=(), serves=True))
+    frames: list[Message] = []
+    sim.subscribe(KeySpace().image, frames.append)
+    bridge = start(cli("camera-bridge", "--map", "urban", "--ros2", "--zenoh-listen", bridge_ep,
+                       "--zenoh-connect", sim_ep))  # fmt: skip
+    peer = RosPeer(connect=(bridge_ep,))
+    try:
+        wait_for_line(bridge, "serving")
+        pub = BusPublisher(sim, PublishOptions(publish_truth=True, home=HOME))
+        assert wait_until(lambda: pub._truth is not None and pub._truth.matched)
+        image_key = data_key(0, "/air/uav0/camera/image/compressed", TOPICS[IMAGE_TOPIC])
+        assert wait_until(lambda: any(t.topic == IMAGE_TOPIC for t in peer.tokens))
+        # 200 Hz physics, a camera exposure every 4th step (50 Hz): frames 0..9.
+        samples = [
+            make_sample(i * 5_000_000, east_m=0.075 * i, frame=None if i % 4 else i // 4)
+            for i in range(40)
+        ]
+        for s in samples:
+            pub.on_sample(s)
+        assert wait_until(lambda: len(peer.received(image_key)) == 10 and len(frames) == 10)
+    finally:
+        code, _, err = stop(bridge)
+        peer.close()
+        sim.close()
+    assert code == 0, err
+    nodes = {t.node for t in peer.tokens if t.kind == "NN"}
+    assert "air_sitl_uav0_camera" in nodes
+    ours = {codec.decode_frame_meta(m.attachment).sim_time_ns: m.payload for m in frames}
+    for s in peer.received(image_key):
+        assert s.attachment is not None and read_attachment(s.attachment)[0] >= 1
+        m = STORE.deserialize_cdr(s.payload, TOPICS[IMAGE_TOPIC])
+        assert m.data.tobytes() == ours[ns_of(m.header.stamp)]

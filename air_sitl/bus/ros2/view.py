@@ -40,7 +40,7 @@ from air_sitl.bus.ros2.messages import (
     estimate_of,
     typestore,
 )
-from air_sitl.bus.ros2.node import Ros2Node, Ros2Options, RosPublisher
+from air_sitl.bus.ros2.node import Ros2Node, Ros2Options
 from air_sitl.bus.session import Bus, Message, Publisher
 from air_sitl.camera.model import CameraModel
 from air_sitl.clock import NS_PER_S
@@ -57,9 +57,10 @@ def node_name(vehicle: str) -> str:
     return f"air_sitl_{ros_name_token('--vehicle (for --ros2)', vehicle)}"
 
 
-def open_node(bus: Bus, options: Ros2Options, keys: KeySpace) -> Ros2Node:
-    """The vehicle's node on ``bus``."""
-    return Ros2Node(bus, options, node_name(keys.vehicle), Messages(typestore(options.distro)))
+def open_node(bus: Bus, options: Ros2Options, keys: KeySpace, suffix: str = "") -> Ros2Node:
+    """The vehicle's node on ``bus`` (``air_sitl_<vehicle><suffix>``)."""
+    name = node_name(keys.vehicle) + suffix
+    return Ros2Node(bus, options, name, Messages(typestore(options.distro)))
 
 
 class Ros2View(NullSink):
@@ -77,7 +78,6 @@ class Ros2View(NullSink):
     ) -> None:
         self.node = node
         self.msgs = node.messages
-        self.camera = camera
         ns = node.options.resolve
         root = f"air/{keys.vehicle}"
         self._clock = node.publisher("/clock", CLOCK)
@@ -86,25 +86,13 @@ class Ros2View(NullSink):
         self._truth = None
         if publish_truth:
             self._truth = node.publisher(ns(f"{root}/truth/odometry"), ODOMETRY)
-        self.image: RosPublisher | None = None
-        self._info: RosPublisher | None = None
-        if camera is not None:
-            self.image = node.publisher(
-                ns(f"{root}/camera/image/compressed"), COMPRESSED_IMAGE, block=block_frames
-            )
-            self._info = node.publisher(ns(f"{root}/camera/camera_info"), CAMERA_INFO)
-            # Kept: the cache answers late subscribers while the publisher lives.
-            self._tf_static = node.publisher("/tf_static", TF, STATIC)
-            self._tf_static.publish(self.msgs.serialize(self.msgs.camera_mount(0, camera), TF))
+        self.cam = None if camera is None else Ros2Camera(node, keys, camera, block=block_frames)
         self._warm_up()
         self._imu_every = max(1, round(200.0 / max(imu_rate_hz, 1e-9)))
         self._step = 0
         self._last_fix_ns: int | None = None
         self._last_no_fix_ns: int | None = None
         self._gnss_period_ns = GNSS_PERIOD_NS
-        self._last_frame = -1
-        self._lock = threading.Lock()
-        self.frames_published = 0
 
     def _warm_up(self) -> None:
         """Serialize one message of each type now: rosbags compiles a type's serializer on
@@ -112,14 +100,11 @@ class Ros2View(NullSink):
         m = self.msgs
         m.serialize(m.clock(0), CLOCK)
         m.serialize(m.nav_sat_fix(0, None), NAV_SAT_FIX)
-        m.serialize(m.compressed_image(0, b""), COMPRESSED_IMAGE)
-        if self.camera is not None:
-            m.serialize(m.camera_info(0, self.camera), CAMERA_INFO)
 
     @property
     def image_matched(self) -> bool:
         """True when a subscriber listens to the image topic."""
-        return self.image is not None and self.image.matched
+        return self.cam is not None and self.cam.image.matched
 
     def on_sample(self, sample: SimSample) -> None:
         """Clock every step, IMU decimated, NavSatFix (NO_FIX when fixes stop), truth."""
@@ -154,19 +139,49 @@ class Ros2View(NullSink):
 
     def publish_frame(self, frame: CameraFrame) -> None:
         """CompressedImage and CameraInfo of one frame (once per frame index)."""
-        with self._lock:
-            if frame.index <= self._last_frame or self.image is None or self._info is None:
-                return
-            self._last_frame = frame.index
-        m = self.msgs
-        t = frame.sim_time_ns
-        if self.camera is not None:
-            self._info.publish(m.serialize(m.camera_info(t, self.camera), CAMERA_INFO))
-        self.image.publish(m.serialize(m.compressed_image(t, frame.jpeg), COMPRESSED_IMAGE))
-        self.frames_published += 1
+        if self.cam is not None:
+            self.cam.publish(frame.index, frame.sim_time_ns, frame.jpeg)
+
+    @property
+    def frames_published(self) -> int:
+        """Frames put on the image topic."""
+        return 0 if self.cam is None else self.cam.frames_published
 
     def close(self, result: FlightResult) -> None:
         """Nothing buffered."""
+
+
+class Ros2Camera:
+    """The camera's topics: CompressedImage and CameraInfo of each frame (same stamp, same
+    frame_id), and the mount on ``/tf_static`` (transient-local: late subscribers get it)."""
+
+    def __init__(
+        self, node: Ros2Node, keys: KeySpace, camera: CameraModel, *, block: bool = False
+    ) -> None:
+        self.msgs = m = node.messages
+        self.camera = camera
+        root = node.options.resolve(f"air/{keys.vehicle}/camera")
+        self.image = node.publisher(f"{root}/image/compressed", COMPRESSED_IMAGE, block=block)
+        self._info = node.publisher(f"{root}/camera_info", CAMERA_INFO)
+        # Kept: its cache answers late subscribers while the publisher lives.
+        self._tf_static = node.publisher("/tf_static", TF, STATIC)
+        self._tf_static.publish(m.serialize(m.camera_mount(0, camera), TF))
+        m.serialize(m.compressed_image(0, b""), COMPRESSED_IMAGE)  # compile the serializers
+        m.serialize(m.camera_info(0, camera), CAMERA_INFO)
+        self._last_frame = -1
+        self._lock = threading.Lock()
+        self.frames_published = 0
+
+    def publish(self, index: int, sim_time_ns: int, jpeg: bytes) -> None:
+        """One frame (each index once: lockstep may have published it already)."""
+        with self._lock:
+            if index <= self._last_frame:
+                return
+            self._last_frame = index
+        m = self.msgs
+        self._info.publish(m.serialize(m.camera_info(sim_time_ns, self.camera), CAMERA_INFO))
+        self.image.publish(m.serialize(m.compressed_image(sim_time_ns, jpeg), COMPRESSED_IMAGE))
+        self.frames_published += 1
 
 
 class Ros2Estimates:
