@@ -15,6 +15,7 @@ from air_sitl.errors import OptionError
 from air_sitl.options import positive_number
 
 DEFAULT_WAIT_TIMEOUT_S = 10.0
+ROS2_LISTEN = "tcp/127.0.0.1:0"  # a free port (rmw_zenoh's sessions listen on tcp/localhost:0)
 
 
 def add_connection_arguments(parser: argparse.ArgumentParser, *, serves: bool) -> None:
@@ -146,6 +147,16 @@ def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig
     )
 
 
+def ros2_config(config: BusConfig) -> BusConfig:
+    """The session of a ROS 2 view: timestamped (transient-local caches need it) and, when it
+    only connects (to a router), listening on a free loopback port as rmw_zenoh's sessions do:
+    routers do not forward between peers, ROS 2 nodes reach it directly (gossip tells them)."""
+    listen = config.listen
+    if listen == () and config.connect and config.config_file is None:
+        listen = (ROS2_LISTEN,)
+    return replace(config, timestamping=True, listen=listen)
+
+
 def parse_wait_for(text: str, timeout_s: float) -> WaitFor:
     """``NAME`` or ``NAME:MAX_LAG`` (MAX_LAG an integer >= 1)."""
     name, _, lag_text = text.partition(":")
@@ -181,7 +192,7 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
     return BusOptions(
         enabled=publish or remote or explicit,
         publish=publish or explicit,
-        config=config if ros2 is None else replace(config, timestamping=True),
+        config=config if ros2 is None else ros2_config(config),
         keys=KeySpace(args.vehicle),
         publish_truth=bool(args.publish_truth),
         imu_rate_hz=imu_rate,

@@ -13,7 +13,7 @@ import argparse
 from collections.abc import Callable
 from dataclasses import replace
 
-from air_sitl.bus.args import add_connection_arguments, bus_config_from_args
+from air_sitl.bus.args import add_connection_arguments, bus_config_from_args, ros2_config
 from air_sitl.bus.keys import KeySpace
 from air_sitl.bus.remote_camera import CameraBridgeServer, RenderedFrame, RenderFn, RenderSettings
 from air_sitl.bus.ros2.node import Ros2Options
@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     def free_settings(home: GeoPoint) -> RenderSettings:
         return RenderSettings(home=home, camera=camera.settings(), seed=args.seed)
 
-    with open_bus(config if ros2 is None else replace(config, timestamping=True)) as bus:
+    with open_bus(config if ros2 is None else ros2_config(config)) as bus:
         on_published: Callable[[int, int, bytes], None] | None = None
         if ros2 is not None:
             on_published = _ros2_camera(bus, ros2, keys, camera).publish

@@ -417,3 +417,25 @@ def test_camera_bridge_publishes_its_frames_as_ros2(tmp_path: Path) -> None:
         assert s.attachment is not None and read_attachment(s.attachment)[0] >= 1
         m = STORE.deserialize_cdr(s.payload, TOPICS[IMAGE_TOPIC])
         assert m.data.tobytes() == ours[ns_of(m.header.stamp)]
+
+
+def test_ros2_nodes_reach_the_vehicle_through_a_router(plan: Path, tmp_path: Path) -> None:
+    # rmw_zenoh's topology: every node a peer connected to one router (air-sitl router here),
+    # which tells each the others' endpoints; data then flows peer to peer.
+    endpoint = free_endpoint()
+    router = start(cli("router", "--listen", endpoint))
+    try:
+        wait_for_line(router, "listening")
+        peer = RosPeer(connect=(endpoint,))
+        try:
+            run = fly(plan, tmp_path / "a", endpoint)
+            assert run.returncode == 0, run.stderr
+            image_key = data_key(0, IMAGE_TOPIC, TOPICS[IMAGE_TOPIC])
+            n = len(read_csv(tmp_path / "a" / "metadata.csv"))
+            assert wait_until(lambda: len(peer.received(image_key)) >= 0.9 * n, 10.0)
+            assert NODE in {t.node for t in peer.tokens if t.kind == "NN"}
+        finally:
+            peer.close()
+    finally:
+        code, _, err = stop(router)
+    assert code == 0, err
