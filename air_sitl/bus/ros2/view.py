@@ -92,7 +92,7 @@ class Ros2View(NullSink):
         self._step = 0
         self._last_fix_ns: int | None = None
         self._last_no_fix_ns: int | None = None
-        self._gnss_period_ns = GNSS_PERIOD_NS
+        self._gnss_period_ns: int | None = None  # learnt from the fixes
 
     def _warm_up(self) -> None:
         """Serialize one message of each type now: rosbags compiles a type's serializer on
@@ -117,7 +117,9 @@ class Ros2View(NullSink):
         fix = sample.gps
         if fix is not None:
             if self._last_fix_ns is not None and fix.sim_time_ns > self._last_fix_ns:
-                self._gnss_period_ns = fix.sim_time_ns - self._last_fix_ns
+                # The receiver's period is the shortest gap (a denial makes longer ones).
+                gap = fix.sim_time_ns - self._last_fix_ns
+                self._gnss_period_ns = min(gap, self._gnss_period_ns or gap)
             self._last_fix_ns = fix.sim_time_ns
             self._fix.publish(m.serialize(m.nav_sat_fix(t, fix), NAV_SAT_FIX))
         elif self._no_fix_due(t):
@@ -128,7 +130,7 @@ class Ros2View(NullSink):
 
     def _no_fix_due(self, t: int) -> bool:
         """No fix for one and a half periods, and no NO_FIX for one period."""
-        period = self._gnss_period_ns
+        period = self._gnss_period_ns or GNSS_PERIOD_NS
         fix, no_fix = self._last_fix_ns, self._last_no_fix_ns
         overdue = fix is None or t - fix >= period + period // 2
         return overdue and (no_fix is None or t - no_fix >= period)
