@@ -181,8 +181,9 @@ class Ros2Camera:
                 return
             self._last_frame = index
         m = self.msgs
-        self._info.publish(m.serialize(m.camera_info(sim_time_ns, self.camera), CAMERA_INFO))
+        # The image first (as image_transport's CameraPublisher does): it is what waits.
         self.image.publish(m.serialize(m.compressed_image(sim_time_ns, jpeg), COMPRESSED_IMAGE))
+        self._info.publish(m.serialize(m.camera_info(sim_time_ns, self.camera), CAMERA_INFO))
         self.frames_published += 1
 
 
