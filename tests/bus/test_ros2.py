@@ -448,3 +448,22 @@ def test_ros2_nodes_reach_the_vehicle_through_a_router(plan: Path, tmp_path: Pat
     finally:
         code, _, err = stop(router)
     assert code == 0, err
+
+
+def test_serve_is_a_ros2_node_too(plan: Path) -> None:
+    endpoint = free_endpoint()
+    peer = RosPeer(listen=(endpoint,))
+    imu_key = data_key(0, "/air/srv/imu", TOPICS["/air/uav0/imu"])
+    serve = start(cli("serve", "--plan", str(plan), "--zenoh-connect", endpoint, "--ros2",
+                      "--vehicle", "srv", "--mavlink", "udpin:127.0.0.1:0", "--speed", "4",
+                      "--quiet"))  # fmt: skip
+    try:
+        assert wait_until(lambda: len(peer.received(imu_key)) > 50)
+    finally:
+        code, _out, err = stop(serve)
+        peer.close()
+    assert code == 0, err
+    assert "air_sitl_srv" in {t.node for t in peer.tokens if t.kind == "NN"}
+    imu = STORE.deserialize_cdr(peer.received(imu_key)[-1].payload, TOPICS["/air/uav0/imu"])
+    assert imu.header.frame_id == "base_link"
+    assert imu.linear_acceleration.z == pytest.approx(9.8, abs=0.5)  # on the ground: 1 g up
