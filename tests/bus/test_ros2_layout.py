@@ -12,6 +12,7 @@ from cli_errors import one_line_error
 from rosbags.typesys import Stores, get_typestore
 from short_plans import write_short_plan
 
+from air_sitl.bus.keys import KeySpace
 from air_sitl.bus.ros2.layout import (
     Durability,
     Entity,
@@ -25,8 +26,12 @@ from air_sitl.bus.ros2.layout import (
     topic_key,
 )
 from air_sitl.bus.ros2.messages import Messages, estimate_of, flu_to_enu, frd_to_ned, typestore
+from air_sitl.bus.ros2.node import Ros2Options
+from air_sitl.bus.ros2.view import Ros2View, open_node
+from air_sitl.bus.session import BusConfig, open_bus
 
-from .helpers import HOME
+from .helpers import HOME, free_endpoint, make_sample, wait_until
+from .ros2_peer import RosPeer, data_key
 
 STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
 
@@ -127,3 +132,28 @@ def test_a_vehicle_name_ros2_cannot_take_is_one_line(
     plan = str(write_short_plan(tmp_path / "p.plan", HOME))
     argv = ["fly", plan, "--out", str(tmp_path / "a"), "--ros2", "--vehicle", "uav-1"]
     assert "'uav-1' is not a ROS 2 name" in one_line_error(argv, capsys)
+
+
+def test_namespace_and_domain_id_place_node_and_topics() -> None:
+    endpoint = free_endpoint()
+    peer = RosPeer(listen=(endpoint,), domain=7)
+    bus = open_bus(BusConfig(listen=(), connect=(endpoint,), timestamping=True))
+    try:
+        node = open_node(bus, Ros2Options(domain_id=7, namespace="/sim/a"), KeySpace())
+        view = Ros2View(node, KeySpace(), camera=None, publish_truth=False, imu_rate_hz=200.0)
+        imu_key = data_key(7, "/sim/a/air/uav0/imu", "sensor_msgs/msg/Imu")
+        clock_key = data_key(7, "/clock", "rosgraph_msgs/msg/Clock")
+        assert wait_until(lambda: len([t for t in peer.tokens if t.kind == "MP"]) == 3)
+        for i in range(10):
+            view.on_sample(make_sample(i * 5_000_000))
+        assert wait_until(
+            lambda: len(peer.received(imu_key)) == len(peer.received(clock_key)) == 10
+        )
+    finally:
+        bus.close()
+        peer.close()
+    (n,) = [t for t in peer.tokens if t.kind == "NN"]
+    assert (n.domain, n.namespace, n.node) == (7, "/sim/a", "air_sitl_uav0")
+    assert n.key.split("/")[7] == "%sim%a"
+    topics = {t.topic for t in peer.tokens if t.kind == "MP"}
+    assert topics == {"/sim/a/air/uav0/imu", "/sim/a/air/uav0/gnss/fix", "/clock"}
