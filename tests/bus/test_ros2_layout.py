@@ -1,5 +1,6 @@
 """rmw_zenoh's layout as air-sitl writes it, against the examples of rmw_zenoh's design
-document and zenoh-ext's own serializer; the ROS 2 options' user errors."""
+document and zenoh-ext's own serializer; the ROS 2 options' user errors; where namespace and
+domain id put the node and its topics."""
 
 from __future__ import annotations
 
