@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from air_sitl.bus.defaults import DEFAULT_ENDPOINT
 from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace, check_chunk
+from air_sitl.bus.ros2.options import Ros2Options, add_ros2_arguments, ros2_options_from_args
 from air_sitl.errors import OptionError
 from air_sitl.options import positive_number
 
@@ -17,6 +18,7 @@ if TYPE_CHECKING:  # zenoh loads when a command opens the bus, not for its --hel
     from air_sitl.bus.session import BusConfig, Mode
 
 DEFAULT_WAIT_TIMEOUT_S = 10.0
+ROS2_LISTEN = "tcp/127.0.0.1:0"  # a free port (rmw_zenoh's sessions listen on tcp/localhost:0)
 
 
 def add_connection_arguments(parser: argparse.ArgumentParser, *, serves: bool) -> None:
@@ -103,6 +105,7 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
         default="local",
         help="render in this process (local, default) or ask `air-sitl camera-bridge` over zenoh",
     )
+    add_ros2_arguments(parser)
     add_connection_arguments(parser, serves=True)
 
 
@@ -120,6 +123,7 @@ class BusOptions:
     wait_timeout_s: float
     svo_columns: str | None
     remote_camera: bool
+    ros2: Ros2Options | None = None  # --ros2: the ROS 2 view beside our keys
 
 
 def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig:
@@ -146,6 +150,16 @@ def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig
     return BusConfig(
         mode=mode, listen=listen, connect=connect, config_file=config_file, serves=serves
     )
+
+
+def ros2_config(config: BusConfig) -> BusConfig:
+    """The session of a ROS 2 view: timestamped (transient-local caches need it) and, when it
+    only connects (to a router), listening on a free loopback port as rmw_zenoh's sessions do:
+    routers do not forward between peers, ROS 2 nodes reach it directly (gossip tells them)."""
+    listen = config.listen
+    if listen == () and config.connect and config.config_file is None:
+        listen = (ROS2_LISTEN,)
+    return replace(config, timestamping=True, listen=listen)
 
 
 def parse_wait_for(text: str, timeout_s: float) -> WaitFor:
@@ -179,11 +193,13 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
     explicit = bool(args.zenoh_listen or args.zenoh_connect or args.zenoh_config)
     aid = getattr(args, "nav_aid", None)
     zenoh_aid = aid is not None and aid != "mavlink"  # --nav-aid NAME implies --zenoh
-    publish = bool(args.zenoh or args.publish_truth or wait or svo or zenoh_aid)
+    ros2 = ros2_options_from_args(args)
+    publish = bool(args.zenoh or args.publish_truth or wait or svo or zenoh_aid or ros2)
+    config = bus_config_from_args(args, serves=True)
     return BusOptions(
         enabled=publish or remote or explicit,
         publish=publish or explicit,
-        config=bus_config_from_args(args, serves=True),
+        config=config if ros2 is None else ros2_config(config),
         keys=KeySpace(args.vehicle),
         publish_truth=bool(args.publish_truth),
         imu_rate_hz=imu_rate,
@@ -191,4 +207,5 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
         wait_timeout_s=timeout,
         svo_columns=svo,
         remote_camera=remote,
+        ros2=ros2,
     )
