@@ -27,13 +27,12 @@ from air_sitl.dataset.air_schema import (
     ESTIMATES_DIR,
     IMU_COLUMNS,
     IMU_CSV,
-    q_frd_ned_to_flu_enu,
-    wxyz2xyzw,
 )
 from air_sitl.dataset.estimates import parse_estimates
 from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive
 from air_sitl.errors import DatasetError
+from air_sitl.frames import q_frd_ned_to_flu_enu, wxyz2xyzw
 from air_sitl.state import Quat
 
 TOPIC_IMAGE = "/camera/image/compressed"

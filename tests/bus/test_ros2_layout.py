@@ -26,10 +26,12 @@ from air_sitl.bus.ros2.layout import (
     node_token,
     topic_key,
 )
-from air_sitl.bus.ros2.messages import Messages, estimate_of, flu_to_enu, frd_to_ned, typestore
+from air_sitl.bus.ros2.messages import Messages, estimate_of, typestore
 from air_sitl.bus.ros2.options import Ros2Options
 from air_sitl.bus.ros2.view import Ros2View, open_node
 from air_sitl.bus.session import BusConfig, open_bus
+from air_sitl.frames import q_flu_enu_to_frd_ned as frd_to_ned
+from air_sitl.frames import q_frd_ned_to_flu_enu as flu_to_enu
 
 from .helpers import HOME, free_endpoint, make_sample, wait_until
 from .ros2_peer import RosPeer, data_key

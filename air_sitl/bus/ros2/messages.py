@@ -20,6 +20,16 @@ from air_sitl.bus.ros2.options import DISTRO_NAMES
 from air_sitl.camera.info import camera_yaml_dict, q_cam_to_body_wxyz
 from air_sitl.camera.model import CameraModel
 from air_sitl.clock import NS_PER_S
+from air_sitl.frames import (
+    Q_FLU_TO_FRD,
+    frd2flu,
+    ned2enu,
+    q_flu_enu_to_frd_ned,
+    q_frd_ned_to_flu_enu,
+    quat_conjugate,
+    quat_multiply,
+    quat_rotate,
+)
 from air_sitl.state import GpsFix, ImuSample, Quat, Vec3, VehicleState
 
 MAP_FRAME = "map"
@@ -37,57 +47,10 @@ COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 TF = "tf2_msgs/msg/TFMessage"
 
-_H = math.sqrt(0.5)
-Q_NED_TO_ENU: Quat = (0.0, _H, _H, 0.0)  # swap x/y, flip z: a half turn about (1,1,0)
-Q_FLU_TO_FRD: Quat = (0.0, 1.0, 0.0, 0.0)  # a half turn about x (its own inverse)
-
 
 def typestore(distro: str) -> Typestore:
     """The rosbags type store of a distro (its message definitions and type hashes)."""
     return get_typestore(DISTROS[distro])
-
-
-def qmul(a: Quat, b: Quat) -> Quat:
-    """Hamilton product a*b (scalar first)."""
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    )
-
-
-def qconj(q: Quat) -> Quat:
-    """The inverse of a unit quaternion."""
-    return (q[0], -q[1], -q[2], -q[3])
-
-
-def flu_to_enu(q_frd_to_ned: Quat) -> Quat:
-    """body FRD->NED as base_link FLU->map ENU."""
-    return qmul(qmul(Q_NED_TO_ENU, q_frd_to_ned), Q_FLU_TO_FRD)
-
-
-def frd_to_ned(q_flu_to_enu: Quat) -> Quat:
-    """base_link FLU->map ENU as body FRD->NED (the inverse of :func:`flu_to_enu`)."""
-    return qmul(qmul(Q_NED_TO_ENU, q_flu_to_enu), Q_FLU_TO_FRD)
-
-
-def frd_vec_to_flu(v: Vec3) -> Vec3:
-    """A body FRD vector in FLU."""
-    return (v[0], -v[1], -v[2])
-
-
-def ned_vec_to_enu(v: Vec3) -> Vec3:
-    """A NED vector in ENU."""
-    return (v[1], v[0], -v[2])
-
-
-def rotate(q: Quat, v: Vec3) -> Vec3:
-    """v rotated by the unit quaternion q."""
-    _, x, y, z = qmul(qmul(q, (0.0, v[0], v[1], v[2])), qconj(q))
-    return (x, y, z)
 
 
 class Messages:
@@ -141,11 +104,11 @@ class Messages:
         unknown = np.zeros(9)
         return self._t[IMU](
             header=self.header(imu.sim_time_ns, BASE_FRAME),
-            orientation=self._q(flu_to_enu(imu.q_ahrs_body_to_ned_wxyz)),
+            orientation=self._q(q_frd_ned_to_flu_enu(imu.q_ahrs_body_to_ned_wxyz)),
             orientation_covariance=unknown,
-            angular_velocity=self._v(frd_vec_to_flu(imu.gyro_frd_rad_s)),
+            angular_velocity=self._v(frd2flu(imu.gyro_frd_rad_s)),
             angular_velocity_covariance=unknown,
-            linear_acceleration=self._v(frd_vec_to_flu(imu.accel_frd_m_s2)),
+            linear_acceleration=self._v(frd2flu(imu.accel_frd_m_s2)),
             linear_acceleration_covariance=unknown,
         )
 
@@ -179,24 +142,25 @@ class Messages:
     def odometry(self, state: VehicleState) -> Any:
         """nav_msgs/Odometry of the truth: base_link in map, twist in base_link."""
         q = state.q_body_to_ned_wxyz
-        v_frd = rotate(qconj(q), state.vel_ned_m_s)
+        v_frd = quat_rotate(quat_conjugate(q), state.vel_ned_m_s)
         zeros = np.zeros(36)
         cov_type = self._t["geometry_msgs/msg/PoseWithCovariance"]
         twist_cov = self._t["geometry_msgs/msg/TwistWithCovariance"]
-        e, n, u = ned_vec_to_enu(state.pos_ned_m)
+        e, n, u = ned2enu(state.pos_ned_m)
         return self._t[ODOMETRY](
             header=self.header(state.sim_time_ns, MAP_FRAME),
             child_frame_id=BASE_FRAME,
             pose=cov_type(
                 pose=self._pose(
-                    position=self._point(x=e, y=n, z=u), orientation=self._q(flu_to_enu(q))
+                    position=self._point(x=e, y=n, z=u),
+                    orientation=self._q(q_frd_ned_to_flu_enu(q)),
                 ),
                 covariance=zeros,
             ),
             twist=twist_cov(
                 twist=self._twist(
-                    linear=self._v(frd_vec_to_flu(v_frd)),
-                    angular=self._v(frd_vec_to_flu(state.rate_frd_rad_s)),
+                    linear=self._v(frd2flu(v_frd)),
+                    angular=self._v(frd2flu(state.rate_frd_rad_s)),
                 ),
                 covariance=zeros,
             ),
@@ -230,7 +194,7 @@ class Messages:
 
     def camera_mount(self, sim_time_ns: int, camera: CameraModel) -> Any:
         """tf2_msgs/TFMessage: base_link -> camera_optical_frame (the mounting, no offset)."""
-        q_opt_to_flu = qmul(Q_FLU_TO_FRD, q_cam_to_body_wxyz(camera))
+        q_opt_to_flu = quat_multiply(Q_FLU_TO_FRD, q_cam_to_body_wxyz(camera))
         stamped = self._t["geometry_msgs/msg/TransformStamped"]
         transform = self._t["geometry_msgs/msg/Transform"]
         tf = stamped(
@@ -260,7 +224,7 @@ def estimate_of(msg: Any, typename: str) -> Estimate:
     if not all(math.isfinite(c) for c in (*enu, *q)):
         err = f"{typename}: non-finite position or orientation"
         raise ValueError(err)
-    q_ned = None if norm < 1e-9 else frd_to_ned(tuple(c / norm for c in q))  # type: ignore[arg-type]
+    q_ned = None if norm < 1e-9 else q_flu_enu_to_frd_ned(tuple(c / norm for c in q))  # type: ignore[arg-type]
     block = cov[:3, :3]
     cov_enu = None
     if np.all(np.isfinite(block)) and np.all(np.diag(block) > 0):
