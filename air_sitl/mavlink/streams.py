@@ -133,7 +133,7 @@ class Streams:
             ),
             mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION: lambda _s, _f: tm.autopilot_version(),
             mav.MAVLINK_MSG_ID_CAMERA_INFORMATION: lambda s, _f: tm.camera_information(
-                sim_ns(s), ep.options.camera
+                sim_ns(s), ep.options.camera, video=ep.options.video is not None
             ),
             mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: needs_sample(
                 lambda s: tm.global_position_int(s, ep.home)
@@ -246,6 +246,9 @@ class TelemetrySink:
         """Queue what is due: events at once, streams by simulated time (capped in wall time)."""
         ep = self._ep
         ep.latest = sample
+        tick = sample.camera
+        if tick is not None and tick.capture_index is not None:
+            ep.images_captured = tick.capture_index + 1
         if sample.gps is not None:
             self.last_fix = sample.gps
         ap = sample.autopilot

@@ -50,6 +50,7 @@ from air_sitl.mavlink.interfaces import (
     Job,
     ParamsLike,
     PostFn,
+    VideoStreamLike,
 )
 from air_sitl.mavlink.links import Channel, Link, LinkSpec, open_link
 from air_sitl.mavlink.messages import Peer
@@ -83,6 +84,7 @@ class EndpointOptions:
     signing_key: bytes | None = None
     wall_cap_hz: float | None = WALL_CAP_HZ  # None: rates in simulated time, uncapped
     camera: tm.CameraInfo | None = None  # None: no camera component (component id 100)
+    video: VideoStreamLike | None = None  # the camera's video stream (needs ``camera``)
     terrain: bool = False  # a terrain model (--dem): uploads may use terrain-relative frames
 
 
@@ -115,6 +117,7 @@ class VehicleEndpoint:
         self.sink = TelemetrySink(self)
         self.sink.zones = zones_of(m.fence)
         self.latest: SimSample | None = None
+        self.images_captured = 0  # capture-window frames so far (CAMERA_CAPTURE_STATUS)
         self.autopilot: AutopilotLike | None = None
         self.params: ParamsLike | None = None
         self._routes: dict[int, Channel] = {}  # Peer.route -> the channel it came from
@@ -134,7 +137,7 @@ class VehicleEndpoint:
         self.param_protocol = ParamProtocol(self)
         self.handlers: dict[str, Handler] = {}
         cam = self.options.camera
-        self.camera = CameraComponent(self, cam) if cam is not None else None
+        self.camera = CameraComponent(self, cam, self.options.video) if cam is not None else None
         for part in (self.commands, self.param_protocol, Ftp(self)):
             for name, handler in part.handlers().items():
                 self.register(name, handler)
