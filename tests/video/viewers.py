@@ -141,7 +141,12 @@ class PyavViewer:
         self._container: Any = av.open(
             str(sdp),
             format="sdp",
-            options={"protocol_whitelist": "file,udp,rtp", "reorder_queue_size": "0"},
+            options={
+                "protocol_whitelist": "file,udp,rtp",
+                "reorder_queue_size": "0",
+                "max_delay": "0",
+                "fflags": "nobuffer",
+            },
             timeout=(60.0, 3.0),
         )
         self._thread = threading.Thread(target=self._run, daemon=True)
