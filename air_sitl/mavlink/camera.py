@@ -15,12 +15,17 @@ from typing import TYPE_CHECKING
 from air_sitl.mavlink import telemetry as tm
 from air_sitl.mavlink.codec import Encoder, Message, mav
 from air_sitl.mavlink.commands import run_then_ack
-from air_sitl.mavlink.interfaces import AutopilotLike, VideoStreamLike, outcome, whole
+from air_sitl.mavlink.interfaces import (
+    AutopilotLike,
+    EndpointLike,
+    VideoStreamLike,
+    outcome,
+    whole,
+)
 from air_sitl.mavlink.links import Channel, Link
 
 if TYPE_CHECKING:
     from air_sitl.mavlink.codec import Signing
-    from air_sitl.mavlink.vehicle import VehicleEndpoint
 
 COMPONENT_ID = mav.MAV_COMP_ID_CAMERA
 _CAMERA_MODES = (mav.CAMERA_MODE_IMAGE, mav.CAMERA_MODE_VIDEO)
@@ -30,7 +35,7 @@ class CameraComponent:
     """Speaks as component 100 of the vehicle's system on every link."""
 
     def __init__(
-        self, ep: VehicleEndpoint, camera: tm.CameraInfo, video: VideoStreamLike | None = None
+        self, ep: EndpointLike, camera: tm.CameraInfo, video: VideoStreamLike | None = None
     ) -> None:
         self._ep = ep
         self.camera = camera

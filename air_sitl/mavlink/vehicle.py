@@ -23,7 +23,6 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 from air_sitl.errors import AirSitlError
 from air_sitl.mavlink import telemetry as tm
@@ -36,7 +35,6 @@ from air_sitl.mavlink.codec import (
     Parser,
     Signing,
     from_mission_message,
-    mav,
     to_mission_message,
 )
 from air_sitl.mavlink.commands import Commands
@@ -45,12 +43,13 @@ from air_sitl.mavlink.ftp import Ftp
 from air_sitl.mavlink.interfaces import (
     SEVERITY_CRITICAL,
     SEVERITY_WARNING,
+    WALL_CAP_HZ,
     AutopilotLike,
+    EndpointOptions,
     Handler,
     Job,
     ParamsLike,
     PostFn,
-    VideoStreamLike,
 )
 from air_sitl.mavlink.links import Channel, Link, LinkSpec, open_link
 from air_sitl.mavlink.messages import Peer
@@ -61,6 +60,7 @@ from air_sitl.mission.items import Mission, MissionItem, MissionResult, MissionT
 from air_sitl.state import FlightMode, GeoPoint, SimSample
 
 __all__ = [
+    "WALL_CAP_HZ",
     "AutopilotLike",
     "EndpointOptions",
     "Job",
@@ -72,20 +72,6 @@ __all__ = [
 
 HEARTBEAT_PERIOD_S = 1.0  # wall clock
 MAX_ROUTES = 1024  # peers remembered for replies; forgotten ones are the links' dropped peers
-WALL_CAP_HZ = 200.0  # no stream goes faster than max(this, its own rate) in wall time
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class EndpointOptions:
-    """Identity and behaviour of the endpoint."""
-
-    system_id: int = 1
-    component_id: int = mav.MAV_COMP_ID_AUTOPILOT1
-    signing_key: bytes | None = None
-    wall_cap_hz: float | None = WALL_CAP_HZ  # None: rates in simulated time, uncapped
-    camera: tm.CameraInfo | None = None  # None: no camera component (component id 100)
-    video: VideoStreamLike | None = None  # the camera's video stream (needs ``camera``)
-    terrain: bool = False  # a terrain model (--dem): uploads may use terrain-relative frames
 
 
 class VehicleEndpoint:
@@ -114,7 +100,7 @@ class VehicleEndpoint:
         )
         self.counters = ParseCounters()
         self.streams = Streams(self)
-        self.sink = TelemetrySink(self)
+        self.sink = TelemetrySink(self, self.streams)
         self.sink.zones = zones_of(m.fence)
         self.latest: SimSample | None = None
         self.images_captured = 0  # capture-window frames so far (CAMERA_CAPTURE_STATUS)
