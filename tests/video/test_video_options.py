@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
+import yaml
 from cli_errors import one_line_error
 
 from air_sitl.cli import build_parser
 from air_sitl.instance import instance_from_args
 from air_sitl.video.options import video_options_from_args
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _parse(*argv: str) -> tuple[object, object]:
@@ -55,3 +60,19 @@ def test_a_bad_value_is_one_line(
 ) -> None:
     err = one_line_error(["serve", "--mavlink", "udpin:127.0.0.1:0", *argv], capsys)
     assert names in err
+
+
+def test_the_compose_two_vehicle_example_gives_each_vehicle_its_own_identity() -> None:
+    compose = yaml.safe_load((REPO / "docker-compose.yml").read_text(encoding="utf-8"))
+    served = [
+        build_parser().parse_args(s["command"][1:])
+        for s in compose["services"].values()
+        if "--instance" in s["command"]
+    ]
+    assert len(served) == 2
+    instances = [instance_from_args(a) for a in served]
+    assert sorted(i.system_id for i in instances) == [1, 2]
+    for args, instance in zip(served, instances, strict=True):
+        video = video_options_from_args(args, default_port=instance.video_port)
+        assert video is not None and video.port == 5600 + instance.number
+    assert len({tuple(a.mavlink) for a in served}) == 2
