@@ -155,11 +155,12 @@ def test_no_video_sends_nothing_and_the_camera_says_it_has_no_stream() -> None:
 
 def test_at_speed_1_the_viewer_gets_the_frame_rate(tmp_path: Path) -> None:
     """At --speed 1, at least 95 % of --video-fps frames a wall-clock second reach QGC's
-    pipeline, measured over 10 s once the picture is up (the default 640x480 camera)."""
+    pipeline, measured over 10 s once the picture is up (a 320x240 camera: the rate, not the
+    machine's spare cores, is what is measured)."""
     video = udp_port()
     with (
-        serve("--mavlink", "udpin:127.0.0.1:0", "--video", f"udp://127.0.0.1:{video}"),
-        gst_viewer(video, 640, 480, tmp_path) as viewer,
+        serve("--mavlink", "udpin:127.0.0.1:0", "--video", f"udp://127.0.0.1:{video}", *SMALL),
+        gst_viewer(video, 320, 240, tmp_path) as viewer,
     ):
         wait_frames(viewer, 30)
         n0, t0 = viewer.frames(), time.monotonic()
