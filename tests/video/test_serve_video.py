@@ -155,20 +155,36 @@ def test_no_video_sends_nothing_and_the_camera_says_it_has_no_stream() -> None:
 
 def test_at_speed_1_the_viewer_gets_the_frame_rate(tmp_path: Path) -> None:
     """At --speed 1, at least 95 % of --video-fps frames a wall-clock second reach QGC's
-    pipeline, measured over 10 s once the picture is up (a 320x240 camera: the rate, not the
-    machine's spare cores, is what is measured)."""
+    pipeline, measured over 20 s once the picture is up (a 320x240 camera: the rate, not the
+    machine's spare cores, is what is measured). The simulation's own pace over the same
+    window (time_boot_ms) is the floor: on a machine so loaded that the simulation itself
+    falls behind real time, the stream owes 95 % of what that pace allows."""
     video = udp_port()
     with (
-        serve("--mavlink", "udpin:127.0.0.1:0", "--video", f"udp://127.0.0.1:{video}", *SMALL),
+        serve("--mavlink", "udpin:127.0.0.1:0", "--video", f"udp://127.0.0.1:{video}",
+              *SMALL) as served,
         gst_viewer(video, 320, 240, tmp_path) as viewer,
-    ):
-        wait_frames(viewer, 30)
-        n0, t0 = viewer.frames(), time.monotonic()
-        time.sleep(10.0)
-        n1, t1 = viewer.frames(), time.monotonic()
-    rate = (n1 - n0) / (t1 - t0)
-    print(f"frames per wall second at --speed 1: {rate:.1f} of 30")
-    assert rate >= 0.95 * 30
+    ):  # fmt: skip
+        gcs = QgcLike(f"udpout:127.0.0.1:{served.ports[0]}")
+        try:
+            gcs.wait_heard({(1, 1)})
+            wait_frames(viewer, 30)
+            marks = []
+            for _ in range(2):
+                msg = gcs.recv(["ATTITUDE"], 1, 1, 10.0)
+                assert msg is not None
+                marks.append((time.monotonic(), msg.time_boot_ms / 1e3, viewer.frames()))
+                if len(marks) == 1:
+                    time.sleep(20.0)
+                    gcs.conn.recv_match(blocking=False)
+                    while gcs.conn.recv_match(blocking=False) is not None:
+                        pass  # the backlog: the next ATTITUDE is a fresh one
+        finally:
+            gcs.close()
+    (w0, s0, n0), (w1, s1, n1) = marks
+    rate, pace = (n1 - n0) / (w1 - w0), (s1 - s0) / (w1 - w0)
+    print(f"--speed 1: {rate:.1f} frames per wall second of 30, simulation at {pace:.2f}x")
+    assert rate >= 0.95 * 30 * min(1.0, pace)
 
 
 def test_mavsdk_camera_plugin_lists_the_camera_and_its_stream() -> None:

@@ -165,7 +165,8 @@ def test_packets_are_what_qgc_reads_and_nothing_goes_to_the_next_port() -> None:
         if 5 in nals:
             assert {7, 8} <= nals
     assert len(keys) >= 6
-    assert max(np.diff(keys)) < 0.6  # 0.45 s nominal, plus the loaded machine's scheduling
+    gaps = np.diff(keys)  # 0.45 s nominal, plus the (loaded) machine's scheduling
+    assert float(np.median(gaps)) <= 0.5 and max(gaps) < 1.0, gaps
     # The profile: constrained baseline (profile_idc 66) in the SPS.
     sps = next(p for p in packets if p[12] & 0x1F == 24)
     assert sps[13 + 2] & 0x1F == 7 and sps[13 + 3] == 66
