@@ -14,6 +14,7 @@ import pytest
 from mavlink.gcs import PX4_MISSION, serve
 from mavlink.mavsdk_wait import ground_station
 from mavsdk.asyncio.plugins.camera import CameraAsync
+from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from ports import free_port
 from qgc import CAMERA, M, QgcLike
 from viewers import gst_viewer
@@ -287,3 +288,20 @@ def test_two_instances_one_ground_station_two_missions_two_streams(tmp_path: Pat
     finally:
         gcs.close()
         api.close()
+
+
+def test_mavsdk_connects_to_each_instance_on_its_own_port() -> None:
+    gcs_port, offboard = udp_port(), port_pair()
+    common = ("--gcs-port", str(gcs_port), "--offboard-base-port", str(offboard), "--no-video")
+
+    async def home_on(port: int) -> tuple[float, float]:
+        async with ground_station(port, timeout_s=60) as system:
+            async for home in TelemetryAsync(system).subscribe_home():
+                return home.latitude_deg, home.longitude_deg
+        raise AssertionError("no home position")
+
+    with serve("--instance", "0", *common), serve("--instance", "1", *common):
+        (lat0, lon0), (lat1, lon1) = (asyncio.run(home_on(offboard + n)) for n in (0, 1))
+    east_m = (lon1 - lon0) * 111_320 * np.cos(np.radians(lat0))
+    assert lat1 == pytest.approx(lat0, abs=1e-6)
+    assert east_m == pytest.approx(20.0, abs=0.5)  # each port, its own vehicle
