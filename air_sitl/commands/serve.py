@@ -1,7 +1,8 @@
 """``air-sitl serve``: a PX4-like vehicle on MAVLink links, flown by ground stations.
 
 Parses the options into a FlightSetup and serves it (:mod:`air_sitl.serving`) until SIGINT or
-SIGTERM.
+SIGTERM. The camera streams as RTP/H.264 (``--video``, :mod:`air_sitl.video`); ``--instance N``
+numbers the vehicle as PX4 multi-vehicle SITL does (:mod:`air_sitl.instance`).
 """
 
 from __future__ import annotations
