@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import pytest
 import yaml
+from bus.helpers import free_endpoint
 from cli_errors import one_line_error
 
 from air_sitl.cli import build_parser
+from air_sitl.commands import serve
 from air_sitl.instance import instance_from_args
 from air_sitl.video.options import video_options_from_args
 
@@ -76,3 +80,25 @@ def test_the_compose_two_vehicle_example_gives_each_vehicle_its_own_identity() -
         video = video_options_from_args(args, default_port=instance.video_port)
         assert video is not None and video.port == 5600 + instance.number
     assert len({tuple(a.mavlink) for a in served}) == 2
+
+
+@pytest.mark.parametrize(
+    ("argv", "vehicle"),
+    [([], "uav0"), (["--instance", "2"], "uav2"), (["--instance", "2", "--vehicle", "red"], "red")],
+)
+def test_instance_n_publishes_under_air_uav_n(
+    monkeypatch: pytest.MonkeyPatch, argv: list[str], vehicle: str
+) -> None:
+    seen: dict[str, Any] = {}
+
+    def fake_serve(setup: object, specs: object, **kw: Any) -> object:
+        seen.update(kw, vehicle=kw["bus"].options.keys.vehicle)
+        return SimpleNamespace(messages=0, dropped=0, parse_errors=0, unknown_ids=0,
+                               signature_rejected=0)  # fmt: skip
+
+    monkeypatch.setattr(serve, "serve_vehicle", fake_serve)
+    args = build_parser().parse_args(["serve", "--quiet", "--zenoh", "--zenoh-listen",
+                                      free_endpoint(), *argv])  # fmt: skip
+    assert serve.run(args) == 0
+    assert seen["vehicle"] == vehicle
+    assert seen["system_id"] == (3 if "2" in argv else 1)
