@@ -5,6 +5,7 @@ stopped by command, off with --no-video, and two vehicles side by side (--instan
 from __future__ import annotations
 
 import asyncio
+import itertools
 import socket
 import time
 from pathlib import Path
@@ -156,8 +157,9 @@ def test_no_video_sends_nothing_and_the_camera_says_it_has_no_stream() -> None:
 
 def test_at_speed_1_the_viewer_gets_the_frame_rate(tmp_path: Path) -> None:
     """At --speed 1, at least 95 % of --video-fps frames a wall-clock second reach QGC's
-    pipeline, measured over 20 s once the picture is up (a 320x240 camera: the rate, not the
-    machine's spare cores, is what is measured). The simulation's own pace over the same
+    pipeline: the median second of 20, once the picture is up (a 320x240 camera: the rate, not
+    the machine's spare cores, is what is measured; the median: a second in which the loaded
+    machine stalled every process does not decide). The simulation's own pace over the same
     window (time_boot_ms) is the floor: on a machine so loaded that the simulation itself
     falls behind real time, the stream owes 95 % of what that pace allows."""
     video = udp_port()
@@ -171,20 +173,25 @@ def test_at_speed_1_the_viewer_gets_the_frame_rate(tmp_path: Path) -> None:
             gcs.wait_heard({(1, 1)})
             wait_frames(viewer, 30)
             marks = []
-            for _ in range(2):
-                msg = gcs.recv(["ATTITUDE"], 1, 1, 10.0)
-                assert msg is not None
-                marks.append((time.monotonic(), msg.time_boot_ms / 1e3, viewer.frames()))
-                if len(marks) == 1:
-                    time.sleep(20.0)
-                    gcs.conn.recv_match(blocking=False)
+            for second in range(21):
+                if second in (0, 20):
                     while gcs.conn.recv_match(blocking=False) is not None:
                         pass  # the backlog: the next ATTITUDE is a fresh one
+                    msg = gcs.recv(["ATTITUDE"], 1, 1, 10.0)
+                    assert msg is not None
+                    sim_s = msg.time_boot_ms / 1e3
+                marks.append((time.monotonic(), sim_s, viewer.frames()))
+                if second < 20:
+                    time.sleep(max(0.0, marks[0][0] + second + 1 - time.monotonic()))
         finally:
             gcs.close()
-    (w0, s0, n0), (w1, s1, n1) = marks
-    rate, pace = (n1 - n0) / (w1 - w0), (s1 - s0) / (w1 - w0)
-    print(f"--speed 1: {rate:.1f} frames per wall second of 30, simulation at {pace:.2f}x")
+    per_second = sorted(
+        (n1 - n0) / (w1 - w0) for (w0, _, n0), (w1, _, n1) in itertools.pairwise(marks)
+    )
+    rate = per_second[len(per_second) // 2]
+    pace = (marks[-1][1] - marks[0][1]) / (marks[-1][0] - marks[0][0])
+    print(f"--speed 1: median {rate:.1f} frames per wall second of 30 (slowest "
+          f"{per_second[0]:.1f}), simulation at {pace:.2f}x")  # fmt: skip
     assert rate >= 0.95 * 30 * min(1.0, pace)
 
 
