@@ -300,7 +300,7 @@ def test_serve_publishes_on_the_bus_and_stops_cleanly(plan: Path) -> None:
         bus.subscribe(f"{keys.root}/**", lambda m: got.setdefault(m.key, []).append(m.payload))
         serve = start(cli("serve", "--plan", str(plan), "--zenoh-connect", endpoint,
                           "--vehicle", "srv", "--mavlink", "udpin:127.0.0.1:0",
-                          "--speed", "4", "--quiet"))  # fmt: skip
+                          "--speed", "4", "--quiet", "--no-video"))  # fmt: skip
         try:
             assert wait_until(lambda: len(got.get(keys.imu, [])) > 50)
             assert wait_until(lambda: keys.mission_status in got)

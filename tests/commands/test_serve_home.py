@@ -31,8 +31,8 @@ def test_the_default_home_is_said(
     home = _serve(monkeypatch)
     err = capsys.readouterr().err
     assert (
-        "air-sitl serve: no --plan or --home: home at PX4 SITL's default, 47.397742, 8.545594, "
-        "488 m AMSL (Zurich)\n"
+        "air-sitl serve: no --plan or --home: home at 47.397742, 8.545594, 488 m AMSL "
+        "(PX4 SITL's default, Zurich)\n"
     ) in err
     assert (home.lat_deg, home.lon_deg) == (47.397742, 8.545594)
 
