@@ -7,8 +7,9 @@ minutes or never end:
 
 - ``sweep examples/air_sweep_small.yaml`` (24 runs, about 8 minutes) runs a SPEC made from that
   file with every axis cut to its first value and 45 simulated seconds (12 s of capture): one run;
-- ``serve`` (runs until Ctrl-C) gets ``--max-sim-time 5``, and a link on a port the kernel picks
-  (``--mavlink udpin:127.0.0.1:0``) instead of sending to QGroundControl's and MAVSDK's ports.
+- ``serve`` (runs until Ctrl-C) gets ``--max-sim-time 5``, a link on a port the kernel picks
+  (``--mavlink udpin:127.0.0.1:0``) instead of sending to QGroundControl's and MAVSDK's ports,
+  and ``--no-video`` (its video stream would go to QGroundControl's port 5600).
 
 Every other line runs exactly as README writes it.
 """
@@ -59,7 +60,7 @@ def as_run(argv: list[str], folder: Path) -> list[str]:
     if argv[1:3] == ["sweep", "examples/air_sweep_small.yaml"]:
         return [*argv[:2], str(one_run_spec(folder)), *argv[3:]]
     if argv[1] == "serve":
-        return [*argv, "--max-sim-time", "5", "--mavlink", "udpin:127.0.0.1:0"]
+        return [*argv, "--max-sim-time", "5", "--mavlink", "udpin:127.0.0.1:0", "--no-video"]
     return argv
 
 
