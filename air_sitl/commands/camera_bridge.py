@@ -22,13 +22,12 @@ from air_sitl.camera.options import (
     add_camera_arguments,
     add_map_arguments,
     camera_from_args,
-    close_map,
     map_choice_from_args,
-    open_chosen_map,
     open_chosen_renderer,
 )
 from air_sitl.errors import BusError
 from air_sitl.maps.base import MapSource
+from air_sitl.maps.choose import close_map, open_chosen_map
 from air_sitl.options import MapChoice
 from air_sitl.state import GeoPoint, VehicleState
 

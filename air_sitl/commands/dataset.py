@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from air_sitl.builder import load_setup, open_setup_map
-from air_sitl.camera.options import add_camera_arguments, camera_from_args, close_map
+from air_sitl.camera.options import add_camera_arguments, camera_from_args
 from air_sitl.dataset.scenarios import (
     PAPER_TABLE,
     ScenarioStats,
@@ -28,6 +28,7 @@ from air_sitl.dataset.scenarios import (
 )
 from air_sitl.errors import DatasetError, OptionError
 from air_sitl.files import write_bytes_atomic
+from air_sitl.maps.choose import close_map
 from air_sitl.options import MapChoice, add_flight_arguments, flight_options_from_args, int_in_range
 from air_sitl.progress import JobsDisplay
 from air_sitl.recording.batch import Job, run_jobs

@@ -15,10 +15,11 @@ from pathlib import Path
 
 from air_sitl.builder import FlightSetup, load_setup, open_setup_map
 from air_sitl.bus.hookup import bus_sinks_from_args
-from air_sitl.camera.options import camera_from_args, close_map, map_choice_from_args
+from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import MapError
 from air_sitl.maps.base import MapSource
+from air_sitl.maps.choose import close_map
 from air_sitl.mission.geometry import POSITIONED_COMMANDS
 from air_sitl.mission.items import MavCmd, Mission
 from air_sitl.mission.validate import mission_warnings, require_startable

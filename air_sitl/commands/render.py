@@ -14,12 +14,12 @@ from air_sitl.camera.options import (
     add_map_arguments,
     camera_from_args,
     map_choice_from_args,
-    open_chosen_map,
     open_chosen_renderer,
 )
 from air_sitl.camera.render import pose_state
 from air_sitl.errors import OptionError
 from air_sitl.files import write_bytes_atomic
+from air_sitl.maps.choose import open_chosen_map
 from air_sitl.state import GeoPoint
 
 HELP = "render one camera frame of a map at a pose to a JPEG (or PNG) file"
