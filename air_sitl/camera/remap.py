@@ -219,7 +219,7 @@ class RemapPaths:
         r, jac, cx, cy = self.relief_setup(state, g.level)
         window = self.relief_window(state, g, r, jac, cx, cy)
         rows = self._owner._strip_rows
-        maps, bounds, _stats = relief.ground_maps(
+        maps, bounds = relief.ground_maps(
             window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px,
             rows,
         )  # fmt: skip
@@ -317,7 +317,7 @@ class RemapPaths:
         g = FrameGeometry(g.h_img_to_map0, level, g.center_map_px, g.sees_horizon, g.height_m)
         size = (cam.width_px + 2 * m, cam.height_px + 2 * m)
         window = self.relief_window(state, g, r, jac, cx, cy, size)
-        maps, _, _ = relief.ground_maps(
+        maps, _ = relief.ground_maps(
             window, r, jac, level, cx, cy, state.alt_amsl_m, cam.width_px + 2 * m,
             cam.height_px + 2 * m,
         )  # fmt: skip
