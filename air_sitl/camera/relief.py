@@ -7,23 +7,28 @@ it meets gives the hit by solving a quadratic (``relief_march.first_hit``): so t
 lean away from the nadir and hide what is behind them, crowns keep their outline, and no
 ground shows through at their edges. A wall shows the map's colour at its foot, stretched.
 
-Speed: the walk skips empty space twice. Blocks of 8 x 8 pixels first descend together:
-at one altitude a block's rays lie inside the quadrilateral of its corner rays, so the
-block comes down, a tile's height at a time, while every 8 x 8-cell tile under the box of
-those corners is lower (a max-height tile grid per window); then each ray walks alone
-from there, jumping over tiles whose highest post is below it and over cells whose
-highest post is below it, and solves only the patches it may meet. A window's posts,
-cell tops and tile tops are read once and kept by the thread for the next frames (a
-frame's search may read two windows). Rays that leave the window before reaching the
-lowest height (views toward the horizon, where the window is clipped) are marched by fine
-steps instead, as exact as a one-pixel step and bisection are. Then a remap from the map
-window (in strips, each from a copy of the map pixels it samples where the mosaic is
-large). The loops are compiled (``relief_march``, numba, imported and compiled or loaded
-from its cache by :func:`warm` when a renderer over relief is built, before the clock runs).
+Speed: blocks of 8 x 8 pixels first descend together: at one altitude a block's rays lie
+inside the quadrilateral of its corner rays, so the block comes down, a tile's height at a
+time, while every 8 x 8-cell tile under the box of those corners is lower (a max-height
+tile grid per window). Then each ray walks alone from there, passing every cell whose
+highest post is below it where it leaves the cell (a grid walk without divisions), and
+solves only the patches it may meet: over the forest about 6 cells and 1.5 patches a ray,
+over the town about 3 and 1.1. A window's posts, cell tops and tile tops are read once and
+kept by the thread for the next frames (a frame's search may read two windows). Rays that
+leave the window before reaching the lowest height (views toward the horizon, where the
+window is clipped) are marched by fine steps instead (a one-pixel step and bisection).
+Then a remap from the map window (in strips, each from a copy of the map pixels it samples
+where the mosaic is large). The loops are compiled (``relief_march``, numba, imported and
+compiled or loaded from its cache by :func:`warm` when a renderer over relief is built,
+before the clock runs). Tried and slower here: a second max-height grid of 4-cell tiles
+skipped per ray, 4 x 4-pixel blocks, two rays walked in one loop, the walk stepping along
+the major axis: the cost is the latency of each ray's chain of dependent steps, not the
+number of cells.
 
 Until issue 24 an adaptive grid (rays on a 16-pixel grid, refined at parallax edges and
-interpolated elsewhere) was used: cheaper, but 14-19 % of the forest's pixels were more
-than 0.5 px from the first hit (blobby crowns, ground showing through at their edges).
+interpolated elsewhere) was used: cheaper, but 9-14 % of the forest's pixels (15-22 % in
+an image corner) were more than 0.5 px from the first hit (blobby crowns, ground showing
+through at their edges), 0.5-6 % of the town's.
 Figures of the exact walk: ``benchmarks/bench_camera.py --relief-only``.
 """
 

@@ -193,31 +193,28 @@ def _patch_root(
 
 
 @compiled_inline
-def first_hit(
-    values: F32, cmax: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
-    z_top: float, z_bot: float,
-) -> tuple[float, bool]:  # fmt: skip
-    """(altitude of the first point of the ray on the surface within [z_bot, z_top], found).
-
-    Exact: the ray walks the cells it crosses in order (a grid walk over the level-pixel
-    grid), passes every cell whose highest post is below the ray where it leaves the cell,
-    and solves the quadratic of the cells it may meet (:func:`_patch_root`). A ray already
-    under the surface at z_top hits there. A ray that leaves the window between z_top and
-    z_bot is marched by fine steps (:func:`march_ray`).
-
-    The walk divides nothing: descents t are kept multiplied by |ax| |ay| (the next
-    boundary across x is at t |ax| |ay| = (distance in x) |ay|), so the comparisons of a
-    step are products; a zero slope is taken as 1e-12 level pixels per metre.
-    """
-    h, w = values.shape
+def _stays_inside(
+    w: int, h: int, px0: float, py0: float, ax: float, ay: float, z_top: float, z_bot: float
+) -> bool:
+    """Whether the ray stays over a w x h window of posts between z_top and z_bot."""
     xa, ya = px0 - z_top * ax, py0 - z_top * ay
     xb, yb = px0 - z_bot * ax, py0 - z_bot * ay
     hi_x, hi_y = w - 1.0, h - 1.0
-    if not (
+    return (
         0.0 <= xa <= hi_x and 0.0 <= ya <= hi_y and 0.0 <= xb <= hi_x and 0.0 <= yb <= hi_y
-    ) or w < 2 or h < 2:  # fmt: skip
-        z, found = march_ray(values, tmax, px0, py0, ax, ay, z_top, z_bot)
-        return z, found
+        and w >= 2 and h >= 2
+    )  # fmt: skip
+
+
+@compiled_inline
+def _walk(
+    values: F32, cmax: F32, px0: float, py0: float, ax: float, ay: float, z_top: float,
+    z_bot: float,
+) -> tuple[float, bool]:  # fmt: skip
+    """:func:`first_hit` of a ray that stays over the window (the walk itself, kept apart
+    from the fine march so the per-pixel loop holds no call)."""
+    h, w = values.shape
+    xa, ya = px0 - z_top * ax, py0 - z_top * ay
     span = z_top - z_bot
     if span < 0.0:
         return z_top, False
@@ -255,6 +252,31 @@ def first_hit(
             next_y += sx
         if i < 0 or i > ci or j < 0 or j > cj:
             return z_bot, False  # (only by rounding at the window's edge)
+
+
+@compiled_inline
+def first_hit(
+    values: F32, cmax: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
+    z_top: float, z_bot: float,
+) -> tuple[float, bool]:  # fmt: skip
+    """(altitude of the first point of the ray on the surface within [z_bot, z_top], found).
+
+    Exact: the ray walks the cells it crosses in order (a grid walk over the level-pixel
+    grid), passes every cell whose highest post is below the ray where it leaves the cell,
+    and solves the quadratic of the cells it may meet (:func:`_patch_root`). A ray already
+    under the surface at z_top hits there. A ray that leaves the window between z_top and
+    z_bot is marched by fine steps (:func:`march_ray`).
+
+    The walk divides nothing: descents t are kept multiplied by |ax| |ay| (the next
+    boundary across x is at t |ax| |ay| = (distance in x) |ay|), so the comparisons of a
+    step are products; a zero slope is taken as 1e-12 level pixels per metre.
+    """
+    h, w = values.shape
+    if _stays_inside(w, h, px0, py0, ax, ay, z_top, z_bot):
+        z, found = _walk(values, cmax, px0, py0, ax, ay, z_top, z_bot)
+    else:
+        z, found = march_ray(values, tmax, px0, py0, ax, ay, z_top, z_bot)
+    return z, found
 
 
 @compiled_inline
@@ -334,6 +356,7 @@ def hit_maps(
         bounds[k, 0] = bounds[k, 1] = np.float32(np.inf)
         bounds[k, 2] = bounds[k, 3] = np.float32(-np.inf)
     z_top = min(h_max, cam_z)
+    h, w = values.shape
     for v0 in range(0, height, BLOCK):
         v1 = min(v0 + BLOCK, height) - 1
         for u0 in range(0, width, BLOCK):
@@ -346,7 +369,10 @@ def hit_maps(
                 for px in range(u0, u1 + 1):
                     ax, ay = _ray(r, jac, s, float(px), float(py))
                     px0, py0 = ox + cam_z * ax, oy + cam_z * ay
-                    z, _ = first_hit(values, cmax, tmax, px0, py0, ax, ay, top, h_min)
+                    if _stays_inside(w, h, px0, py0, ax, ay, top, h_min):
+                        z, _ = _walk(values, cmax, px0, py0, ax, ay, top, h_min)
+                    else:
+                        z, _ = march_ray(values, tmax, px0, py0, ax, ay, top, h_min)
                     x, y = np.float32(px0 - z * ax), np.float32(py0 - z * ay)
                     maps[py, px, 0], maps[py, px, 1] = x, y
                     x_lo, y_lo = min(x_lo, x), min(y_lo, y)
