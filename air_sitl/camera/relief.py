@@ -25,6 +25,14 @@ skipped per ray, 4 x 4-pixel blocks, two rays walked in one loop, the walk stepp
 the major axis: the cost is the latency of each ray's chain of dependent steps, not the
 number of cells.
 
+Cost (``bench_camera.py --relief-only --frames 100``, one core, 640 x 480, load average
+5.5-6 on this 2-core machine): at 200 / 300 / 3000 m, urban 16.8 / 17.1 / 15.4 ms a frame
+(59 / 59 / 65 frames/s; 18.6 / 17.8 / 16.3x the flat render of the same frames, 0.9-1.0
+ms), forest 22.7 / 26.3 / 19.8 ms (44 / 38 / 51 frames/s: under the 50 aimed at below
+3000 m), urban over a 1.2 m GeoTIFF DSM 16.7 / 17.7 / 16.3 ms (60 / 57 / 62 frames/s). Of
+a forest frame at 300 m about 5 ms are the rays and their blocks, 8 ms the walks up to the
+first cell they may meet, 11 ms the patches solved and the walks after a miss.
+
 Until issue 24 an adaptive grid (rays on a 16-pixel grid, refined at parallax edges and
 interpolated elsewhere) was used: cheaper, but 9-14 % of the forest's pixels (15-22 % in
 an image corner) were more than 0.5 px from the first hit (blobby crowns, ground showing
