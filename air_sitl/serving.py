@@ -21,8 +21,9 @@ import numpy.typing as npt
 
 from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
 from air_sitl.bus.hookup import BusHookup
-from air_sitl.camera.options import close_map, open_chosen_renderer
+from air_sitl.camera.options import open_chosen_renderer
 from air_sitl.clock import CAMERA_PERIOD_NS
+from air_sitl.maps.choose import close_map
 from air_sitl.mavlink.codec import ParseCounters
 from air_sitl.mavlink.interfaces import SEVERITY_CRITICAL
 from air_sitl.mavlink.links import LinkSpec

@@ -56,6 +56,43 @@ def test_package_keeps_the_one_way_flow(package: str, forbidden: set[str]) -> No
     assert not bad, "\n".join(bad)
 
 
+# Modules inside a package whose arrow points one way: the renderer owns its per-pixel paths
+# (remap), which march rays (relief, relief_march); none of those reaches back up, even for
+# type hints. The map and surface a flight flies over are opened by maps, not by the camera.
+MODULE_IMPORT = re.compile(r"^\s*(?:from|import)\s+air_sitl\.([\w.]+)", re.MULTILINE)
+MODULE_RULES: list[tuple[str, set[str]]] = [
+    ("camera/remap.py", {"camera.render", "camera.options", "camera.bridge"}),
+    ("camera/relief.py", {"camera.render", "camera.remap", "camera.options"}),
+    ("camera/relief_march.py", {"camera.render", "camera.remap", "camera.relief"}),
+]
+
+
+@pytest.mark.parametrize(("module", "forbidden"), MODULE_RULES, ids=[r[0] for r in MODULE_RULES])
+def test_module_keeps_the_one_way_flow(module: str, forbidden: set[str]) -> None:
+    path = PACKAGE / module
+    text = path.read_text(encoding="utf-8")
+    bad = []
+    for m in MODULE_IMPORT.finditer(text):
+        name = m.group(1)
+        if any(name == f or name.startswith(f + ".") for f in forbidden):
+            bad.append(f"{module}:{text.count(chr(10), 0, m.start()) + 1}: imports air_sitl.{name}")
+    assert not bad, "\n".join(bad)
+
+
+def test_maps_and_surfaces_are_chosen_and_opened_in_maps() -> None:
+    """A flight's set-up opens (and closes) its map and surface model through maps.choose,
+    whose one home they are; the camera only renders what it is handed."""
+    homes = {
+        name: sorted(
+            path.relative_to(PACKAGE).as_posix()
+            for path in PACKAGE.rglob("*.py")
+            if re.search(rf"^def {name}\(", path.read_text(encoding="utf-8"), re.MULTILINE)
+        )
+        for name in ("open_chosen_map", "open_chosen_surface", "close_map")
+    }
+    assert homes == {name: ["maps/choose.py"] for name in homes}, homes
+
+
 # Missions are validated once, where they come in: a plan file, a MAVLink upload. What flies
 # them (autopilot, runner) trusts the Mission it is handed.
 VALIDATION_EDGES = {"mission/plan_file.py", "mavlink/mission_protocol.py"}

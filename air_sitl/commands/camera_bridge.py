@@ -21,9 +21,7 @@ from air_sitl.camera.options import (
     add_camera_arguments,
     add_map_arguments,
     camera_from_args,
-    close_map,
     map_choice_from_args,
-    open_chosen_map,
     open_chosen_renderer,
 )
 from air_sitl.errors import BusError
@@ -60,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
     from air_sitl.bus.remote_camera import CameraBridgeServer, RenderSettings
     from air_sitl.bus.session import open_bus
     from air_sitl.bus.signals import wait_until_signalled
+    from air_sitl.maps.choose import close_map
 
     keys = KeySpace(args.vehicle)
     camera = camera_from_args(args)  # validates the options before joining the bus
@@ -113,6 +112,7 @@ def _renderer(choice: MapChoice, settings: RenderSettings, maps: list[MapSource]
     """A render function for one (home, camera, seed): the in-process camera's Renderer."""
     from air_sitl.bus.remote_camera import RenderedFrame
     from air_sitl.camera.info import camera_from_settings
+    from air_sitl.maps.choose import open_chosen_map
 
     try:
         camera = camera_from_settings(settings.camera)

@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from air_sitl.camera.options import add_camera_arguments, camera_from_args, close_map
+from air_sitl.camera.options import add_camera_arguments, camera_from_args
 from air_sitl.errors import DatasetError, OptionError
 from air_sitl.options import MapChoice, add_flight_arguments, flight_options_from_args, int_in_range
 
@@ -74,6 +74,7 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
     """Validate the options, load the plans and list the jobs (errors before anything flies)."""
     from air_sitl.builder import load_setup, open_setup_map
     from air_sitl.dataset.scenarios import missions_dir, parse_scenarios
+    from air_sitl.maps.choose import close_map
     from air_sitl.recording.batch import Job
 
     options = flight_options_from_args(args)

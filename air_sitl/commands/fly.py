@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from air_sitl.camera.options import camera_from_args, close_map, map_choice_from_args
+from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import MapError
 from air_sitl.mission.geometry import POSITIONED_COMMANDS
@@ -86,6 +86,7 @@ def plan_off_map(mission: Mission, home: GeoPoint, map_source: MapSource) -> str
 def require_on_map(setup: FlightSetup) -> None:
     """MapError when the plan leaves the flight's map (the same check with or without camera)."""
     from air_sitl.builder import open_setup_map
+    from air_sitl.maps.choose import close_map
 
     map_source = open_setup_map(setup)
     try:

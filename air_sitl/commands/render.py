@@ -12,7 +12,6 @@ from air_sitl.camera.options import (
     add_map_arguments,
     camera_from_args,
     map_choice_from_args,
-    open_chosen_map,
     open_chosen_renderer,
 )
 from air_sitl.errors import OptionError
@@ -58,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
 
     from air_sitl.camera.render import pose_state
     from air_sitl.files import write_bytes_atomic
+    from air_sitl.maps.choose import open_chosen_map
 
     out = Path(args.out)
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
