@@ -21,12 +21,12 @@ HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
 
 # (map, altitude m, roll deg) -> SHA-256 prefix of the noised pixels, frame index 3.
 RECORDED = {
-    ("urban", 200.0, 0.0): "f6b7e95bbf0859a0",
-    ("urban", 300.0, 20.0): "497cb4b21fbc671e",
-    ("urban", 3000.0, 5.0): "d35edf241a01bc15",
-    ("forest", 200.0, 0.0): "f909ac65ad0fc15a",
-    ("forest", 300.0, 20.0): "71acca4d4e5b4bb8",
-    ("forest", 3000.0, 5.0): "6135f41c80feee15",
+    ("urban", 200.0, 0.0): "81d8f8aa8bc114ad",
+    ("urban", 300.0, 20.0): "231260ad95981435",
+    ("urban", 3000.0, 5.0): "839560afd0ea05e4",
+    ("forest", 200.0, 0.0): "59c6746d41406c4d",
+    ("forest", 300.0, 20.0): "e2c44d1da3441afd",
+    ("forest", 3000.0, 5.0): "a53b5cbfd4ff2f68",
 }
 
 

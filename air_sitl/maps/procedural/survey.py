@@ -64,9 +64,9 @@ class Processing:
 # 2016 a crisp cool spring survey. Palettes are drawn vivid; processing brings them to the
 # muted colours of real 0.5 m orthophotos (mean HSV saturation about 45).
 PROCESSING: tuple[Processing, ...] = (
-    Processing(0.0, 0.0, 0.10, 1.02, (1.00, 1.00, 1.00), 0.52, 1.00, 0.05, 0.0, 0.0, 2.5, 82),
-    Processing(0.9, 0.8, 0.06, 1.08, (0.90, 1.00, 1.08), 0.38, 1.12, 0.07, 0.0, 0.35, 3.0, 75),
-    Processing(1.5, 0.9, 0.14, 0.96, (1.10, 1.02, 0.92), 0.64, 0.92, 0.06, 0.0, 0.15, 3.5, 70),
+    Processing(0.0, 0.0, 0.10, 1.02, (1.00, 1.00, 1.00), 0.58, 1.00, 0.04, 0.0, 0.0, 2.5, 82),
+    Processing(0.9, 0.8, 0.06, 1.08, (0.90, 1.00, 1.08), 0.38, 1.12, 0.045, 0.0, 0.35, 3.0, 75),
+    Processing(1.5, 0.9, 0.14, 0.96, (1.05, 1.02, 0.95), 0.64, 0.92, 0.04, 0.0, 0.15, 3.5, 70),
 )
 
 
