@@ -176,3 +176,17 @@ def test_bench_dates_figures_within_targets() -> None:
             assert t["slope"][0] <= row["slope"] <= t["slope"][1], (
                 f"{kind}: slope {row['slope']:.2f}"
             )
+
+
+def test_boats_on_the_lake_are_where_they_are_that_day() -> None:
+    world = ForestWorld(0)
+    x0, y0, size = 200, -15424 * 4 + 200, 512  # a lake of seed 0
+    masks = []
+    for look in DATES:
+        water = world._lake(x0, y0, size, 0.6)
+        boats = world._boats(x0, y0, size, 0.6, look, water)
+        assert boats is not None, f"no boat on the lake on {look.label}"
+        assert float(water[boats > 0.5].min()) > 0.5, "a boat on land"
+        masks.append(boats > 0.5)
+    assert not np.array_equal(masks[0], masks[1])
+    assert not np.array_equal(masks[0], masks[2])

@@ -36,6 +36,9 @@ _DECIDUOUS_ALT = {"summer": (56, 118, 86), "autumn": (40, 96, 146), "spring": (8
 _BARE: Color = (78, 96, 118)  # leafless broadleaf crowns: grey-brown branches
 _LITTER: Color = (50, 78, 108)  # last year's leaves on the forest floor
 _REGROWTH: Color = (64, 120, 104)  # young growth on clear-cuts a few years old
+_BOAT: Color = (214, 218, 222)  # white hulls
+BOAT_CELL_M = 45.0  # one boat at most per cell of open water
+BOAT_SHARE = 0.08  # share of the cells with a boat during a survey
 _UNDERSTORY: Color = (30, 50, 36)
 _MEADOW = {"summer": (70, 138, 112), "autumn": (84, 136, 150), "spring": (86, 124, 128)}
 _SOIL: Color = (90, 112, 132)
@@ -139,6 +142,10 @@ class ForestWorld:
             ripple += 0.06 * fractal_noise(k + 12, x0, y0, size, 1.5 * pm, 2)
             water = np.array(_WATER, dtype=np.float32)[None, None, :] * ripple[:, :, None]
             out = out * (1.0 - g.water[:, :, None]) + water * g.water[:, :, None]
+            boats = self._boats(x0, y0, size, gsd_m, date, g.water)
+            if boats is not None:  # moored or out on the lake: where they are that day
+                hull = np.array(_BOAT, dtype=np.float32)[None, None, :]
+                out = out * (1.0 - boats[:, :, None]) + hull * boats[:, :, None]
         if date.leaf_off:  # bare crowns cast thin shadows
             shadow = shadow * (0.45 + 0.55 * g.conifer)
         out *= (1.0 - (0.3 + 0.25 * (1.0 - g.cover)) * shadow)[:, :, None]
@@ -170,12 +177,7 @@ class ForestWorld:
         stream_px = _sample(value_noise, k + 20, x0, y0, size, gsd_m, 520.0)
         stream_on = _sample(value_noise, k + 21, x0, y0, size, gsd_m, 1400.0) > -0.3
         stream = np.clip((STREAM_HALF - np.abs(stream_px)) * 80.0 * stream_on, 0.0, 1.0)
-        lake_n = value_noise(k + 8, x0, y0, size, 700.0 / gsd_m) + 0.25 * value_noise(
-            k + 9, x0, y0, size, 150.0 / gsd_m
-        )
-        lake = np.clip((-lake_n - 1.7) * 30.0, 0.0, 1.0)
-        if self.home_en_m is not None and float(lake.max()) > 0.0:
-            lake *= self._dry_near_home(x0, y0, size, gsd_m)
+        lake = self._lake(x0, y0, size, gsd_m)
         water: FloatImage = np.maximum(stream, lake).astype(np.float32)
         cut_mask = self._cuts(x0, y0, size, gsd_m, d)
         cut = np.zeros((size, size), np.float32) if cut_mask is None else cut_mask
@@ -220,6 +222,47 @@ class ForestWorld:
             cut,
             water,
         )
+
+    def _lake(self, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
+        """1 on lakes (0 within DRY_RADIUS_M of home)."""
+        k = key_of(self.seed, 41)
+        lake_n = value_noise(k + 8, x0, y0, size, 700.0 / gsd_m) + 0.25 * value_noise(
+            k + 9, x0, y0, size, 150.0 / gsd_m
+        )
+        lake: FloatImage = np.clip((-lake_n - 1.7) * 30.0, 0.0, 1.0)
+        if self.home_en_m is not None and float(lake.max()) > 0.0:
+            lake *= self._dry_near_home(x0, y0, size, gsd_m)
+        return lake
+
+    def _boats(
+        self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook, water: FloatImage
+    ) -> FloatImage | None:
+        """Mask of the boats on lakes during this survey (whether a boat is there is decided at
+        its centre, whatever window draws it)."""
+        if gsd_m > 2.0 or float(water.max()) < 0.5:
+            return None
+        cv = Canvas(x0, y0, size, gsd_m, (0, 0, 0))
+        for i in range(math.floor(cv.e_min / BOAT_CELL_M), math.floor(cv.e_max / BOAT_CELL_M) + 1):
+            for j in range(
+                math.floor(cv.n_min / BOAT_CELL_M), math.floor(cv.n_max / BOAT_CELL_M) + 1
+            ):
+                rng = rng_for(self.seed, 81, date.index, i, j)
+                if rng.random() > BOAT_SHARE:
+                    continue
+                e = (i + rng.uniform(0.1, 0.9)) * BOAT_CELL_M
+                n = (j + rng.uniform(0.1, 0.9)) * BOAT_CELL_M
+                if not cv.overlaps(e, n, e, n, 5.0):
+                    continue
+                col, row = math.floor(e / gsd_m), math.floor(-n / gsd_m)
+                if float(self._lake(col, row, 1, gsd_m)[0, 0]) < 0.99:
+                    continue
+                a = rng.uniform(0.0, math.pi)
+                length = rng.uniform(3.0, 8.0)
+                hull = rect(e, n, length / 2, length * 0.18, math.cos(a), math.sin(a))
+                cv.poly(hull, (255,), "shadow")
+        if not cv.shadow.any():
+            return None
+        return cv.shadow.astype(np.float32) * np.float32(1.0 / 255.0)
 
     def _dry_near_home(self, x0: int, y0: int, size: int, gsd_m: float) -> npt.NDArray[np.float32]:
         """0 within DRY_RADIUS_M of home, rising to 1 over the next 500 m."""
