@@ -27,7 +27,7 @@ from typing import IO, Any
 import yaml
 
 from air_sitl.bench.config import BenchConfig, ExternalLocalizer, parse_localizer, parse_methods
-from air_sitl.bench.leaderboard import Leaderboard, build
+from air_sitl.bench.leaderboard import Leaderboard, build, gaps_json, gaps_markdown
 from air_sitl.dataset.air_schema import MANIFEST_JSON
 from air_sitl.errors import DatasetError
 from air_sitl.files import write_bytes_atomic, write_json_atomic
@@ -45,6 +45,7 @@ __all__ = [
     "parse_localizer",
     "parse_methods",
     "run_bench",
+    "run_gaps",
 ]
 
 BENCH_SPEC = "bench.yaml"  # the sweep SPEC a bench is, written beside its results
@@ -225,7 +226,8 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
     if outcome.interrupted:
         raise KeyboardInterrupt
     results = [_measured(config, *cell) for cell in cells]
-    board = build(config.entries, config.scenarios, results)
+    dates = (config.reference_date, config.flight_date)
+    board = build(config.entries, config.scenarios, results, dates)
     write_json_atomic(config.out / "leaderboard.json", board.to_json())
     write_bytes_atomic(config.out / "leaderboard.md", board.to_markdown().encode("utf-8"))
     errors = {
@@ -238,3 +240,17 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
 
         error_boxes(errors, config.entries, config.scenarios, config.out / "error_boxes.png")
     return board
+
+
+def run_gaps(
+    config: BenchConfig, flight_dates: tuple[int, ...], stream: IO[str] | None = None
+) -> list[Leaderboard]:
+    """One bench per flight date (``OUT/date<N>/``, each with its archives and leaderboard),
+    all against the reference date; ``OUT/leaderboard.md`` and ``.json`` compare the gaps."""
+    boards = [
+        run_bench(replace(config, flight_date=d, out=config.out / f"date{d}"), stream)
+        for d in flight_dates
+    ]
+    write_json_atomic(config.out / "leaderboard.json", gaps_json(boards))
+    write_bytes_atomic(config.out / "leaderboard.md", gaps_markdown(boards).encode("utf-8"))
+    return boards

@@ -58,6 +58,8 @@ class Leaderboard:
     entries: tuple[str, ...]
     scenarios: tuple[str, ...]
     cells: dict[tuple[str, str], EntryResult]
+    reference_date: int | None = None  # the map date map-based methods match against
+    flight_date: int | None = None  # the map date the flights' camera saw
 
     def figure(self, entry: str, scenario: str, key: str) -> float | None:
         result = self.cells.get((entry, scenario))
@@ -87,9 +89,16 @@ class Leaderboard:
             "v": 1,
             "methods": list(self.entries),
             "scenarios": list(self.scenarios),
+            "reference_date": self.reference_date,
+            "flight_date": self.flight_date,
             "rows": rows,
             "summary": summary,
         }
+
+    @property
+    def gap(self) -> str:
+        """``reference date 0 -> flight date 2``."""
+        return f"reference date {self.reference_date} -> flight date {self.flight_date}"
 
     def to_markdown(self) -> str:
         lines = ["# Leaderboard", ""]
@@ -97,6 +106,11 @@ class Leaderboard:
             f"{len(self.entries)} methods x {len(self.scenarios)} scenarios; each cell from "
             "`air-sitl eval` (SPEC section 5); the last column is the median over scenarios."
         )
+        if self.flight_date is not None:
+            lines.append(
+                f"Map dates: {self.gap} (map-based methods match the reference map while "
+                "the camera sees the flight's date)."
+            )
         for key, _path, title, fmt, better in FIGURES:
             lines += ["", f"## {title} ({'lower' if better == 'low' else 'higher'} is better)", ""]
             lines.append("| method | " + " | ".join(self.scenarios) + " | median |")
@@ -120,11 +134,54 @@ def _fmt(value: float | None, fmt: str) -> str:
 
 
 def build(
-    entries: Sequence[str], scenarios: Sequence[str], results: Sequence[EntryResult]
+    entries: Sequence[str],
+    scenarios: Sequence[str],
+    results: Sequence[EntryResult],
+    dates: tuple[int, int] | None = None,
 ) -> Leaderboard:
-    """Arrange results (any order) into the leaderboard."""
+    """Arrange results (any order) into the leaderboard; ``dates``: (reference, flight)."""
     cells = {(r.entry, r.scenario): r for r in results}
-    return Leaderboard(entries=tuple(entries), scenarios=tuple(scenarios), cells=cells)
+    ref, flight = dates if dates is not None else (None, None)
+    return Leaderboard(
+        entries=tuple(entries),
+        scenarios=tuple(scenarios),
+        cells=cells,
+        reference_date=ref,
+        flight_date=flight,
+    )
+
+
+GAP_FIGURES = ("median_m", "recall_25m", "availability")
+
+
+def gaps_markdown(boards: Sequence[Leaderboard]) -> str:
+    """Leaderboards of one bench flown over several map dates: a summary per date gap (the
+    median over scenarios), then each gap's tables."""
+    lines = ["# Leaderboard by map date gap", ""]
+    lines.append(
+        "Map-based methods match the reference map of one date while the camera sees the "
+        "flight's date; each column is one gap (the median over scenarios)."
+    )
+    for key, _path, title, fmt, better in FIGURES:
+        if key not in GAP_FIGURES:
+            continue
+        lines += ["", f"## {title} ({'lower' if better == 'low' else 'higher'} is better)", ""]
+        heads = [f"{b.reference_date} -> {b.flight_date}" for b in boards]
+        lines.append("| method | " + " | ".join(heads) + " |")
+        lines.append("|---" * (len(boards) + 1) + "|")
+        for entry in boards[0].entries:
+            cells = [_fmt(b.summary(entry, key), fmt) for b in boards]
+            lines.append(f"| {entry} | " + " | ".join(cells) + " |")
+    for board in boards:
+        body = board.to_markdown().split("\n")
+        lines += ["", f"# {board.gap}", ""]
+        lines += [("#" + ln if ln.startswith("## ") else ln) for ln in body[2:]]
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
+def gaps_json(boards: Sequence[Leaderboard]) -> dict[str, Any]:
+    """The leaderboards of every gap, in flight-date order."""
+    return {"v": 1, "gaps": [b.to_json() for b in boards]}
 
 
 def scenario_class(scenario: str) -> str:

@@ -65,7 +65,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--map-date",
         default=str(FLIGHT_DATE),
-        help=f"map date the flights are rendered at (default {FLIGHT_DATE})",
+        help=f"map date the flights are rendered at (default {FLIGHT_DATE}); several, such as "
+        "0,1,2: one bench per date in DIR/date<N>/ and DIR/leaderboard.md by date gap",
     )
     parser.add_argument(
         "--reference-date",
@@ -101,7 +102,7 @@ def config_from_args(args: argparse.Namespace) -> BenchConfig:
         jobs=int_in_range("-j", args.jobs, 1, 64),
         ray=args.ray,
         missions=folder,
-        flight_date=int_in_range("--map-date", args.map_date, 0, 99),
+        flight_date=flight_dates(args.map_date)[0],
         reference_date=int_in_range("--reference-date", args.reference_date, 0, 99),
         align=args.align,
         seed=int_in_range("--seed", args.seed, 0, 2**31 - 1),
@@ -114,13 +115,28 @@ def config_from_args(args: argparse.Namespace) -> BenchConfig:
     )
 
 
+def flight_dates(text: str) -> tuple[int, ...]:
+    """``--map-date``: one date index or several, comma-separated, each once."""
+    dates = tuple(int_in_range("--map-date", part, 0, 99) for part in str(text).split(","))
+    if len(set(dates)) != len(dates):
+        msg = f"--map-date {text}: a date is given twice"
+        raise OptionError(msg)
+    return dates
+
+
 def run(args: argparse.Namespace) -> int:
-    """Run the bench; 0 when every cell was measured, 1 when some failed."""
-    from air_sitl.bench import run_bench
+    """Run the bench (one per flight date); 0 when every cell was measured, 1 when some failed."""
+    from air_sitl.bench import run_bench, run_gaps
 
     config = config_from_args(args)
-    board = run_bench(config)
-    sys.stdout.write(board.to_markdown().split("\n## ", 2)[1].join(["## ", "\n"]))
+    dates = flight_dates(args.map_date)
+    if len(dates) == 1:
+        boards = [run_bench(config)]
+        sys.stdout.write(boards[0].to_markdown().split("\n## ", 2)[1].join(["## ", "\n"]))
+    else:
+        boards = run_gaps(config, dates)
+        text = (config.out / "leaderboard.md").read_text(encoding="utf-8")
+        sys.stdout.write(text.split("\n# reference", 1)[0].rstrip("\n") + "\n")
     sys.stdout.write(f"leaderboard: {config.out / 'leaderboard.md'}\n")
-    failed = [r for r in board.cells.values() if r.error]
+    failed = [r for b in boards for r in b.cells.values() if r.error]
     return 1 if failed else 0

@@ -63,12 +63,16 @@ def open_reference(context: LocalizerContext) -> MapSource:
             )
             raise OptionError(msg)
         spec = str(kind)
-    date: int = DEFAULT_REFERENCE_DATE
-    if context.reference_date is not None:
-        date = int(context.reference_date)
-    elif context.map_date == DEFAULT_REFERENCE_DATE:
-        date = 1  # never the imagery's own date by default
+    date = reference_date_for(context.map_date, context.reference_date)
     return open_map(spec, context.home, seed=seed, date=date)
+
+
+def reference_date_for(flight_date: int | None, reference_date: int | None) -> int:
+    """The reference map's date a map-based method matches against: the one asked for, else
+    date 0, or date 1 for a flight over date 0 (never the imagery's own date by default)."""
+    if reference_date is not None:
+        return int(reference_date)
+    return 1 if flight_date == DEFAULT_REFERENCE_DATE else DEFAULT_REFERENCE_DATE
 
 
 class MapMatchBase:

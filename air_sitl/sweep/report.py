@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from air_sitl.files import write_bytes_atomic
+from air_sitl.localize.mapmatch import reference_date_for
 from air_sitl.sweep.errors import SweepError
 from air_sitl.sweep.results import RESULTS, latest_rows
 
@@ -177,6 +178,21 @@ def _fmt(metric: Metric, cell: Cell, spread: bool) -> str:
     return text
 
 
+def date_gaps(rows: Sequence[dict[str, Any]]) -> str:
+    """Which map dates the runs compared: map-based methods (``mapmatch``, ``fused``) match a
+    reference map of one date while the flight's camera saw another."""
+    gaps: dict[tuple[int, int], int] = {}
+    for row in rows:
+        flight = int((row.get("options") or {}).get("map-date", 0))
+        ref = reference_date_for(flight, row.get("reference_date"))
+        gaps[(ref, flight)] = gaps.get((ref, flight), 0) + 1
+    text = ", ".join(
+        f"reference date {ref} -> flight date {flight} ({n} runs)"
+        for (ref, flight), n in sorted(gaps.items())
+    )
+    return f"Map dates (map-based methods): {text}."
+
+
 def markdown(
     rows: Sequence[dict[str, Any]],
     axes: Sequence[str],
@@ -199,6 +215,8 @@ def markdown(
     ]
     if notes:
         lines += [*(f"- {note}" for note in notes), ""]
+    if entries != [FLIGHT]:
+        lines += [date_gaps(rows), ""]
     constant = constant_metrics(rows, entries, metrics)
     if constant:
         text = _constant_text(constant)

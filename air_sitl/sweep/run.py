@@ -328,6 +328,7 @@ def execute(task: RunTask) -> dict[str, Any]:
             "wall_s": round(time.perf_counter() - start, 3),
             "host": socket.gethostname(),
             "archive": task.archive_label,
+            "reference_date": task.reference_date,
         }
     )
     return row

@@ -1,7 +1,8 @@
 """Frames without relief or camera effects stay byte-identical to those of the renderer
 before issue 15 (hashes first recorded from commit 789f854 with this same code; recorded again
 when issue 15's section 4 redrew the procedural textures, after checking that the renderer of
-that commit with the former textures still gave the first hashes)."""
+that commit with the former textures still gave the first hashes; recorded again when issue 24
+made each date a survey, with the renderer unchanged)."""
 
 from __future__ import annotations
 
@@ -20,12 +21,12 @@ HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
 
 # (map, altitude m, roll deg) -> SHA-256 prefix of the noised pixels, frame index 3.
 RECORDED = {
-    ("urban", 200.0, 0.0): "fe9a537c50d8821c",
-    ("urban", 300.0, 20.0): "d3dee16e2a197843",
-    ("urban", 3000.0, 5.0): "fabc909ee173d909",
-    ("forest", 200.0, 0.0): "a572a170ba651311",
-    ("forest", 300.0, 20.0): "1b8f737ef0a9bfe9",
-    ("forest", 3000.0, 5.0): "c05233ff23598b39",
+    ("urban", 200.0, 0.0): "81d8f8aa8bc114ad",
+    ("urban", 300.0, 20.0): "231260ad95981435",
+    ("urban", 3000.0, 5.0): "839560afd0ea05e4",
+    ("forest", 200.0, 0.0): "59c6746d41406c4d",
+    ("forest", 300.0, 20.0): "e2c44d1da3441afd",
+    ("forest", 3000.0, 5.0): "a53b5cbfd4ff2f68",
 }
 
 

@@ -32,6 +32,7 @@ from air_sitl.localize.base import Estimate, Observation
 from air_sitl.localize.mapmatch import MapMatchLocalizer, open_reference
 from air_sitl.localize.mapmatch_core import MapMatcher
 from air_sitl.maps import open_map
+from air_sitl.maps.procedural import ProceduralMap
 from air_sitl.state import GeoPoint
 
 pytestmark = pytest.mark.integration
@@ -147,22 +148,29 @@ def test_localize_every_k_matches_every_kth_frame(flight: Path) -> None:
 
 def test_truth_pose_rectification_recovers_a_prior_offset(flight: Path) -> None:
     """Geometry check: with the true attitude and height the match lands on the truth
-    (the remaining error is the date change and JPEG), whatever the prior's offset."""
+    (the remaining error is the date change and JPEG; date 1's survey misregistration against
+    date 0, known, is taken out), whatever the prior's offset."""
     manifest = json.loads((flight / "manifest.json").read_text())
     home = GeoPoint(**manifest["home"])
     reference = open_map("urban", home, seed=0, date=0)
+    flown = open_map("urban", home, seed=0, date=1)
+    assert isinstance(flown, ProceduralMap)
     matcher = MapMatcher(reference, CameraModel(), home)
     rows = truth_rows(flight)
     errors = []
+    gsd = flown.georef.gsd_m
     for k in range(0, len(rows), 60):
         r = rows[k]
         q = (float(r["q_ned_w"]), float(r["q_ned_x"]), float(r["q_ned_y"]), float(r["q_ned_z"]))
         east, north = float(r["east_m"]), float(r["north_m"])
+        # Date 1's survey shows the ground that lies (de, dn) away: the match lands there.
+        hx, hy = flown.home_px
+        de, dn = flown.misregistration_m(hx + east / gsd, hy - north / gsd)
         jpeg = (flight / r["filename"]).read_bytes()
         res = matcher.match(jpeg, q, float(r["alt_rel_m"]), east + 12.0, north - 9.0, 25.0)
         assert res is not None and res.accepted
-        assert math.hypot(res.shift_east_m + 12.0, res.shift_north_m - 9.0) < 1.0
-        errors.append(math.hypot(res.east_m - east, res.north_m - north))
+        assert math.hypot(res.shift_east_m + 12.0 - de, res.shift_north_m - 9.0 - dn) < 1.0
+        errors.append(math.hypot(res.east_m - east - de, res.north_m - north - dn))
     assert float(np.median(errors)) < 0.5
 
 

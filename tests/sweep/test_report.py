@@ -91,3 +91,22 @@ def test_a_complete_sweep_has_no_coverage_notes(
     (folder / "sweep.json").write_text(json.dumps(info))
     assert main(["sweep", "report", str(folder)]) == 0
     assert "sweep report:" not in capsys.readouterr().err
+
+
+def test_the_report_names_reference_and_flight_dates(tmp_path: Path) -> None:
+    """Flights over date 0 match date 1 by default, the others date 0; a bench's rows say
+    their reference date."""
+    folder = _sweep(tmp_path / "dates", [1.0, 0.8, 0.9, 0.7])
+    assert main(["sweep", "report", str(folder), "--quiet"]) == 0
+    md = (folder / "report.md").read_text()
+    assert (
+        "Map dates (map-based methods): reference date 0 -> flight date 1 (2 runs), "
+        "reference date 1 -> flight date 0 (2 runs)." in md
+    )
+    rows = [json.loads(line) for line in (folder / RESULTS).read_text().splitlines()]
+    for row in rows:
+        row["reference_date"] = 2
+    (folder / RESULTS).write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert main(["sweep", "report", str(folder), "--quiet"]) == 0
+    md = (folder / "report.md").read_text()
+    assert "reference date 2 -> flight date 0 (2 runs), reference date 2 -> flight date 1" in md

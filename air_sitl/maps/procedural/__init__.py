@@ -28,6 +28,7 @@ from air_sitl.maps.base import (
 )
 from air_sitl.maps.procedural.canvas import DATES, DateLook
 from air_sitl.maps.procedural.forest import ForestWorld
+from air_sitl.maps.procedural.survey import acquire, displacement_m
 from air_sitl.maps.procedural.urban import UrbanWorld
 from air_sitl.maps.utm import latlon2utm, utm_zone_of
 from air_sitl.state import GeoPoint
@@ -43,14 +44,15 @@ DIRECT_FROM_LEVEL = 3
 
 
 def parse_date(value: str | int | None) -> DateLook:
-    """A date of a procedural map from an index ("0", "1", ...) or a label ("2012-10-08")."""
+    """A date of a procedural map from an index ("0", "1", ...), a label ("2012-10-08", or with
+    its local solar time "2012-10-08 14:20") or a season; its sun at the default latitude."""
     if value is None:
         return DATES[0]
     text = str(value).strip()
     for look in DATES:
-        if text in (str(look.index), look.label, look.season):
+        if text in (str(look.index), look.label, look.full_label, look.season):
             return look
-    names = ", ".join(f"{d.index}={d.label} ({d.season})" for d in DATES)
+    names = ", ".join(f"{d.index}={d.full_label} ({d.season})" for d in DATES)
     raise map_error("--map-date", f"{text!r} is not a date of the procedural maps ({names})")
 
 
@@ -74,7 +76,7 @@ class ProceduralMap(TiledMap):
             raise map_error("--gsd-m", f"{gsd_m!r} is not a ground sample distance >= 0.05 m")
         self.kind = kind
         self.seed = int(seed)
-        self.date = parse_date(date)
+        self.date = parse_date(date).at_latitude(home.lat_deg)
         self.zone = utm_zone_of(home.lat_deg, home.lon_deg)
         e, n = latlon2utm(home.lat_deg, home.lon_deg, self.zone)
         self._world: UrbanWorld | ForestWorld = (
@@ -123,7 +125,7 @@ class ProceduralMap(TiledMap):
         # The group's 2x2 tiles at `level` cover 4x4 tiles of `fine`: draw those at once.
         x0 = (ox >> fine) + 2 * gx * TILE_PX
         y0 = (oy >> fine) + 2 * gy * TILE_PX
-        bgr = self._world.draw(x0, y0, 4 * TILE_PX, self._gsd * (1 << fine), self.date)
+        bgr = self._acquire(x0, y0, 4 * TILE_PX, self._gsd * (1 << fine))
         small = downsample2(np.ascontiguousarray(bgr))
         return self._split_group(level, gx, gy, tx, ty, small)
 
@@ -147,7 +149,21 @@ class ProceduralMap(TiledMap):
 
     def render_abs(self, x0_abs: int, y0_abs: int, size: int) -> Image:
         """Level-0 BGR pixels of a square at absolute lattice position (used by ``map make``)."""
-        return self._world.draw(x0_abs, y0_abs, size, self._gsd, self.date)
+        return self._acquire(x0_abs, y0_abs, size, self._gsd)
+
+    def _acquire(self, x0_abs: int, y0_abs: int, size: int, gsd_m: float) -> Image:
+        """This date's survey of the world over a square of the lattice at ``gsd_m``."""
+        return acquire(self._world.draw, self.seed, x0_abs, y0_abs, size, gsd_m, self.date)
+
+    def misregistration_m(self, x_px: float, y_px: float) -> tuple[float, float]:
+        """(dE, dN) metres by which this date's orthophoto shows, at level-0 map pixel
+        (x_px, y_px), the ground that truly lies that far east and north: its survey's
+        misregistration (0 on date 0, the reference survey)."""
+        ox, oy = self.origin_abs_px
+        d = displacement_m(
+            self.seed, self.date, ox + math.floor(x_px), oy + math.floor(y_px), 1, self._gsd
+        )
+        return (0.0, 0.0) if d is None else (float(d[0][0, 0]), float(d[1][0, 0]))
 
     def read_bgr(self, x0: int, y0: int, width: int, height: int) -> Image:
         """Level-0 BGR pixels of a window of the nominal grid (tiles cached as usual)."""
@@ -161,6 +177,7 @@ class ProceduralMap(TiledMap):
             "seed": self.seed,
             "date": self.date.label,
             "date_index": self.date.index,
+            "solar_time": self.date.solar_time,
             "season": self.date.season,
             "sun_azimuth_deg": self.date.sun_azimuth_deg,
             "sun_elevation_deg": self.date.sun_elevation_deg,

@@ -16,6 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.maps.procedural.noise import FloatImage
+from air_sitl.maps.procedural.sun import sun_position
 
 _SHIFT = 4
 _ONE = 1 << _SHIFT
@@ -23,21 +24,39 @@ _ONE = 1 << _SHIFT
 Color = tuple[float, float, float]  # BGR 0..255
 Paint = Color | tuple[float]  # a colour, or one value on a mask layer
 Point = tuple[float, float]  # (E, N) metres
+DEFAULT_LAT_DEG = 47.4  # the default home (PX4 SITL, Zurich)
 
 
 @dataclass(frozen=True, slots=True)
 class DateLook:
-    """One date of a procedural map: label, season and sun."""
+    """One date of a procedural map: an aerial survey flown on ``label`` at ``solar_time``
+    (local solar time), its season, and the sun it saw from latitude ``lat_deg``."""
 
     index: int
-    label: str  # ISO date of the nominal acquisition
+    label: str  # ISO date of the acquisition
     season: str  # "summer", "autumn", "spring"
     sun_azimuth_deg: float  # clockwise from north
     sun_elevation_deg: float
+    solar_time: str = "12:00"  # HH:MM local solar time of the survey
+    lat_deg: float = DEFAULT_LAT_DEG  # where the sun was computed
+
+    @property
+    def full_label(self) -> str:
+        """``2009-06-20 10:40`` (date and local solar time)."""
+        return f"{self.label} {self.solar_time}"
+
+    @property
+    def leaf_off(self) -> bool:
+        """Whether deciduous trees stand bare (the spring survey, before leaf-out)."""
+        return self.season == "spring"
+
+    def at_latitude(self, lat_deg: float) -> DateLook:
+        """The same survey seen from another latitude (the map's): the sun moves."""
+        return survey_date(self.index, self.label, self.season, self.solar_time, lat_deg)
 
     def shadow_vector(self, height_m: float) -> Point:
         """(dE, dN) of the shadow cast by a point ``height_m`` above the ground."""
-        length = height_m / math.tan(math.radians(self.sun_elevation_deg))
+        length = height_m / math.tan(math.radians(max(self.sun_elevation_deg, 5.0)))
         az = math.radians(self.sun_azimuth_deg)
         return (-math.sin(az) * length, -math.cos(az) * length)
 
@@ -47,10 +66,18 @@ class DateLook:
         return (math.sin(az), math.cos(az))
 
 
+def survey_date(index: int, label: str, season: str, solar_time: str, lat_deg: float) -> DateLook:
+    """A date whose sun follows from its day, its solar time and the latitude."""
+    hh, mm = solar_time.split(":")
+    az, el = sun_position(label, int(hh) + int(mm) / 60.0, lat_deg)
+    return DateLook(index, label, season, az, el, solar_time, lat_deg)
+
+
+# The three surveys (sun at the default home's latitude; maps move it to their own).
 DATES: tuple[DateLook, ...] = (
-    DateLook(0, "2009-06-20", "summer", 140.0, 58.0),
-    DateLook(1, "2012-10-08", "autumn", 205.0, 30.0),
-    DateLook(2, "2016-04-22", "spring", 250.0, 42.0),
+    survey_date(0, "2009-06-20", "summer", "10:40", DEFAULT_LAT_DEG),
+    survey_date(1, "2012-10-08", "autumn", "13:40", DEFAULT_LAT_DEG),
+    survey_date(2, "2016-04-22", "spring", "15:30", DEFAULT_LAT_DEG),
 )
 
 
@@ -118,7 +145,7 @@ class Canvas:
         if px < -r or py < -r or px > lim or py > lim:
             return
         target = getattr(self, layer)
-        col = color if layer == "img" else (255,)
+        col = color if layer == "img" else (color[0],)
         p = (px, py)
         cv2.circle(target, (int(p[0]), int(p[1])), max(r, 1), col, -1, cv2.LINE_AA, _SHIFT)
 

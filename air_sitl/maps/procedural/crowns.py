@@ -19,6 +19,8 @@ from air_sitl.maps.procedural.noise import FloatImage, unit2, value_noise
 
 CELL_M = 3.6
 _JITTER = (0.15, 0.7)  # tree centre at (0.15 + 0.7 u) of its cell: never nearer a 2-away cell
+GROWTH_PER_YEAR = 0.012  # trees grow taller (and their crowns wider) year by year
+TURNOVER_PER_YEAR = 0.015  # share of the trees dying or felled (and of gaps filled) a year
 MAX_RADIUS_M = 3.5  # < CELL_M * (1 + 0.15): every crown is found among the 3x3 cells around
 
 
@@ -65,11 +67,14 @@ def crowns(
     gsd_m: float,
     sun_es: tuple[float, float],
     keep: npt.NDArray[np.bool_] | None = None,
+    years: int = 0,
 ) -> Crowns:
     """The crowns over pixels (x0.., y0..) of the lattice at ``gsd_m``.
 
     ``sun_es``: horizontal direction toward the sun as (east, south). ``keep`` (n x n cells
     from :func:`cell_window`) removes trees (clearings, water): False means no tree there.
+    ``years`` since the first survey: trees grow taller and wider, some die or are felled
+    (thinning, windthrow) and young trees fill some empty cells.
     """
     i0, j0, n = cell_window(x0, y0, size, gsd_m)
     stand = stand_fields(key, i0, j0, n)
@@ -78,11 +83,18 @@ def crowns(
     lo, span = _JITTER
     cx = ((ii + lo + span * unit2(ii, jj, key + 11)) * CELL_M).astype(np.float32)
     cy = ((jj + lo + span * unit2(ii, jj, key + 12)) * CELL_M).astype(np.float32)
-    present = unit2(ii, jj, key + 13) < stand.density
+    fate = unit2(ii, jj, key + 13)
+    present = fate < stand.density
+    if years > 0:  # turnover: a share of the trees gone, as many empty cells newly grown
+        turnover = np.float32(TURNOVER_PER_YEAR * years)
+        gone = fate < stand.density * turnover
+        born = fate >= 1.0 - (1.0 - stand.density) * turnover
+        present = (present & ~gone) | born
     if keep is not None:
         present &= keep
     conifer = unit2(ii, jj, key + 14) < stand.conifer
     top = stand.height_m * (0.82 + 0.26 * unit2(ii, jj, key + 15)).astype(np.float32)
+    top = top * np.float32(1.0 + GROWTH_PER_YEAR * years)
     radius = np.where(conifer, 0.1 * top + 0.6, 0.13 * top + 0.6)
     radius = np.minimum(radius, MAX_RADIUS_M).astype(np.float32)
     depth = np.where(conifer, 0.4, 0.3).astype(np.float32) * top

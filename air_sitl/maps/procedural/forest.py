@@ -31,8 +31,14 @@ from air_sitl.maps.procedural.noise import (
 )
 
 _CONIFER = {"summer": (52, 84, 50), "autumn": (50, 80, 50), "spring": (56, 86, 54)}
-_DECIDUOUS = {"summer": (44, 104, 70), "autumn": (40, 110, 150), "spring": (70, 122, 110)}
-_DECIDUOUS_ALT = {"summer": (56, 118, 86), "autumn": (36, 86, 170), "spring": (84, 132, 120)}
+_DECIDUOUS = {"summer": (44, 104, 70), "autumn": (46, 104, 104), "spring": (70, 122, 110)}
+_DECIDUOUS_ALT = {"summer": (56, 118, 86), "autumn": (40, 96, 146), "spring": (84, 132, 120)}
+_BARE: Color = (78, 96, 118)  # leafless broadleaf crowns: grey-brown branches
+_LITTER: Color = (50, 78, 108)  # last year's leaves on the forest floor
+_REGROWTH: Color = (64, 120, 104)  # young growth on clear-cuts a few years old
+_BOAT: Color = (214, 218, 222)  # white hulls
+BOAT_CELL_M = 45.0  # one boat at most per cell of open water
+BOAT_SHARE = 0.08  # share of the cells with a boat during a survey
 _UNDERSTORY: Color = (30, 50, 36)
 _MEADOW = {"summer": (70, 138, 112), "autumn": (84, 136, 150), "spring": (86, 124, 128)}
 _SOIL: Color = (90, 112, 132)
@@ -43,6 +49,7 @@ _ROOFS: tuple[Color, ...] = ((60, 70, 150), (110, 110, 116), (70, 84, 112), (150
 TRACK_CELL_M = 380.0
 ROAD_PITCH_M = 1700.0
 CUT_CELL_M = 170.0
+FIRST_YEAR = 2009  # the first survey
 CROWN_MAX_GSD_M = 10.0  # coarser pixels draw each stand's mean instead of its crowns
 SHADOW_REACH_M = 12.0  # crowns this far toward the sun may shade a pixel
 SHADOW_STEPS_M = (0.6, 1.2, 1.8, 2.5, 3.5, 4.8, 6.5, 9.0, 12.0)
@@ -93,18 +100,34 @@ class ForestWorld:
         con = np.array(_CONIFER[season], dtype=np.float32) * (0.9 + 0.2 * tint)
         cf = g.conifer[:, :, None]
         crown_col = con * cf + broadleaf * (1.0 - cf)
+        if date.leaf_off:
+            # Bare broadleaves: a veil of branches over the litter on the forest floor.
+            twigs = np.clip(0.5 + 0.9 * fine, 0.0, 1.0)[:, :, None] * (1.0 - cf)
+            floor = np.array(_LITTER, dtype=np.float32)
+            bare = np.array(_BARE, dtype=np.float32)
+            crown_col = crown_col * cf + (bare * twigs + floor * (1.0 - twigs)) * (1.0 - cf)
         lit_gain = np.float32(0.18 + 0.12 * _low_sun(date))
         shade_con = 1.0 + lit_gain * g.lit - 0.35 * g.radial
         shade_dec = 1.05 + 0.8 * lit_gain * g.lit - 0.35 * g.radial * g.radial + 0.08 * fine
         shading = (shade_con * g.conifer + shade_dec * (1.0 - g.conifer)) * (
             1.0 + 0.012 * (g.height_m - 18.0) * g.cover
         )
+        if date.leaf_off:  # light passes through bare crowns: little shading of their own
+            shading = shading * g.conifer + (0.75 + 0.25 * shading) * (1.0 - g.conifer)
         img = crown_col * (shading * g.cover)[:, :, None]
         # Between crowns: dark understory in the forest, meadow in clearings, soil on cuts.
-        meadow_tex = 1.0 + 0.07 * fractal_noise(k + 7, x0, y0, size, 6.0 * pm, 3) + 0.06 * fine
+        # Meadows: the soil's patches stay, the grass on them (mown, grazed, dry) is the year's.
+        season_key = key_of(self.seed, 43, date.index)
+        meadow_tex = 1.0 + 0.04 * fractal_noise(k + 7, x0, y0, size, 6.0 * pm, 3) + 0.06 * fine
+        meadow_tex += 0.07 * fractal_noise(season_key, x0, y0, size, 5.0 * pm, 3)
         under = np.array(_UNDERSTORY, dtype=np.float32) * (1.0 + 0.1 * fine)[:, :, None]
         meadow = np.array(_MEADOW[season], dtype=np.float32) * meadow_tex[:, :, None]
         soil = np.array(_SOIL, dtype=np.float32) * (1.0 + 0.12 * fine)[:, :, None]
+        young = np.clip((0.9 - g.cut) * 3.0, 0.0, 1.0) * (g.cut > 0.3)  # older cuts: regrowth
+        growth = np.array(_REGROWTH, dtype=np.float32) * (1.0 + 0.25 * fine)[:, :, None]
+        soil = soil * (1.0 - young[:, :, None]) + growth * young[:, :, None]
+        if date.leaf_off:
+            under = under * 0.4 + np.array(_LITTER, dtype=np.float32) * 0.6
         gap = under * (1.0 - g.meadow[:, :, None]) + meadow * g.meadow[:, :, None]
         gap = gap * (1.0 - g.cut[:, :, None]) + soil * g.cut[:, :, None]
         img += gap * (1.0 - g.cover)[:, :, None]
@@ -119,8 +142,17 @@ class ForestWorld:
             ripple += 0.06 * fractal_noise(k + 12, x0, y0, size, 1.5 * pm, 2)
             water = np.array(_WATER, dtype=np.float32)[None, None, :] * ripple[:, :, None]
             out = out * (1.0 - g.water[:, :, None]) + water * g.water[:, :, None]
+            boats = self._boats(x0, y0, size, gsd_m, date, g.water)
+            if boats is not None:  # moored or out on the lake: where they are that day
+                hull = np.array(_BOAT, dtype=np.float32)[None, None, :]
+                out = out * (1.0 - boats[:, :, None]) + hull * boats[:, :, None]
+        if date.leaf_off:  # bare crowns cast thin shadows
+            shadow = shadow * (0.45 + 0.55 * g.conifer)
         out *= (1.0 - (0.3 + 0.25 * (1.0 - g.cover)) * shadow)[:, :, None]
-        out += float(5.0 * min(1.0, 0.6 * pm)) * white_noise(k + 11, x0, y0, size)[:, :, None]
+        # Canopy gaps and needles at 0.3-0.6 m, and each survey's own grain.
+        out *= (1.0 + 0.12 * g.cover * white_noise(k + 13, x0, y0, size))[:, :, None]
+        date_key = key_of(self.seed, 42, date.index)
+        out += float(7.0 * min(1.0, 0.6 * pm)) * white_noise(date_key, x0, y0, size)[:, :, None]
         return np.clip(out, 0, 255).astype(np.uint8)
 
     def objects(
@@ -145,12 +177,7 @@ class ForestWorld:
         stream_px = _sample(value_noise, k + 20, x0, y0, size, gsd_m, 520.0)
         stream_on = _sample(value_noise, k + 21, x0, y0, size, gsd_m, 1400.0) > -0.3
         stream = np.clip((STREAM_HALF - np.abs(stream_px)) * 80.0 * stream_on, 0.0, 1.0)
-        lake_n = value_noise(k + 8, x0, y0, size, 700.0 / gsd_m) + 0.25 * value_noise(
-            k + 9, x0, y0, size, 150.0 / gsd_m
-        )
-        lake = np.clip((-lake_n - 1.7) * 30.0, 0.0, 1.0)
-        if self.home_en_m is not None and float(lake.max()) > 0.0:
-            lake *= self._dry_near_home(x0, y0, size, gsd_m)
+        lake = self._lake(x0, y0, size, gsd_m)
         water: FloatImage = np.maximum(stream, lake).astype(np.float32)
         cut_mask = self._cuts(x0, y0, size, gsd_m, d)
         cut = np.zeros((size, size), np.float32) if cut_mask is None else cut_mask
@@ -171,7 +198,8 @@ class ForestWorld:
             jj = np.arange(j0, j0 + n, dtype=np.int64)[:, None]
             scatter = unit2(ii, jj, k + 22).astype(np.float32)
             keep = (clear_c - thr < 0.35 * scatter - 0.12) & (np.abs(stream_c) > 2 * STREAM_HALF)
-            c = crowns(k + 30, x0, y0, size, gsd_m, (sun_e, -sun_n), keep)
+            years = int(date.label[:4]) - FIRST_YEAR
+            c = crowns(k + 30, x0, y0, size, gsd_m, (sun_e, -sun_n), keep, years)
             cover = c.cover * (1.0 - (opened > 0.5))
             return _Ground(
                 c.height_m * cover, cover, c.lit, c.radial, c.conifer, c.tint, meadow, cut, water
@@ -195,6 +223,47 @@ class ForestWorld:
             water,
         )
 
+    def _lake(self, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
+        """1 on lakes (0 within DRY_RADIUS_M of home)."""
+        k = key_of(self.seed, 41)
+        lake_n = value_noise(k + 8, x0, y0, size, 700.0 / gsd_m) + 0.25 * value_noise(
+            k + 9, x0, y0, size, 150.0 / gsd_m
+        )
+        lake: FloatImage = np.clip((-lake_n - 1.7) * 30.0, 0.0, 1.0)
+        if self.home_en_m is not None and float(lake.max()) > 0.0:
+            lake *= self._dry_near_home(x0, y0, size, gsd_m)
+        return lake
+
+    def _boats(
+        self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook, water: FloatImage
+    ) -> FloatImage | None:
+        """Mask of the boats on lakes during this survey (whether a boat is there is decided at
+        its centre, whatever window draws it)."""
+        if gsd_m > 2.0 or float(water.max()) < 0.5:
+            return None
+        cv = Canvas(x0, y0, size, gsd_m, (0, 0, 0))
+        for i in range(math.floor(cv.e_min / BOAT_CELL_M), math.floor(cv.e_max / BOAT_CELL_M) + 1):
+            for j in range(
+                math.floor(cv.n_min / BOAT_CELL_M), math.floor(cv.n_max / BOAT_CELL_M) + 1
+            ):
+                rng = rng_for(self.seed, 81, date.index, i, j)
+                if rng.random() > BOAT_SHARE:
+                    continue
+                e = (i + rng.uniform(0.1, 0.9)) * BOAT_CELL_M
+                n = (j + rng.uniform(0.1, 0.9)) * BOAT_CELL_M
+                if not cv.overlaps(e, n, e, n, 5.0):
+                    continue
+                col, row = math.floor(e / gsd_m), math.floor(-n / gsd_m)
+                if float(self._lake(col, row, 1, gsd_m)[0, 0]) < 0.99:
+                    continue
+                a = rng.uniform(0.0, math.pi)
+                length = rng.uniform(3.0, 8.0)
+                hull = rect(e, n, length / 2, length * 0.18, math.cos(a), math.sin(a))
+                cv.poly(hull, (255,), "shadow")
+        if not cv.shadow.any():
+            return None
+        return cv.shadow.astype(np.float32) * np.float32(1.0 / 255.0)
+
     def _dry_near_home(self, x0: int, y0: int, size: int, gsd_m: float) -> npt.NDArray[np.float32]:
         """0 within DRY_RADIUS_M of home, rising to 1 over the next 500 m."""
         assert self.home_en_m is not None
@@ -207,7 +276,8 @@ class ForestWorld:
     def _cuts(
         self, x0: int, y0: int, size: int, gsd_m: float, d: int
     ) -> npt.NDArray[np.float32] | None:
-        """Mask of cells clear-cut at or before date ``d``."""
+        """Mask of cells clear-cut at or before date ``d``: 1 where cut at ``d``, about 0.6
+        where cut at an earlier date (young growth again)."""
         if d == 0:
             return None
         e0, e1 = x0 * gsd_m, (x0 + size) * gsd_m
@@ -222,11 +292,12 @@ class ForestWorld:
                 at = 1 if u < 0.05 else 2 if u < 0.10 else 9
                 if at > d:
                     continue
+                value = 255 if at == d else 160  # 160: cut a survey ago, growing again
                 w, h = rng.uniform(40, 80), rng.uniform(30, 70)
                 cx = (i + 0.5) * CUT_CELL_M + rng.uniform(-30, 30)
                 cy = (j + 0.5) * CUT_CELL_M + rng.uniform(-30, 30)
                 a = rng.uniform(0, math.pi)
-                cv.poly(rect(cx, cy, w, h, math.cos(a), math.sin(a)), (255,), "shadow")
+                cv.poly(rect(cx, cy, w, h, math.cos(a), math.sin(a)), (value,), "shadow")
         if not mask.any():
             return None
         return mask.astype(np.float32) * np.float32(1.0 / 255.0)

@@ -18,6 +18,7 @@ import numpy as np
 from air_sitl.maps.base import TILE_PX
 from air_sitl.maps.procedural import ProceduralMap
 from air_sitl.maps.procedural.noise import fractal_noise, key_of
+from air_sitl.maps.procedural.survey import acquire_heights
 from air_sitl.maps.surface import BLOCK_PX, HeightBlock, Heights, TiledSurface
 
 # (amplitude m, cell m, octaves) of the bare terrain of each map.
@@ -57,7 +58,7 @@ class ProceduralSurface(TiledSurface):
         x0 = (ox >> level) + tx * TILE_PX
         y0 = (oy >> level) + ty * TILE_PX
         ground = self._terrain(x0, y0, TILE_PX, gsd)
-        objects = m.world.objects(x0, y0, TILE_PX, gsd, m.date)
+        objects = acquire_heights(m.world.objects, m.seed, x0, y0, TILE_PX, gsd, m.date)
         return ground + objects + np.float32(self.offset_m)
 
     def _bare_terrain_at_px(self, x: float, y: float) -> float:

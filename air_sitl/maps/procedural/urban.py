@@ -33,9 +33,21 @@ from air_sitl.maps.procedural.noise import (
     value_noise,
     white_noise,
 )
+from air_sitl.maps.procedural.survey import lean_per_m
 from air_sitl.maps.procedural.urban_blocks import Block, Building, box, fill_block
+from air_sitl.maps.procedural.urban_dates import (
+    CONIFER_INDEX,
+    bare_crown,
+    construction_site,
+    crop_index,
+    is_fields,
+    parked_car,
+    rebuilt_at,
+)
 
 PITCH_M = 105.0
+FINE_TEXTURE = 0.06  # relative amplitude of the 0.3-1 m material texture
+GRAIN_DN = 9.0  # per-pixel grain (uniform amplitude, grey levels) at 0.6 m
 FIELDS_BELOW = -0.35  # districts below this (a 1.5 km noise) turn to farm fields
 _ASPHALT: Color = (86, 85, 84)
 _ASPHALT_NEW: Color = (52, 51, 50)
@@ -106,8 +118,23 @@ class UrbanWorld:
         return 1 if u < 0.15 else 2 if u < 0.3 else 3
 
     @functools.lru_cache(maxsize=4096)  # noqa: B019 - one world per map, bounded cache
-    def block(self, kx: int, ky: int) -> Block:
-        """The content of block (kx, ky), independent of the date."""
+    def block(self, kx: int, ky: int, d: int = 0) -> Block:
+        """The content of block (kx, ky) at date index ``d``: as first built, or after its
+        redevelopment (a construction site the survey it is caught in, half the time)."""
+        base = self._first_block(kx, ky)
+        at = rebuilt_at(self.seed, kx, ky)
+        if d < at or is_fields(base):
+            return base
+        rng = rng_for(self.seed, 24, kx, ky, at)
+        site = rng.random() < 0.5
+        if d == at and site:
+            return construction_site(rng, *base.bounds)
+        u0, v0, u1, v1 = base.bounds
+        return fill_block(rng, 0.3 + 0.7 * rng.random(), u0, v0, u1, v1)
+
+    @functools.lru_cache(maxsize=4096)  # noqa: B019 - one world per map, bounded cache
+    def _first_block(self, kx: int, ky: int) -> Block:
+        """The content of block (kx, ky) as the first survey found it."""
         ux0, wx0, main_x0 = self.street(0, kx)
         ux1, wx1, main_x1 = self.street(0, kx + 1)
         vy0, wy0, main_y0 = self.street(1, ky)
@@ -154,20 +181,20 @@ class UrbanWorld:
         u_lo, u_hi = min(us) - margin, max(us) + margin
         v_lo, v_hi = min(vs) - margin, max(vs) + margin
         self._draw_roads(cv, date, kx0, kx1, ky0, ky1, u_lo, u_hi, v_lo, v_hi)
+        d = date.index
         blocks = [
-            self.block(kx, ky)
+            self.block(kx, ky, d)
             for ky in range(ky0, ky1 + 1)
             for kx in range(kx0, kx1 + 1)
-            if _box_overlaps(self.block(kx, ky).bounds, u_lo, v_lo, u_hi, v_hi)
+            if _box_overlaps(self.block(kx, ky, d).bounds, u_lo, v_lo, u_hi, v_hi)
         ]
         lawn = _LAWN[date.season]
         tree_cols = _TREE[date.season]
-        d = date.index
         crops = _CROPS[date.season]
         for blk in blocks:
             for poly, kind in blk.grounds:
                 if kind.startswith("crop"):
-                    cv.poly(self.to_world(poly), crops[int(kind[4:])])
+                    cv.poly(self.to_world(poly), crops[crop_index(self.seed, date, poly, kind)])
                     cv.poly(self.to_world(poly), (40,), "veg")
                     continue
                 col = {
@@ -194,8 +221,10 @@ class UrbanWorld:
             paint = [self.to_world(line) for line, _w in blk.paint]
             cv.segments([(w[0], w[1]) for w in paint], (225, 228, 230), 0.15)
             if gsd_m <= 1.5:  # cars vanish into the lot's grey on coarse levels
-                for poly, col in blk.cars:
-                    cv.poly(self.to_world(poly), col)
+                for poly, _col in blk.cars:
+                    car = parked_car(self.seed, date, poly)
+                    if car is not None:
+                        cv.poly(self.to_world(poly), car)
         sun_e, sun_n = date.sun_dir()
         # Shadows of buildings and trees.
         for blk in blocks:
@@ -206,12 +235,13 @@ class UrbanWorld:
                     moved = [(e + dx, n + dy) for e, n in world]
                     hull = _hull(world + moved)
                     cv.poly(hull, (255,), "shadow")
-            for c, r, _ci, born in blk.trees:
+            for c, r, ci, born in blk.trees:
                 if born <= d:
                     rr = r * (1.0 + 0.12 * (d - born))
                     dx, dy = date.shadow_vector(rr * 1.6)
                     (e, n) = self.to_world([c])[0]
-                    cv.circle((e + dx, n + dy), rr * 0.95, (255,), "shadow")
+                    bare = date.leaf_off and ci != CONIFER_INDEX
+                    cv.circle((e + dx, n + dy), rr * 0.95, (110 if bare else 255,), "shadow")
         cv.shadow = np.ascontiguousarray(cv.shadow)
         # Roofs and tree crowns above the shadows.
         roof_shadow = np.zeros_like(cv.shadow)
@@ -220,12 +250,23 @@ class UrbanWorld:
                 if not b.born <= d < b.gone:
                     continue
                 world = self.to_world(b.corners)
+                le, ln = lean_per_m(self.seed, date, *world[0])
+                lean = (le * b.height_m, ln * b.height_m)
+                if lean != (0.0, 0.0):  # walls show between the footprint and the roof
+                    roof_at = [(e + lean[0], n + lean[1]) for e, n in world]
+                    cv.poly(_hull(world + roof_at), shade(b.roof, 0.55))
+                    world = roof_at
                 _erase_shadow(cv, world, roof_shadow)
-                _roof(cv, self, b, world, sun_e, sun_n)
+                _roof(cv, self, b, world, sun_e, sun_n, lean)
             for c, r, ci, born in blk.trees:
                 if born <= d:
                     rr = r * (1.0 + 0.12 * (d - born))
                     (e, n) = self.to_world([c])[0]
+                    le, ln = lean_per_m(self.seed, date, e, n)
+                    e, n = e + le * rr * 1.6, n + ln * rr * 1.6
+                    if date.leaf_off and ci != CONIFER_INDEX:
+                        bare_crown(cv, self.seed, (e, n), rr)
+                        continue
                     col = tree_cols[ci % len(tree_cols)]
                     cv.circle((e, n), rr, shade(col, 0.8))
                     cv.circle((e + sun_e * rr * 0.25, n + sun_n * rr * 0.25), rr * 0.7, col)
@@ -234,8 +275,12 @@ class UrbanWorld:
         key = key_of(self.seed, 31)
         px_m = 1.0 / gsd_m
         texture = 0.07 * fractal_noise(key, x0, y0, size, 8.0 * px_m, 3)
+        # Materials at 0.3-1 m (gravel, asphalt, roof tiles, grass tufts): the fine texture
+        # of real 0.5 m imagery; the grain is each survey's own (film, sensor, processing).
+        texture += FINE_TEXTURE * fractal_noise(key + 3, x0, y0, size, 0.7 * px_m, 2)
         veg_tex = 0.22 * fractal_noise(key + 5, x0, y0, size, 1.6 * px_m, 2)
-        grain = float(7.0 * min(1.0, 0.6 * px_m)) * white_noise(key + 9, x0, y0, size)
+        date_key = key_of(self.seed, 32, date.index)
+        grain = float(GRAIN_DN * min(1.0, 0.6 * px_m)) * white_noise(date_key, x0, y0, size)
         return finish(cv, texture, grain, 0.5, veg_tex)
 
     def objects(self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook) -> np.ndarray:
@@ -256,7 +301,7 @@ class UrbanWorld:
         polys: list[tuple[float, int, np.ndarray]] = []
         for ky in range(math.floor(v_lo / PITCH_M) - 1, math.floor(v_hi / PITCH_M) + 2):
             for kx in range(math.floor(u_lo / PITCH_M) - 1, math.floor(u_hi / PITCH_M) + 2):
-                blk = self.block(kx, ky)
+                blk = self.block(kx, ky, d)
                 if not _box_overlaps(blk.bounds, u_lo, v_lo, u_hi, v_hi):
                     continue
                 for c, r, _ci, born in blk.trees:
@@ -395,10 +440,20 @@ def _erase_circle(cv: Canvas, c: Point, r: float) -> None:
 
 
 def _roof(
-    cv: Canvas, world_: UrbanWorld, b: Building, world: list[Point], sun_e: float, sun_n: float
+    cv: Canvas,
+    world_: UrbanWorld,
+    b: Building,
+    world: list[Point],
+    sun_e: float,
+    sun_n: float,
+    lean: Point = (0.0, 0.0),
 ) -> None:
     """A gabled roof in two shaded halves with a ridge (hipped: its ends sloped too, four
-    facets), or a flat roof with a parapet."""
+    facets), or a flat roof with a parapet; ``lean`` moves it off its footprint (metres)."""
+
+    def to_world(pts: list[Point] | tuple[Point, ...]) -> list[Point]:
+        return [(e + lean[0], n + lean[1]) for e, n in world_.to_world(pts)]
+
     p = b.corners
     if b.gabled:
         # The ridge joins the middles of the two short ends (e0, e1).
@@ -417,16 +472,16 @@ def _roof(
         cx = sum(q[0] for q in world) / 4
         cy = sum(q[1] for q in world) / 4
         for facet in facets:
-            w = world_.to_world(facet)
+            w = to_world(facet)
             ce = sum(q[0] for q in w) / len(w) - cx
             cn = sum(q[1] for q in w) / len(w) - cy
             n = math.hypot(ce, cn) or 1.0
             lit = (ce * sun_e + cn * sun_n) / n
             cv.poly(w, shade(b.roof, 1.0 + 0.22 * lit))
-        cv.line(world_.to_world([r0, r1]), shade(b.roof, 1.3), 0.35)
+        cv.line(to_world([r0, r1]), shade(b.roof, 1.3), 0.35)
     else:
         cv.poly(world, shade(b.roof, 0.78))
-        cv.poly(world_.to_world(_grow(b.corners, -0.7)), b.roof)
+        cv.poly(to_world(_grow(b.corners, -0.7)), b.roof)
 
 
 ALL_DATES = DATES

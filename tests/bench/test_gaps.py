@@ -1,0 +1,96 @@
+"""``bench --map-date 0,1,2``: one leaderboard per date gap, and a summary across the gaps."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import short_plans
+from cli_errors import one_line_error
+
+from air_sitl.bench.leaderboard import build, gaps_json, gaps_markdown
+from air_sitl.cli import main
+from air_sitl.commands.bench import flight_dates
+from air_sitl.errors import OptionError
+from air_sitl.state import GeoPoint
+from air_sitl.sweep.measurements import EntryResult
+
+
+def _result(scenario: str, entry: str, median: float, recall: float) -> EntryResult:
+    report = {
+        "horizontal_error_m": {"median": median, "rmse": median},
+        "recall": {"25m": recall},
+        "availability": 1.0,
+    }
+    return EntryResult(scenario=scenario, entry=entry, report=report)
+
+
+def test_gaps_summary_and_one_section_per_gap() -> None:
+    boards = [
+        build(
+            ("mapmatch", "vo"),
+            ("UC-200", "FC-200"),
+            [
+                _result("UC-200", "mapmatch", 2.0 + 10 * d, 1.0 - 0.2 * d),
+                _result("FC-200", "mapmatch", 4.0 + 10 * d, 1.0 - 0.3 * d),
+                _result("UC-200", "vo", 30.0, 0.5),
+                _result("FC-200", "vo", 40.0, 0.4),
+            ],
+            (0, d),
+        )
+        for d in (0, 1, 2)
+    ]
+    md = gaps_markdown(boards)
+    assert "| method | 0 -> 0 | 0 -> 1 | 0 -> 2 |" in md
+    assert "| mapmatch | 3.0 | 13.0 | 23.0 |" in md  # the median over the two scenarios
+    assert "| mapmatch | 1.000 | 0.750 | 0.500 |" in md  # recall@25 m
+    for d in (0, 1, 2):
+        assert f"# reference date 0 -> flight date {d}" in md
+    assert md.count("### median horizontal error (m)") == 3
+    data = gaps_json(boards)
+    assert [(g["reference_date"], g["flight_date"]) for g in data["gaps"]] == [
+        (0, 0),
+        (0, 1),
+        (0, 2),
+    ]
+    assert "Map dates: reference date 0 -> flight date 2" in boards[2].to_markdown()
+
+
+def test_map_dates_parse_and_refuse_repeats(capsys: pytest.CaptureFixture[str]) -> None:
+    assert flight_dates("1") == (1,)
+    assert flight_dates("0,1,2") == (0, 1, 2)
+    with pytest.raises(OptionError):
+        flight_dates("0,2,2")
+    argv = ["bench", "--scenarios", "UC-200", "--map-date", "0,2,2", "--out", "unused"]
+    assert "--map-date 0,2,2: a date is given twice" in one_line_error(argv, capsys)
+
+
+@pytest.mark.integration
+def test_a_bench_over_two_dates_scores_each_gap(tmp_path: Path) -> None:
+    """Real short flights over dates 0 and 2, mapmatch against date 0: a bench per date and
+    the leaderboard by gap, each saying its reference and flight date."""
+    home = GeoPoint(lat_deg=38.54, lon_deg=-121.49, alt_amsl_m=10.0)
+    missions = tmp_path / "missions"
+    missions.mkdir()
+    short_plans.write_short_plan(missions / "UT-200.plan", home, leg_m=150.0)
+    out = tmp_path / "b"
+    argv = [
+        "bench", "--scenarios", "UT-200", "--methods", "mapmatch", "--missions",
+        str(missions), "--map-date", "0,2", "--out", str(out), "--quiet",
+    ]  # fmt: skip
+    assert main(argv) == 0
+    data = json.loads((out / "leaderboard.json").read_text())
+    gaps = [(g["reference_date"], g["flight_date"]) for g in data["gaps"]]
+    assert gaps == [(0, 0), (0, 2)]
+    for d in (0, 2):
+        manifest = json.loads(
+            (out / f"date{d}" / "archives" / "UT-200" / "manifest.json").read_text()
+        )
+        assert manifest["map"]["date_index"] == d
+        assert (out / f"date{d}" / "leaderboard.md").is_file()
+    md = (out / "leaderboard.md").read_text()
+    assert "| method | 0 -> 0 | 0 -> 2 |" in md
+    assert "# reference date 0 -> flight date 2" in md
+    medians = [g["summary"]["mapmatch"]["median_m"] for g in data["gaps"]]
+    assert all(m is not None for m in medians)
