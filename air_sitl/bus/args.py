@@ -6,11 +6,12 @@ import argparse
 from dataclasses import dataclass
 from pathlib import Path
 
+from air_sitl.bus.estimates import DEFAULT_MAX_NAMES
 from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace, check_chunk
 from air_sitl.bus.lockstep import WaitFor
 from air_sitl.bus.session import DEFAULT_ENDPOINT, BusConfig, Mode
 from air_sitl.errors import OptionError
-from air_sitl.options import positive_number
+from air_sitl.options import int_in_range, positive_number
 
 DEFAULT_WAIT_TIMEOUT_S = 10.0
 
@@ -94,6 +95,13 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
         help="fill AIR's SvoX/SvoY/SvoZ with the positions the estimator NAME sent (ENU, home)",
     )
     g.add_argument(
+        "--max-estimate-names",
+        default=str(DEFAULT_MAX_NAMES),
+        metavar="N",
+        help="estimators (estimate/<name> keys) one flight logs; estimates under further names "
+        f"are rejected and counted (default {DEFAULT_MAX_NAMES})",
+    )
+    g.add_argument(
         "--camera",
         choices=("local", "remote"),
         default="local",
@@ -116,6 +124,8 @@ class BusOptions:
     wait_timeout_s: float
     svo_columns: str | None
     remote_camera: bool
+    max_estimate_names: int = DEFAULT_MAX_NAMES
+    expected: tuple[str, ...] = ()  # estimators the flight relies on (wait-for, svo, nav-aid)
 
 
 def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig:
@@ -168,10 +178,13 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
     wait = parse_wait_for(args.wait_for, timeout) if args.wait_for else None
     svo = check_chunk("--svo-columns", args.svo_columns) if args.svo_columns else None
     remote = args.camera == "remote"
+    max_names = int_in_range("--max-estimate-names", args.max_estimate_names, 1, 100_000)
     explicit = bool(args.zenoh_listen or args.zenoh_connect or args.zenoh_config)
     aid = getattr(args, "nav_aid", None)
     zenoh_aid = aid is not None and aid != "mavlink"  # --nav-aid NAME implies --zenoh
     publish = bool(args.zenoh or args.publish_truth or wait or svo or zenoh_aid)
+    named = (wait.name if wait else None, svo, aid if zenoh_aid else None)
+    expected = tuple(dict.fromkeys(n for n in named if n))
     return BusOptions(
         enabled=publish or remote or explicit,
         publish=publish or explicit,
@@ -183,4 +196,6 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
         wait_timeout_s=timeout,
         svo_columns=svo,
         remote_camera=remote,
+        max_estimate_names=max_names,
+        expected=expected,
     )

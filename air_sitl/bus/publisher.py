@@ -48,6 +48,8 @@ class FrameLedger:
         # Frames whose capture index differs from their index (None: outside the window).
         self._capture: dict[int, int | None] = {}
         self.last_index = -1
+        self.now_ns: int | None = None  # the flight's simulation time, published so far
+        self.first_publish_wall_s: float | None = None  # monotonic time of the first frame
         self.count = 0
 
     def expose(self, index: int, sim_time_ns: int, capture_index: int | None) -> None:
@@ -57,6 +59,8 @@ class FrameLedger:
         with self._lock:
             self._time_ns[index] = sim_time_ns
             self._index_by_time[sim_time_ns] = index
+            if self.now_ns is None or sim_time_ns > self.now_ns:
+                self.now_ns = sim_time_ns
             if capture_index != index:
                 self._capture[index] = capture_index
 
@@ -66,6 +70,8 @@ class FrameLedger:
         now = time.monotonic()
         with self._lock:
             self._wall_s[index] = now
+            if self.first_publish_wall_s is None:
+                self.first_publish_wall_s = now
             self.last_index = max(self.last_index, index)
             self.count += 1
 
@@ -74,6 +80,11 @@ class FrameLedger:
         frame taken outside the window (a camera kept on for an aid)."""
         with self._lock:
             return self._capture.get(index, index)
+
+    def exposed(self, index: int) -> bool:
+        """True once frame ``index`` was taken (its estimate may come before it is published)."""
+        with self._lock:
+            return index in self._time_ns
 
     def published(self, index: int) -> bool:
         """True once frame ``index`` went out."""
@@ -165,6 +176,7 @@ class BusPublisher(NullSink):
         truth."""
         k = self.options.keys
         t = sample.state.sim_time_ns
+        self.ledger.now_ns = t  # estimates of a later time are from outside the flight
         status = sample.autopilot
         key = _status_key(status)
         if key != self._last_status or t - self._last_status_ns >= NS_PER_S:
