@@ -194,7 +194,7 @@ def test_the_compose_services_by_hand() -> None:
     finally:
         # The simulator first: the localizer then has no backlog of frames to finish.
         order = [procs[i] for i in (1, 2, 0) if i < len(procs)]
-        stopped = [(proc.args, *stop(proc)) for proc in order]
+        stopped = [(str(proc.args), *stop(proc)) for proc in order]
     assert reached, ("no estimate reached the observer", stopped)
     frames = [json.loads(m.payload)["frame"] for m in heard[:20]]
     assert frames == sorted(frames)
