@@ -241,8 +241,9 @@ def record_flight(
                 frame_source=camera_source,
             )
             sinks.extend(bus_sinks)
-        trajectory = NavTrajectoryWriter if options.nav == "ekf" else TrajectoryWriter
-        sinks.append(trajectory(out / TRAJECTORY_CSV))
+        trajectory_kind = NavTrajectoryWriter if options.nav == "ekf" else TrajectoryWriter
+        trajectory = trajectory_kind(out / TRAJECTORY_CSV)
+        sinks.append(trajectory)
         if writer is not None:
             sinks.append(writer)
         flight = build_flight(setup, sinks=sinks, camera=camera_source)
@@ -262,6 +263,7 @@ def record_flight(
         max_sim_time_ns=int(options.max_sim_time_s * NS_PER_S),
         progress=progress,
     )
+    trajectory.raise_if_failed()
     summary = dict(result.summary)
     summary["plan"] = request.summary_plan if request.summary_plan is not None else str(setup.plan)
     if request.bus is not None:
