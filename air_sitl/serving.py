@@ -16,7 +16,7 @@ from pathlib import Path
 from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
 from air_sitl.bus.hookup import BusHookup
 from air_sitl.mavlink.codec import ParseCounters
-from air_sitl.mavlink.interfaces import SEVERITY_CRITICAL
+from air_sitl.mavlink.interfaces import SEVERITY_CRITICAL, SEVERITY_ERROR
 from air_sitl.mavlink.links import LinkSpec
 from air_sitl.mavlink.nav_aid import NavLink
 from air_sitl.mavlink.streams import TelemetrySink
@@ -123,6 +123,7 @@ def serve_vehicle(
         endpoint.attach(flight.autopilot, flight.autopilot.params)
         if recorder is not None:
             recorder.autopilot = flight.autopilot
+            recorder.on_failure = lambda text: endpoint.text(SEVERITY_ERROR, text)
         endpoint.start()
         if not quiet:
             where = ", ".join(

@@ -13,7 +13,6 @@ import dataclasses
 import io
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -28,7 +27,7 @@ from air_sitl.dataset.scenarios import (
     stats_table,
 )
 from air_sitl.errors import DatasetError, OptionError
-from air_sitl.files import write_bytes_atomic
+from air_sitl.files import require_writable_folder, write_bytes_atomic
 from air_sitl.options import MapChoice, add_flight_arguments, flight_options_from_args, int_in_range
 from air_sitl.progress import JobsDisplay
 from air_sitl.recording.batch import Job, run_jobs
@@ -129,27 +128,11 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
     return jobs
 
 
-def require_writable(root: Path) -> None:
-    """DatasetError (one line) when nothing can be written in ``root`` (a read-only file
-    system, no permission): found before anything flies, not scenario by scenario."""
-    try:
-        with tempfile.TemporaryFile(dir=root, prefix=".air-sitl-probe-"):
-            pass
-    except OSError as err:
-        msg = f"{root}: cannot write in the output folder: {err.strerror}"
-        raise DatasetError(msg) from None
-
-
 def run(args: argparse.Namespace) -> int:
     """Fly every job; exit 0 when all completed, 1 when a mission did not, 2 on errors."""
     jobs = build_jobs(args)
     root = Path(args.out)
-    try:
-        root.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        msg = f"{root}: cannot create the output folder: {err.strerror}"
-        raise DatasetError(msg) from None
-    require_writable(root)
+    require_writable_folder(root, "output folder")  # found before anything flies
     n = min(int_in_range("-j", args.jobs, 1, 64), len(jobs))
     expected = {j.name: PAPER_TABLE.get(j.setup.name.upper(), (0, 0))[0] for j in jobs}
     stream = sys.stderr

@@ -19,6 +19,7 @@ from air_sitl.bus.hookup import bus_sinks_from_args
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import OptionError
+from air_sitl.files import require_writable_folder
 from air_sitl.mavlink.codec import load_signing_key
 from air_sitl.mavlink.links import DEFAULT_LINKS, parse_link
 from air_sitl.mission.items import Mission
@@ -96,6 +97,9 @@ def run(args: argparse.Namespace) -> int:
             )
     key = load_signing_key(args.signing_key) if args.signing_key else None
     setup = _setup(args, options)
+    if args.out:
+        # Refused now, not after "Capture started" was told to the ground station.
+        require_writable_folder(Path(args.out), "--out folder")
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: FrameType | None) -> None:

@@ -18,7 +18,7 @@ if TYPE_CHECKING:  # the endpoint is made of the parts below: a real cycle
     from air_sitl.mavlink.vehicle import VehicleEndpoint
 
 NS_PER_S = 1_000_000_000
-SEVERITY_CRITICAL, SEVERITY_WARNING, SEVERITY_INFO = 2, 4, 6
+SEVERITY_CRITICAL, SEVERITY_ERROR, SEVERITY_WARNING, SEVERITY_INFO = 2, 3, 4, 6
 
 
 class AutopilotLike(Protocol):
