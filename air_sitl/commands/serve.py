@@ -125,7 +125,8 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"air-sitl serve: stopped; {c.messages} messages received, {c.dropped} frames "
             f"dropped ({c.parse_errors} parse errors, {c.unknown_ids} unknown, "
-            f"{c.signature_rejected} signature rejected)",
+            f"{c.signature_rejected} signature rejected), {c.kernel_dropped} datagrams dropped "
+            "by the kernel (socket buffer full)",
             flush=True,
         )
     return 0
