@@ -50,6 +50,7 @@ ESTIMATE_COLUMNS = (
 )
 ESTIMATE_HEADER = ",".join(ESTIMATE_COLUMNS) + "\n"
 DEFAULT_MAX_NAMES = 16  # estimators one flight hears (--max-estimate-names)
+KEPT_PAYLOADS = 8  # per estimator, the payloads of its latest frames (to know a repeat)
 
 
 @dataclass(slots=True)
@@ -60,6 +61,7 @@ class _Track:
     frames: set[int] = field(default_factory=set)
     enu_by_frame: dict[int, Vec3] = field(default_factory=dict)  # by capture index
     times: set[int] = field(default_factory=set)  # sim times answered without a frame
+    kept: dict[int, bytes] = field(default_factory=dict)  # the latest frames' kept payloads
     rows: int = 0  # logged (capture-window frames, or frames the ledger does not know)
     received: int = 0
 
@@ -86,6 +88,7 @@ class EstimateLog:
         self._closed = False
         self.max_names = max_names
         self.rejected: dict[str, int] = {}  # by reason (estimate_contract.REASONS)
+        self.repeats = 0  # identical answers to a frame offered again (not rejections)
         self.first_error: str | None = None
         self._prefix = keys.estimate("x")[:-1]
         # Called with (name, frame, sim_time_ns, estimate or None when refused) on the zenoh
@@ -132,6 +135,9 @@ class EstimateLog:
                 track = _Track(self._open(name))
                 self._tracks[name] = track
             answered = track.frames if frame is not None else track.times
+            if frame is not None and track.kept.get(frame) == message.payload:
+                self.repeats += 1  # the same answer again (a frame offered twice): no news
+                return
             if (frame if frame is not None else t) in answered:
                 what = f"frame {frame}" if frame is not None else f"sim_time_ns {t}"
                 self._reject(
@@ -148,6 +154,9 @@ class EstimateLog:
                 track.rows += 1
             if frame is not None:
                 track.frames.add(frame)
+                track.kept[frame] = message.payload
+                if len(track.kept) > KEPT_PAYLOADS:
+                    del track.kept[next(iter(track.kept))]
                 if capture is not None and all(math.isfinite(c) for c in enu):
                     track.enu_by_frame[capture] = enu
             elif t is not None:

@@ -112,6 +112,7 @@ class BusHookup(Closeable):
                 log=self.log,
                 image_key=opts.keys.image,
                 subscriber_present=lambda: publisher.image_matched,
+                reoffer=publisher.reoffer_frame,
             )
             source = self._lockstep
             publisher.gate = self._lockstep.wait_for_consumer
@@ -140,6 +141,8 @@ class BusHookup(Closeable):
             )
         if self.publisher is not None:
             summary["frames_published"] = self.publisher.frames_published
+            if self.publisher.frames_reoffered:
+                summary["frames_reoffered"] = self.publisher.frames_reoffered
         if self._lockstep is not None:
             summary["lockstep_wait_wall_s"] = round(self._lockstep.wait_wall_s, 3)
         return summary

@@ -142,6 +142,7 @@ class BusPublisher(NullSink):
         self._last_status: tuple[object, ...] | None = None
         self._last_status_ns = -NS_PER_S
         self.frames_published = 0
+        self.frames_reoffered = 0
         # Lockstep: called once before the first IMU/GNSS sample goes out (after the first
         # status, which the estimator asks for before it subscribes to the frames).
         self.gate: Callable[[], None] | None = None
@@ -219,21 +220,32 @@ class BusPublisher(NullSink):
             )
             self._info = codec.encode_camera_info(info)
             self._info_pub.put(self._info)
-        meta = codec.FrameMeta(
-            frame=frame.index,
-            sim_time_ns=frame.sim_time_ns,
-            width_px=frame.width_px,
-            height_px=frame.height_px,
-        )
         # Recorded before the put: an estimate may come back before put() returns.
         tick = frame.sample.camera
         capture = frame.index if tick is None else tick.capture_index
         self.ledger.record(frame.index, frame.sim_time_ns, capture)
-        self._image.put(frame.jpeg, codec.encode_frame_meta(meta))
+        self._image.put(frame.jpeg, _frame_meta(frame))
         self.frames_published += 1
+
+    def reoffer_frame(self, frame: CameraFrame) -> None:
+        """Put a published frame again, as it was (lockstep: its estimator may have lost it, or
+        its answer, while the connection was down). Not counted as a new frame."""
+        self.frames_reoffered += 1
+        self._image.put(frame.jpeg, _frame_meta(frame))
 
     def close(self, result: FlightResult) -> None:
         """Nothing buffered: puts went out as they came."""
+
+
+def _frame_meta(frame: CameraFrame) -> bytes:
+    """The attachment of a frame on ``camera/image``."""
+    meta = codec.FrameMeta(
+        frame=frame.index,
+        sim_time_ns=frame.sim_time_ns,
+        width_px=frame.width_px,
+        height_px=frame.height_px,
+    )
+    return codec.encode_frame_meta(meta)
 
 
 def _status_key(status: AutopilotStatus) -> tuple[object, ...]:
