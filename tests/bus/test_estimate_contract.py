@@ -143,7 +143,8 @@ def test_a_flight_reports_rejections_and_unanswered_frames(tmp_path: Path) -> No
                 return
             good = codec.encode_estimate(frame=frame, enu_m=(float(frame), 0.0, 200.0))
             est_pub.put(good)
-            est_pub.put(good)  # a duplicate
+            est_pub.put(good)  # the same answer again (a re-offered frame): no news
+            est_pub.put(codec.encode_estimate(frame=frame, enu_m=(9.0, 9.0, 209.0)))  # another
             est_pub.put(b'{"frame": %d, "enu_m": [1e308, 0, 0]}' % frame)
             with lock:
                 answered.append(frame)
