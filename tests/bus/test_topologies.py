@@ -188,7 +188,9 @@ def test_the_compose_services_by_hand() -> None:
                 gcs.connect()
                 assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
                 assert gcs.command(M.MAV_CMD_MISSION_START, 0, 0) == M.MAV_RESULT_ACCEPTED
-                reached = wait_until(lambda: len(heard) >= 20)
+                # UC-200 reaches its capture window after ~250 simulated seconds: a safety
+                # bound for a loaded machine, not a speed.
+                reached = wait_until(lambda: len(heard) >= 5, timeout_s=600.0)
             finally:
                 gcs.close()
     finally:
@@ -196,7 +198,7 @@ def test_the_compose_services_by_hand() -> None:
         order = [procs[i] for i in (1, 2, 0) if i < len(procs)]
         stopped = [(str(proc.args), *stop(proc)) for proc in order]
     assert reached, ("no estimate reached the observer", stopped)
-    frames = [json.loads(m.payload)["frame"] for m in heard[:20]]
+    frames = [json.loads(m.payload)["frame"] for m in heard[:5]]
     assert frames == sorted(frames)
     for args, code, _, err in stopped:
         # The example localizer's visual odometry runs slower than an unpaced simulator sends
