@@ -166,12 +166,7 @@ def _add_estimates(archive: Path, bus: BusHookup) -> None:
     """Estimates received over the bus into a finished archive: AIR's SvoX..SvoZ from
     ``--svo-columns NAME``, and the manifest's list of files (estimates/ came after it)."""
     positions = bus.svo_positions()
-    if positions is not None:
-        if not positions:
-            print(
-                f"air-sitl: warning: --svo-columns {bus.svo_columns}: no estimate received",
-                file=sys.stderr,
-            )
+    if positions is not None:  # none received: the bus told already (estimator_watch)
         fill_svo_columns(archive, positions)
     elif bus.estimate_names():
         refresh_manifest(archive)

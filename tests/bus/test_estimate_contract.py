@@ -176,19 +176,23 @@ def test_a_flight_reports_rejections_and_unanswered_frames(tmp_path: Path) -> No
 
 
 def test_a_flight_says_when_the_awaited_estimator_never_spoke(tmp_path: Path) -> None:
-    plan = write_short_plan(tmp_path / "UB.plan", HOME, leg_m=30.0, name="UB")
+    """At real-time pace the capture leg lasts over 5 s: the warning comes during the flight
+    (before the end's), and again at the end."""
+    plan = write_short_plan(tmp_path / "UB.plan", HOME, leg_m=100.0, name="UB")
     out = tmp_path / "out"
     flown = subprocess.run(
-        cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out),
+        cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out), "--speed", "1",
             "--zenoh-listen", free_endpoint(), "--svo-columns", "nobody"),
         capture_output=True, text=True, timeout=300, check=False,
     )  # fmt: skip
     assert flown.returncode == 0, flown.stderr
     summary = json.loads((out / "summary.json").read_text())
     assert summary["estimates_missing"] == ["nobody"]
-    assert "no estimate from 'nobody' on air/uav0/estimate/nobody in the whole flight" in (
-        flown.stderr
-    )
+    lines = flown.stderr.splitlines()
+    during = "no estimate from 'nobody' on air/uav0/estimate/nobody 5 s after the first frame"
+    at_end = "no estimate from 'nobody' on air/uav0/estimate/nobody in the whole flight"
+    assert [i for i, line in enumerate(lines) if during in line] == [0], lines
+    assert [i for i, line in enumerate(lines) if at_end in line] == [1], lines
 
 
 def test_max_estimate_names_is_an_option(tmp_path: Path) -> None:
