@@ -60,8 +60,6 @@ def check_estimate(payload: bytes, what: str) -> dict[str, Any]:
     m = _json_object(payload, what)
     try:
         fields = _fields(m, what)
-    except EstimateRejectedError:
-        raise
     except (KeyError, TypeError, ValueError, IndexError, OverflowError) as err:
         msg = f"{what}: bad estimate ({type(err).__name__}: {_short(err)})"
         raise EstimateRejectedError(MALFORMED, msg) from None
