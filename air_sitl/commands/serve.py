@@ -122,11 +122,15 @@ def run(args: argparse.Namespace) -> int:
         for s, handler in previous.items():
             signal.signal(s, handler)
     if not args.quiet:
+        kernel = (
+            f"{c.kernel_dropped} datagrams dropped by the kernel (socket buffer full)"
+            if c.kernel_drops_counted or c.kernel_dropped
+            else "kernel drops not counted (no UDP peer, or the platform does not tell)"
+        )
         print(
             f"air-sitl serve: stopped; {c.messages} messages received, {c.dropped} frames "
             f"dropped ({c.parse_errors} parse errors, {c.unknown_ids} unknown, "
-            f"{c.signature_rejected} signature rejected), {c.kernel_dropped} datagrams dropped "
-            "by the kernel (socket buffer full)",
+            f"{c.signature_rejected} signature rejected), {kernel}",
             flush=True,
         )
     return 0

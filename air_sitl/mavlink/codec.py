@@ -90,6 +90,7 @@ class ParseCounters:
     signature_rejected: int = 0  # unsigned, MAVLink 1 or bad signature while signing is on
     replayed: int = 0  # signed with an old timestamp (counted in signature_rejected too)
     kernel_dropped: int = 0  # datagrams the kernel dropped, its buffer full (Linux tells)
+    kernel_drops_counted: bool = False  # a UDP link could read the kernel's drop count
 
     @property
     def dropped(self) -> int:

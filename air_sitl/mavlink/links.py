@@ -193,6 +193,8 @@ class UdpLink(Link):
             self.channels[address] = ch
             if self._counters is None:
                 self._counters = getattr(ch.parser, "counters", None)
+                if self._counters is not None and self.kernel_drops is not None:
+                    self._counters.kernel_drops_counted = True
         return ch
 
     def register(self, sel: selectors.BaseSelector) -> None:
