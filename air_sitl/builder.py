@@ -15,13 +15,9 @@ from pathlib import Path
 
 from air_sitl.camera.bridge import CameraBridge
 from air_sitl.camera.model import CameraModel
-from air_sitl.camera.options import (
-    close_map,
-    open_chosen_map,
-    open_chosen_renderer,
-    open_chosen_surface,
-)
+from air_sitl.camera.options import open_chosen_renderer
 from air_sitl.maps.base import MapSource
+from air_sitl.maps.choose import close_map, open_chosen_map, open_chosen_surface
 from air_sitl.maps.surface import SurfaceModel
 from air_sitl.mission.geometry import shift_altitudes
 from air_sitl.mission.items import Mission

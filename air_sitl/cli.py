@@ -1,7 +1,11 @@
 """The ``air-sitl`` command: parses, dispatches to one module per command, prints errors.
 
 Each command module in :mod:`air_sitl.commands` has ``HELP`` (one line),
-``add_arguments(parser)`` and ``run(args) -> int``, and imports what it needs at its top.
+``add_arguments(parser)`` and ``run(args) -> int``. A command module imports at its top only
+what its arguments need (light modules: no numpy, OpenCV, rasterio, zenoh, JSBSim ...) and the
+rest inside ``run``: ``--help``, ``--version`` and a command's ``--help`` answer at once
+(``benchmarks/bench_cli.py``). A mistake on the command line is one line naming the option
+and the value and where the help is, exit 2, as every other error.
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ import importlib
 import sys
 from collections.abc import Sequence
 from types import ModuleType
+from typing import NoReturn
 
 from air_sitl import __version__
 from air_sitl.errors import AirSitlError
@@ -42,9 +47,33 @@ def _load(module: str) -> ModuleType | None:
         raise
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse's parser whose errors are one line, as the rest of air-sitl's.
+
+    ``air-sitl: error: fly: argument --map-date: invalid int value: 'x' (see `air-sitl fly
+    --help`)`` and exit 2, instead of argparse's usage block. Subcommands' parsers are of
+    this class too (argparse makes them of the parent's class).
+    """
+
+    def error(self, message: str) -> NoReturn:
+        """Print the one line and exit 2."""
+        command = self.prog.removeprefix("air-sitl").strip()
+        where = f"{command}: " if command else ""
+        self.exit(2, f"air-sitl: error: {where}{message} (see `{self.prog} --help`)\n")
+
+
+def _parser_for(parser: argparse.ArgumentParser, argv: Sequence[str]) -> argparse.ArgumentParser:
+    """The (sub)command parser ``argv`` names: ``fly``, ``map make`` ..., else ``parser``."""
+    for token in argv:
+        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        if subs and token in subs[0].choices:
+            parser = subs[0].choices[token]
+    return parser
+
+
 def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     """The argument parser with every available command, or with the command ``only``."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="air-sitl",
         description="Fixed-wing UAV software-in-the-loop for map-based localization research.",
     )
@@ -70,7 +99,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     first = argv[0] if argv else None
     only = first if first in COMMANDS and _load(COMMANDS[first]) is not None else None
     parser = build_parser(only)
-    args = parser.parse_args(argv)
+    try:
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # argparse reports these on the top parser: name the command they went to
+            _parser_for(parser, argv).error(f"unrecognized arguments: {' '.join(extra)}")
+    except SystemExit as done:  # --help, --version (0) or a mistake (2): a return code
+        return done.code if isinstance(done.code, int) else 2
     try:
         code: int = args._run(args)
     except AirSitlError as err:

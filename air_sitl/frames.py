@@ -189,3 +189,31 @@ def quat2matrix(q: Quat) -> tuple[Vec3, Vec3, Vec3]:
         (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
         (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
     )
+
+
+# NED -> ENU is the 180 degree rotation about (1, 1, 0)/sqrt(2); FLU -> FRD is 180 about x.
+_S = math.sqrt(0.5)
+Q_NED_TO_ENU: Quat = (0.0, _S, _S, 0.0)
+Q_FLU_TO_FRD: Quat = (0.0, 1.0, 0.0, 0.0)
+
+
+def frd2flu(v: Vec3) -> Vec3:
+    """A body FRD vector in FLU (ROS's body axes); its own inverse."""
+    return (v[0], -v[1], -v[2])
+
+
+def q_frd_ned_to_flu_enu(q_body_to_ned_wxyz: Quat) -> Quat:
+    """Body FRD->NED quaternion (w, x, y, z) as body FLU->ENU (w, x, y, z), scalar part >= 0."""
+    q = quat_multiply(quat_multiply(Q_NED_TO_ENU, q_body_to_ned_wxyz), Q_FLU_TO_FRD)
+    return q if q[0] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
+
+
+def q_flu_enu_to_frd_ned(q_flu_to_enu_wxyz: Quat) -> Quat:
+    """Inverse of :func:`q_frd_ned_to_flu_enu` (both fixed rotations are their own inverse)."""
+    q = quat_multiply(quat_multiply(Q_NED_TO_ENU, q_flu_to_enu_wxyz), Q_FLU_TO_FRD)
+    return q if q[0] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
+
+
+def wxyz2xyzw(q: Quat) -> Quat:
+    """Scalar-first to scalar-last order (the CSV and ROS order)."""
+    return (q[1], q[2], q[3], q[0])

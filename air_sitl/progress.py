@@ -1,56 +1,256 @@
-"""Terminal progress: a flight's bar and summary, many jobs' lines (presentation only)."""
+"""Progress of long commands on stderr: tqdm bars on a terminal, plain lines elsewhere.
+
+On a terminal each task is a tqdm bar (count, rate, ETA) redrawn in place. When the stream is
+not a terminal (a pipe, a CI log) an in-place bar is noise; the same text, from tqdm's own
+formatter, is written as one line each time another 10 % of the total is done, or after 30 s
+without a line, and once at the end. :class:`JobsProgress` is ``dataset``'s bar per scenario
+plus an overall one; :func:`print_summary` the screen after a flight. Presentation only: the
+work reports counts through callbacks and never imports this module.
+"""
 
 from __future__ import annotations
 
+import math
+import sys
 import time
-from pathlib import Path
+from collections.abc import Callable, Sequence
+from types import TracebackType
 from typing import IO, Any
 
-from air_sitl.clock import NS_PER_S
-from air_sitl.mission.items import Mission
-from air_sitl.recording.batch import Outcome
-from air_sitl.runner import Flight
-from air_sitl.state import SimSample
+from tqdm import tqdm
+
+LINE_STEP = 0.1  # a plain line each time another tenth of the total is done ...
+LINE_EVERY_S = 30.0  # ... or after this long without one
+_FIGURES = "{desc}: {n_fmt}/{total_fmt}{unit} ({percentage:.0f} %), {rate_noinv_fmt}, "
+_LINE = _FIGURES + "ETA {remaining}{postfix}"
+_LINE_END = _FIGURES + "{elapsed}{postfix}"
+_LINE_NO_TOTAL = "{desc}: {n_fmt}{unit}, {rate_noinv_fmt}, {elapsed}{postfix}"
 
 
-class InPlaceLine:
-    """One terminal line rewritten in place: ``label [#####.....] text``."""
+class Progress:
+    """One task's progress: ``update_to(n)`` as the count grows, ``close()`` at the end.
 
-    def __init__(self, label: str, stream: IO[str], *, label_width: int, width: int = 30) -> None:
+    ``total`` None: a count without an end (rate, no ETA). ``enabled`` False: silent (--quiet).
+    ``tty`` None: a bar when ``stream`` is a terminal, else lines. ``clock``: for tests.
+    """
+
+    def __init__(
+        self,
+        label: str,
+        total: float | None,
+        *,
+        unit: str = "it",
+        stream: IO[str] | None = None,
+        enabled: bool = True,
+        tty: bool | None = None,
+        position: int | None = None,
+        unit_scale: bool = False,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         self.label = label
-        self.stream = stream
-        self.label_width = label_width
-        self.width = width
+        self.total = total if total is None or total > 0 else None
+        self.unit = unit
+        self.stream = sys.stderr if stream is None else stream
+        self.enabled = enabled
+        self.tty = _isatty(self.stream) if tty is None else tty
+        self.unit_scale = unit_scale
+        self.clock = clock
+        self.n = 0.0
+        self.postfix = ""
+        self.closed = False
+        self._started = False
+        self._start = self._last_line = clock()
+        self._next_step = LINE_STEP
+        self.position = position
+        self._bar: tqdm[Any] | None = None  # on a terminal, from the first count
 
-    def draw(self, frac: float, text: str) -> None:
-        """Redraw the line with a bar ``frac`` full."""
-        filled = int(frac * self.width)
-        bar = "#" * filled + "." * (self.width - filled)
-        self.stream.write(f"\r{self.label:>{self.label_width}} [{bar}] {text}")
-        self.stream.flush()
-
-    def finish(self) -> None:
-        """End the progress line."""
-        self.stream.write("\n")
-        self.stream.flush()
-
-
-class ProgressBar(InPlaceLine):
-    """A flight's line: mission progress, simulated time, mode, frames."""
-
-    def __init__(self, mission: Mission, stream: IO[str], width: int = 30) -> None:
-        super().__init__(mission.name or "flight", stream, label_width=8, width=width)
-        self.total = max(1, len(mission.items))
-
-    def update(self, sample: SimSample, flight: Flight) -> None:
-        """Redraw from the latest sample."""
-        seq = max(0, sample.autopilot.current_seq)
-        t = sample.state.sim_time_ns / NS_PER_S
-        self.draw(
-            min(1.0, seq / self.total),
-            f"item {seq}/{self.total} sim {t:7.0f} s  {sample.autopilot.mode.value:<8} "
-            f"frames {flight.stats.capture_frames:6d}",
+    def _start_bar(self) -> None:
+        self._bar = tqdm(
+            total=self.total,
+            desc=self.label,
+            unit=f" {self.unit}",
+            unit_scale=self.unit_scale,
+            file=self.stream,
+            position=self.position,
+            leave=True,
+            dynamic_ncols=True,
+            mininterval=0.2,
+            smoothing=0.1,
         )
+
+    @property
+    def started(self) -> bool:
+        """The first count came (the clock and the bar start then)."""
+        return self._started
+
+    def set_total(self, total: float | None) -> None:
+        """The total became known (or changed)."""
+        self.total = total if total is None or total > 0 else None
+        if self._bar is not None:
+            self._bar.total = self.total
+            self._bar.refresh()
+
+    def update_to(self, n: float, postfix: str = "") -> None:
+        """The count is now ``n`` (``postfix``: a short note after the figures)."""
+        self.n = n
+        self.postfix = postfix
+        if not self.enabled or self.closed:
+            return
+        if not self._started:  # the clock starts with the work (a job may wait for a worker)
+            self._started = True
+            self._start = self._last_line = self.clock()
+            if self.tty:
+                self._start_bar()
+        if self._bar is not None:
+            self._bar.set_postfix_str(postfix, refresh=False)
+            self._bar.update(n - self._bar.n)
+            return
+        now = self.clock()
+        frac = n / self.total if self.total else 0.0
+        if frac >= 1.0:
+            return  # the end: close() says it
+        if frac >= self._next_step - 1e-9 or now - self._last_line >= LINE_EVERY_S:
+            self._next_step = (math.floor(frac / LINE_STEP + 1e-9) + 1) * LINE_STEP
+            self._line(now)
+
+    def advance(self, k: float = 1, postfix: str = "") -> None:
+        """``k`` more done."""
+        self.update_to(self.n + k, postfix)
+
+    def text(self, now: float | None = None, *, end: bool = False) -> str:
+        """The progress as one line of text (what a line reports; tqdm's formatter); ``end``:
+        the time it took instead of the ETA."""
+        elapsed = (self.clock() if now is None else now) - self._start
+        line = _LINE_END if end else _LINE
+        return tqdm.format_meter(
+            self.n,
+            self.total,  # type: ignore[arg-type]  # None is documented: no total, no ETA
+            elapsed,
+            prefix=self.label,
+            unit=f" {self.unit}",
+            unit_scale=self.unit_scale,
+            bar_format=line if self.total else _LINE_NO_TOTAL,
+            postfix=self.postfix or None,
+        )
+
+    def _line(self, now: float, *, end: bool = False) -> None:
+        self.stream.write(self.text(now, end=end) + "\n")
+        self.stream.flush()
+        self._last_line = now
+
+    def note(self, line: str) -> None:
+        """A line of its own (a warning, a job's result) that does not break the bars."""
+        if not self.enabled:
+            return
+        if self.tty:
+            tqdm.write(line, file=self.stream)  # clears the bars, writes, draws them again
+        else:
+            self.stream.write(line + "\n")
+            self.stream.flush()
+
+    def close(self) -> None:
+        """The task ended: the bar's final state, or the last line."""
+        if self.closed:
+            return
+        self.closed = True
+        if not self._started:
+            return  # nothing was counted: nothing to say (an error before the work began)
+        if self._bar is not None:
+            self._bar.set_postfix_str(self.postfix, refresh=False)
+            self._bar.close()
+        elif self.enabled:
+            self._line(self.clock(), end=True)
+
+    def __enter__(self) -> Progress:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+
+class JobsProgress:
+    """Many jobs at once (``dataset``): a bar per job and an overall one, frames and ETA.
+
+    Jobs report ``update(name, frames, note)`` (from worker processes, through the parent)
+    and ``done(name, frames, line)``. Without a terminal: each job's lines at its tenths and
+    the overall line at its tenths or every 30 s.
+    """
+
+    def __init__(
+        self,
+        names: Sequence[str],
+        expected: dict[str, int],
+        *,
+        unit: str = "frames",
+        stream: IO[str] | None = None,
+        enabled: bool = True,
+        tty: bool | None = None,
+    ) -> None:
+        self.stream = sys.stderr if stream is None else stream
+        tty = _isatty(self.stream) if tty is None else tty
+        self.frames = dict.fromkeys(names, 0)
+        self.finished = 0
+        total = sum(expected.get(n, 0) for n in names)
+        # Aligned bars on a terminal; lines start with the name.
+        width = max((len(n) for n in [*names, "overall"]), default=7) if tty else 0
+        self.overall = Progress(
+            f"{'overall':>{width}}",
+            total or None,
+            unit=unit,
+            stream=self.stream,
+            enabled=enabled,
+            tty=tty,
+            position=0,
+        )
+        self.jobs = {
+            name: Progress(
+                f"{name:>{width}}",
+                expected.get(name) or None,
+                unit=unit,
+                stream=self.stream,
+                enabled=enabled,
+                tty=tty,
+                position=i + 1,
+            )
+            for i, name in enumerate(names)
+        }
+
+    def update(self, name: str, frames: int, note: str = "") -> None:
+        """Job ``name`` has made ``frames`` so far."""
+        self.frames[name] = frames
+        self.jobs[name].update_to(frames, note)
+        self.overall.update_to(sum(self.frames.values()))
+
+    def done(self, name: str, frames: int, line: str) -> None:
+        """Job ``name`` ended: its bar closes with ``line`` as its note; without a terminal,
+        ``[k/N] name: line`` (k jobs ended of N)."""
+        self.frames[name] = frames
+        self.finished += 1
+        job = self.jobs[name]
+        job.n = frames
+        job.postfix = line
+        if job.tty and job.started:
+            job.close()  # the bar stays with the line as its note
+        else:
+            job.closed = True
+            job.note(f"[{self.finished}/{len(self.jobs)}] {name}: {frames} frames, {line}")
+        self.overall.update_to(sum(self.frames.values()))
+
+    def close(self) -> None:
+        """Every bar ends (jobs that never ran close as they are)."""
+        for job in self.jobs.values():
+            job.close()
+        self.overall.close()
+
+
+def _isatty(stream: IO[str]) -> bool:
+    isatty = getattr(stream, "isatty", None)
+    return bool(isatty()) if callable(isatty) else False
 
 
 def _metres(value: object) -> str:
@@ -58,8 +258,10 @@ def _metres(value: object) -> str:
     return f"{value:.1f} m" if isinstance(value, int | float) else "n/a"
 
 
-def print_summary(summary: dict[str, Any], out: Path, stream: IO[str]) -> None:
-    """The one-screen summary after a flight."""
+def print_summary(
+    summary: dict[str, Any], out: object, stream: IO[str], *, camera: bool = True
+) -> None:
+    """The one-screen summary after a flight (``camera`` False: no frames were captured)."""
     done = "completed" if summary["mission_completed"] else "NOT completed"
     crashed = summary.get("crashed")
     if crashed:
@@ -75,6 +277,9 @@ def print_summary(summary: dict[str, Any], out: Path, stream: IO[str]) -> None:
         f"mission {summary.get('plan', '')}: {done}",
         f"  waypoints        {summary['waypoints_reached']}/{summary['waypoints_total']}",
         f"  capture          {summary['capture_frames']} frames, "
+        f"{summary['capture_distance_m']:.0f} m"
+        if camera
+        else f"  capture          no frames (--no-camera); capture window "
         f"{summary['capture_distance_m']:.0f} m",
         f"  max cross-track  {_metres(summary.get('max_cross_track_m'))}",
         f"  max alt error    {_metres(summary.get('max_alt_error_m'))}",
@@ -83,81 +288,3 @@ def print_summary(summary: dict[str, Any], out: Path, stream: IO[str]) -> None:
         f"  output           {out}",
     ]
     stream.write("\n".join(lines) + "\n")
-
-
-class JobsDisplay:
-    """One progress line per job plus an overall one (redrawn in place on a terminal)."""
-
-    def __init__(self, names: list[str], expected: dict[str, int], stream: IO[str], tty: bool):
-        self.names = names
-        self.expected = expected
-        self.stream = stream
-        self.tty = tty
-        self.frames = dict.fromkeys(names, 0)
-        self.sim_s = dict.fromkeys(names, 0.0)
-        self.state = dict.fromkeys(names, "waiting")
-        self.start = time.monotonic()
-        self._drawn = 0
-        self._last = 0.0
-
-    def _bar(self, done: int, total: int, width: int = 24) -> str:
-        frac = min(1.0, done / total) if total > 0 else 0.0
-        filled = int(frac * width)
-        return f"[{'#' * filled}{'.' * (width - filled)}] {100 * frac:5.1f}%"
-
-    def update(self, name: str, frames: int, sim_s: float) -> None:
-        """A progress report from a job."""
-        if self.state[name] == "waiting":
-            self.state[name] = "flying"
-            if not self.tty:
-                self.stream.write(f"{name}: flying\n")
-        self.frames[name] = frames
-        self.sim_s[name] = sim_s
-        self.draw()
-
-    def done(self, outcome: Outcome) -> None:
-        """A job finished."""
-        name = outcome.name
-        if outcome.error:
-            self.state[name] = "FAILED"
-            line = f"{name}: FAILED: {outcome.error}"
-        else:
-            self.frames[name] = outcome.images
-            ok = "done" if outcome.mission_completed else "done (mission NOT completed)"
-            self.state[name] = ok
-            line = (
-                f"{name}: {ok}: {outcome.images} frames, {outcome.distance_m:.0f} m, "
-                f"{outcome.sim_time_s:.0f} s simulated in {outcome.wall_s:.0f} s"
-            )
-        if not self.tty:
-            finished = sum(1 for s in self.state.values() if s not in ("waiting", "flying"))
-            self.stream.write(f"[{finished}/{len(self.names)}] {line}\n")
-            self.stream.flush()
-        self.draw(force=True)
-
-    def draw(self, *, force: bool = False) -> None:
-        """Redraw every line (terminal only, at most 10 times a second)."""
-        if not self.tty:
-            return
-        now = time.monotonic()
-        if not force and now - self._last < 0.1:
-            return
-        self._last = now
-        lines = []
-        for name in self.names:
-            lines.append(
-                f"{name:>16} {self._bar(self.frames[name], self.expected.get(name, 0))} "
-                f"{self.frames[name]:6d} frames  sim {self.sim_s[name]:6.0f} s  {self.state[name]}"
-            )
-        total = sum(self.frames.values())
-        total_expected = sum(self.expected.get(n, 0) for n in self.names)
-        wall = now - self.start
-        lines.append(
-            f"{'overall':>16} {self._bar(total, total_expected)} {total:6d} frames  "
-            f"{wall:6.0f} s wall  {total / wall if wall > 0 else 0:5.0f} frames/s"
-        )
-        if self._drawn:
-            self.stream.write(f"\x1b[{self._drawn}F")
-        self.stream.write("\n".join(f"{line}\x1b[K" for line in lines) + "\n")
-        self.stream.flush()
-        self._drawn = len(lines)

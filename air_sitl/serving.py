@@ -3,7 +3,10 @@
 The vehicle starts on the ground at home, disarmed; clients (QGroundControl, MAVSDK, MAVProxy,
 pymavlink) connect, upload a mission, arm and start it. The MAVLink endpoint's threads post
 their commands to the simulation thread through the flight's inbox. ``out`` records each
-capture window as an archive (:class:`~air_sitl.recording.CaptureRecorder`).
+capture window as an archive (:class:`~air_sitl.recording.CaptureRecorder`). ``video`` streams
+the camera as RTP/H.264 (:class:`~air_sitl.video.stream.VideoStream`, a sink with a renderer of
+its own: the archives stay the same bytes), described and started/stopped by the camera
+component's video protocol.
 """
 
 from __future__ import annotations
@@ -13,8 +16,14 @@ import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import numpy as np
+import numpy.typing as npt
+
 from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
 from air_sitl.bus.hookup import BusHookup
+from air_sitl.camera.options import open_chosen_renderer
+from air_sitl.clock import CAMERA_PERIOD_NS
+from air_sitl.maps.choose import close_map
 from air_sitl.mavlink.codec import ParseCounters
 from air_sitl.mavlink.interfaces import SEVERITY_CRITICAL, SEVERITY_ERROR
 from air_sitl.mavlink.links import LinkSpec
@@ -26,6 +35,8 @@ from air_sitl.recording import CaptureRecorder
 from air_sitl.runner import Flight, InboxItem
 from air_sitl.sinks import FrameSource, Sink
 from air_sitl.state import SimSample
+from air_sitl.video.options import VideoOptions
+from air_sitl.video.stream import VideoCamera, VideoStream
 
 
 def camera_info(setup: FlightSetup) -> CameraInfo | None:
@@ -34,6 +45,27 @@ def camera_info(setup: FlightSetup) -> CameraInfo | None:
     if cam is None:
         return None
     return CameraInfo(width_px=cam.width_px, height_px=cam.height_px, hfov_deg=cam.hfov_deg)
+
+
+def open_video(setup: FlightSetup, options: VideoOptions) -> VideoStream:
+    """The video stream of ``setup``'s camera, rendered by a renderer of its own (same map,
+    camera and seed as the archive's; frames noised by their camera tick)."""
+    cam = setup.camera
+    assert cam is not None, "open_video: the setup flies without a camera"
+    source = open_setup_map(setup)
+    renderer = open_chosen_renderer(setup.map, source, cam, setup.options.seed)
+
+    def render(sample: SimSample) -> npt.NDArray[np.uint8]:
+        state = sample.state
+        geometry = renderer.geometry(state, warn=False)
+        return renderer.render(state, geometry, noise_index=state.sim_time_ns // CAMERA_PERIOD_NS)
+
+    return VideoStream(
+        options,
+        VideoCamera(width_px=cam.width_px, height_px=cam.height_px, hfov_deg=cam.hfov_deg),
+        render,
+        on_close=lambda: close_map(renderer.map),
+    )
 
 
 class CrashResponse:
@@ -73,8 +105,13 @@ def serve_vehicle(
     out: Path | None = None,
     signing_key: bytes | None = None,
     quiet: bool = False,
+    system_id: int = 1,
+    video: VideoOptions | None = None,
 ) -> ParseCounters:
-    """Fly ``setup`` for MAVLink clients until ``stop`` is set; what the links received."""
+    """Fly ``setup`` for MAVLink clients until ``stop`` is set; what the links received.
+
+    ``system_id``: MAV_SYS_ID (instance N of several is N+1). ``video``: stream the camera
+    (ignored without a camera); what it sent and dropped is printed when it stops."""
     inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
 
     def post(job: Job) -> None:
@@ -84,15 +121,18 @@ def serve_vehicle(
         inbox.put(on_flight)
 
     home = setup.home
+    stream = open_video(setup, video) if video is not None and setup.camera is not None else None
     endpoint = VehicleEndpoint(
         list(links),
         home=home,
         mission=setup.mission,
         post=post,
         options=EndpointOptions(
+            system_id=system_id,
             signing_key=signing_key,
             camera=camera_info(setup),
             terrain=setup.map.dem is not None,
+            video=stream,
         ),
     )
     try:
@@ -100,6 +140,8 @@ def serve_vehicle(
         # The onboard estimate's telemetry (and, with --nav-aid mavlink, its aids).
         nav_link = NavLink(endpoint, aid=setup.options.nav_aid == "mavlink")
         sinks: list[Sink] = [endpoint.sink, nav_link]
+        if stream is not None:
+            sinks.append(stream)
         camera: FrameSource | None = None
         recorder = None
         if out is not None or bus.needs_camera:
@@ -130,13 +172,28 @@ def serve_vehicle(
                 f"{spec} (local {host}:{port})"
                 for spec, (host, port) in zip(links, addresses, strict=True)
             )
+            shown = f"; video: {stream.options.url}" if stream is not None else ""
             print(
                 f"air-sitl serve: vehicle ready at {home.lat_deg:.7f},{home.lon_deg:.7f},"
-                f"{home.alt_amsl_m:.1f} speed {setup.options.speed:g}; links: {where}",
+                f"{home.alt_amsl_m:.1f} speed {setup.options.speed:g}; links: {where}{shown}",
                 flush=True,
             )
         crash = CrashResponse(flight, endpoint.sink)
         flight.run(stop=crash.then(stop.is_set), max_sim_time_ns=max_sim_time_ns, inbox=inbox)
     finally:
         endpoint.close()
+        if stream is not None:
+            stream.close()
+            if not quiet:
+                print(video_summary(stream), flush=True)
     return endpoint.counters
+
+
+def video_summary(stream: VideoStream) -> str:
+    """The stream's line at exit: frames sent and dropped (the encoder was behind)."""
+    c = stream.counters
+    errors = f", {c.errors} failed" if c.errors else ""
+    return (
+        f"air-sitl serve: video: {c.frames_sent} frames sent to {stream.options.url} "
+        f"({stream.datagrams_sent} RTP packets), {c.frames_dropped} dropped{errors}"
+    )

@@ -41,6 +41,7 @@ def serve(*links: str, speed: float = 1.0) -> Iterator[list[int]]:
     args = [a for link in links for a in ("--mavlink", link)]
     home = ",".join(str(v) for v in HOME)
     cmd = [sys.executable, "-m", "air_sitl", "serve", *args, "--home", home, "--speed", str(speed)]
+    cmd.append("--no-video")  # MAVLink alone: the stream would share the cores
     proc = subprocess.Popen(
         cmd, stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONUNBUFFERED="1")
     )

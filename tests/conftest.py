@@ -1,9 +1,20 @@
 """Shared test set-up: this folder is on sys.path, so tests import the helper modules beside it
 (``georef_helpers``, ``short_plans``) whether or not their own folder is a package."""
 
+import pytest
 from hypothesis import settings
 
 # No per-example deadline: Hypothesis times examples by the wall clock, which the other xdist
 # worker (or any load) can stretch past its 200 ms default; the properties are what is tested.
 settings.register_profile("air-sitl", deadline=None)
 settings.load_profile("air-sitl")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Our own pytest plugin (the ``air_sitl_vehicle`` fixture), as users get it.
+
+    An install of air-sitl registers it through its ``pytest11`` entry point (named
+    ``air_sitl``); a checkout on PYTHONPATH without that install registers it here.
+    """
+    if not config.pluginmanager.has_plugin("air_sitl"):
+        config.pluginmanager.import_plugin("air_sitl.testing.pytest_plugin")

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-PATHS = ["air_sitl", "bridges", "benchmarks", "tests"]
+PATHS = ["air_sitl", "bridges", "benchmarks", "tests", "docs"]
 
 
 def _run(*cmd: str) -> subprocess.CompletedProcess[str]:

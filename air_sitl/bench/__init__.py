@@ -16,6 +16,7 @@ stopped. Last the leaderboard (:mod:`~air_sitl.bench.leaderboard`) and the box p
 
 from __future__ import annotations
 
+import collections
 import json
 import shlex
 import subprocess
@@ -30,6 +31,7 @@ from air_sitl.bench.leaderboard import Leaderboard, build
 from air_sitl.dataset.air_schema import MANIFEST_JSON
 from air_sitl.errors import DatasetError
 from air_sitl.files import write_bytes_atomic, write_json_atomic
+from air_sitl.progress import Progress
 from air_sitl.sweep import Executor, PoolExecutor, RayExecutor, make_tasks, run_tasks
 from air_sitl.sweep.measurements import EntryResult, archive_id, load_errors, read
 from air_sitl.sweep.run import RunTask
@@ -48,34 +50,24 @@ __all__ = [
 BENCH_SPEC = "bench.yaml"  # the sweep SPEC a bench is, written beside its results
 
 
-class Progress:
-    """``bench [#####.....] 7/24  UC-200 mapmatch: median 2.1 m`` (in place on a terminal)."""
+class BenchProgress:
+    """A line per measured cell (``bench [7/24] UC-200 mapmatch: median 2.1 m``) under a bar of the
+    cells with their rate and ETA (:mod:`air_sitl.progress`)."""
 
-    def __init__(self, total: int, stream: IO[str], quiet: bool) -> None:
-        self.total, self.done, self.stream, self.quiet = total, 0, stream, quiet
-        self.tty = stream.isatty()
+    def __init__(self, total: int, stream: IO[str], quiet: bool, done: int = 0) -> None:
+        self.total, self.done = total, done
+        self.bar = Progress("bench", total, unit="cells", stream=stream, enabled=not quiet)
+        self.bar.update_to(done)
 
     def update(self, result: EntryResult) -> None:
         self.done += 1
-        if self.quiet:
-            return
-        filled = int(30 * self.done / max(1, self.total))
         if result.error:
             what = f"failed: {result.error}"
         else:
             median = (result.report or {}).get("horizontal_error_m", {}).get("median")
             what = "no estimate" if median is None else f"median {median:.1f} m"
-        line = (
-            f"bench [{'#' * filled}{'.' * (30 - filled)}] {self.done}/{self.total}  "
-            f"{result.scenario} {result.entry}: {what}"
-        )
-        if self.tty:
-            self.stream.write("\r\x1b[K" + line[:160])
-            if self.done == self.total:
-                self.stream.write("\n")
-        else:
-            self.stream.write(line + "\n")
-        self.stream.flush()
+        self.bar.note(f"bench [{self.done}/{self.total}] {result.scenario} {result.entry}: {what}")
+        self.bar.update_to(self.done)
 
 
 def make_archives(config: BenchConfig) -> None:
@@ -93,10 +85,21 @@ def make_archives(config: BenchConfig) -> None:
     ]  # fmt: skip
     if config.quiet:
         cmd.append("--quiet")
-    proc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, check=False)
-    err = proc.stderr.decode("utf-8", "replace")
-    if not config.quiet or proc.returncode != 0:
-        sys.stderr.write(err)
+    # Its progress lines pass through as they come (a minute of flying is not silent); the
+    # last ones say why when it fails.
+    tail: collections.deque[str] = collections.deque(maxlen=50)
+    with subprocess.Popen(
+        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, errors="replace"
+    ) as proc:
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            tail.append(line)
+            if not config.quiet:
+                sys.stderr.write(line)
+                sys.stderr.flush()
+    if config.quiet and proc.returncode != 0:
+        sys.stderr.write("".join(tail))
+    err = "".join(tail)
     if proc.returncode not in (0, 1):  # 1: a mission did not complete; still scored
         lines = [ln for ln in err.splitlines() if "error" in ln] or err.splitlines()[-1:]
         why = lines[-1] if lines else f"exit {proc.returncode}"
@@ -206,15 +209,19 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
     write_bytes_atomic(spec_path, yaml.safe_dump(data, sort_keys=False).encode("utf-8"))
     cells = [(s, e) for s in config.scenarios for e in config.entries]
     measured = {cell for cell in cells if _measured(config, *cell).error is None}
-    progress = Progress(len(cells), stream, config.quiet)
-    progress.done = len(measured)
+    progress = BenchProgress(len(cells), stream, config.quiet, done=len(measured))
 
     def on_row(task: RunTask, row: dict[str, Any]) -> None:
         for result in _row_results(task, row):
             if (result.scenario, result.entry) not in measured:
                 progress.update(result)
 
-    outcome = run_tasks(spec, _tasks(config, spec), config.out, _executor(config), on_row=on_row)
+    try:
+        outcome = run_tasks(
+            spec, _tasks(config, spec), config.out, _executor(config), on_row=on_row
+        )
+    finally:
+        progress.bar.close()
     if outcome.interrupted:
         raise KeyboardInterrupt
     results = [_measured(config, *cell) for cell in cells]

@@ -3,17 +3,22 @@
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from air_sitl.bus.estimates import DEFAULT_MAX_NAMES
+from air_sitl.bus.defaults import DEFAULT_ENDPOINT, DEFAULT_MAX_NAMES
 from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace, check_chunk
-from air_sitl.bus.lockstep import WaitFor
-from air_sitl.bus.session import DEFAULT_ENDPOINT, BusConfig, Mode
+from air_sitl.bus.ros2.options import Ros2Options, add_ros2_arguments, ros2_options_from_args
 from air_sitl.errors import OptionError
 from air_sitl.options import int_in_range, positive_number
 
+if TYPE_CHECKING:  # zenoh loads when a command opens the bus, not for its --help
+    from air_sitl.bus.lockstep import WaitFor
+    from air_sitl.bus.session import BusConfig, Mode
+
 DEFAULT_WAIT_TIMEOUT_S = 10.0
+ROS2_LISTEN = "tcp/127.0.0.1:0"  # a free port (rmw_zenoh's sessions listen on tcp/localhost:0)
 
 
 def add_connection_arguments(parser: argparse.ArgumentParser, *, serves: bool) -> None:
@@ -107,6 +112,7 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
         default="local",
         help="render in this process (local, default) or ask `air-sitl camera-bridge` over zenoh",
     )
+    add_ros2_arguments(parser)
     add_connection_arguments(parser, serves=True)
 
 
@@ -126,10 +132,13 @@ class BusOptions:
     remote_camera: bool
     max_estimate_names: int = DEFAULT_MAX_NAMES
     expected: tuple[str, ...] = ()  # estimators the flight relies on (wait-for, svo, nav-aid)
+    ros2: Ros2Options | None = None  # --ros2: the ROS 2 view beside our keys
 
 
 def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig:
     """The session configuration of the connection options."""
+    from air_sitl.bus.session import BusConfig
+
     config_file = None
     if args.zenoh_config:
         config_file = Path(args.zenoh_config)
@@ -152,8 +161,20 @@ def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig
     )
 
 
+def ros2_config(config: BusConfig) -> BusConfig:
+    """The session of a ROS 2 view: timestamped (transient-local caches need it) and, when it
+    only connects (to a router), listening on a free loopback port as rmw_zenoh's sessions do:
+    routers do not forward between peers, ROS 2 nodes reach it directly (gossip tells them)."""
+    listen = config.listen
+    if listen == () and config.connect and config.config_file is None:
+        listen = (ROS2_LISTEN,)
+    return replace(config, timestamping=True, listen=listen)
+
+
 def parse_wait_for(text: str, timeout_s: float) -> WaitFor:
     """``NAME`` or ``NAME:MAX_LAG`` (MAX_LAG an integer >= 1)."""
+    from air_sitl.bus.lockstep import WaitFor
+
     name, _, lag_text = text.partition(":")
     check_chunk("--wait-for", name)
     lag = 1
@@ -182,13 +203,15 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
     explicit = bool(args.zenoh_listen or args.zenoh_connect or args.zenoh_config)
     aid = getattr(args, "nav_aid", None)
     zenoh_aid = aid is not None and aid != "mavlink"  # --nav-aid NAME implies --zenoh
-    publish = bool(args.zenoh or args.publish_truth or wait or svo or zenoh_aid)
+    ros2 = ros2_options_from_args(args)
+    publish = bool(args.zenoh or args.publish_truth or wait or svo or zenoh_aid or ros2)
+    config = bus_config_from_args(args, serves=True)
     named = (wait.name if wait else None, svo, aid if zenoh_aid else None)
     expected = tuple(dict.fromkeys(n for n in named if n))
     return BusOptions(
         enabled=publish or remote or explicit,
         publish=publish or explicit,
-        config=bus_config_from_args(args, serves=True),
+        config=config if ros2 is None else ros2_config(config),
         keys=KeySpace(args.vehicle),
         publish_truth=bool(args.publish_truth),
         imu_rate_hz=imu_rate,
@@ -198,4 +221,5 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
         remote_camera=remote,
         max_estimate_names=max_names,
         expected=expected,
+        ros2=ros2,
     )

@@ -25,6 +25,7 @@ from typing import IO
 
 from air_sitl.bus import codec
 from air_sitl.bus import estimate_contract as contract
+from air_sitl.bus.defaults import DEFAULT_MAX_NAMES
 from air_sitl.bus.keys import KeySpace
 from air_sitl.bus.publisher import FrameLedger
 from air_sitl.bus.session import Bus, Message
@@ -49,7 +50,6 @@ ESTIMATE_COLUMNS = (
     "latency_frames",
 )
 ESTIMATE_HEADER = ",".join(ESTIMATE_COLUMNS) + "\n"
-DEFAULT_MAX_NAMES = 16  # estimators one flight hears (--max-estimate-names)
 KEPT_PAYLOADS = 8  # per estimator, the payloads of its latest frames (to know a repeat)
 
 

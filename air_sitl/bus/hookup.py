@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from air_sitl.bus.estimator_watch import EstimatorWatch, estimate_summary, estim
 from air_sitl.bus.lockstep import LockstepFrameSource
 from air_sitl.bus.publisher import BusPublisher, FrameLedger, PublishOptions
 from air_sitl.bus.remote_camera import RemoteCamera, RenderSettings
+from air_sitl.bus.ros2.view import Ros2Estimates, Ros2View, open_node
 from air_sitl.bus.session import Bus, open_bus
 from air_sitl.camera.info import q_cam_to_body_wxyz
 from air_sitl.camera.model import CameraModel
@@ -32,7 +34,7 @@ from air_sitl.clock import CAMERA_RATE_HZ
 from air_sitl.closeable import Closeable
 from air_sitl.errors import OptionError
 from air_sitl.sinks import FrameSource, Sink
-from air_sitl.state import GeoPoint, Vec3
+from air_sitl.state import CameraFrame, GeoPoint, Vec3
 
 
 @dataclass(slots=True)
@@ -43,6 +45,8 @@ class BusHookup(Closeable):
     bus: Bus | None = None
     publisher: BusPublisher | None = None
     log: EstimateLog | None = None
+    ros2: Ros2View | None = None
+    ros2_estimates: Ros2Estimates | None = None
     _lockstep: LockstepFrameSource | None = None
     _watch: EstimatorWatch | None = None
 
@@ -102,21 +106,50 @@ class BusHookup(Closeable):
         )
         if opts.expected:
             self._watch = EstimatorWatch(self.log, opts.expected, sys.stderr)
+        publish_frame, subscriber_present = self._attach_ros2(opts, camera)
         if opts.wait is not None and source is not None:
             publisher = self.publisher
             self._lockstep = LockstepFrameSource(
                 source,
                 wait=opts.wait,
-                publish=publisher.publish_frame,
+                publish=publish_frame,
                 ledger=ledger,
                 log=self.log,
                 image_key=opts.keys.image,
-                subscriber_present=lambda: publisher.image_matched,
+                subscriber_present=subscriber_present,
                 reoffer=publisher.reoffer_frame,
             )
             source = self._lockstep
             publisher.gate = self._lockstep.wait_for_consumer
+        if self.ros2 is not None:
+            sinks.append(self.ros2)
         return sinks, source
+
+    def _attach_ros2(
+        self, opts: BusOptions, camera: CameraModel | None
+    ) -> tuple[Callable[[CameraFrame], None], Callable[[], bool]]:
+        """The ROS 2 view (``--ros2``); how lockstep publishes a frame and sees a consumer."""
+        publisher = self.publisher
+        assert publisher is not None and self.bus is not None
+        if opts.ros2 is None:
+            return publisher.publish_frame, lambda: publisher.image_matched
+        node = open_node(self.bus, opts.ros2, opts.keys)
+        view = Ros2View(
+            node,
+            opts.keys,
+            camera=camera,
+            publish_truth=opts.publish_truth,
+            imu_rate_hz=opts.imu_rate_hz,
+            block_frames=opts.wait is not None,
+        )
+        names = [n for n in (opts.svo_columns, opts.wait and opts.wait.name) if n]
+        self.ros2, self.ros2_estimates = view, Ros2Estimates(node, opts.keys, names)
+
+        def publish_both(frame: CameraFrame) -> None:
+            publisher.publish_frame(frame)
+            view.publish_frame(frame)
+
+        return publish_both, lambda: publisher.image_matched or view.image_matched
 
     def after_flight(self) -> dict[str, Any]:
         """Collect late estimates, close the logs; a summary of what the bus did (and one
@@ -143,6 +176,20 @@ class BusHookup(Closeable):
             summary["frames_published"] = self.publisher.frames_published
             if self.publisher.frames_reoffered:
                 summary["frames_reoffered"] = self.publisher.frames_reoffered
+        if self.ros2 is not None and self.ros2_estimates is not None:
+            est = self.ros2_estimates
+            summary["ros2"] = {
+                "node": self.ros2.node.name,
+                "frames_published": self.ros2.frames_published,
+                "estimates_accepted": est.accepted,
+                "estimates_rejected": est.rejected,
+            }
+            if est.rejected:
+                print(
+                    f"air-sitl: warning: {est.rejected} ROS 2 estimate sample(s) ignored, "
+                    f"first: {est.first_error}",
+                    file=sys.stderr,
+                )
         if self._lockstep is not None:
             summary["lockstep_wait_wall_s"] = round(self._lockstep.wait_wall_s, 3)
         return summary
@@ -158,6 +205,8 @@ class BusHookup(Closeable):
         the bus collects no estimates. Deterministic in lockstep with the same name."""
         if self.log is None or self.options is None:
             return None
+        if self.ros2_estimates is not None:
+            self.ros2_estimates.announce(name)
         wait = self.options.wait
         lag = wait.max_lag if wait is not None and wait.name == name else None
         ledger = self.log.ledger

@@ -237,8 +237,12 @@ class CameraBridgeServer:
         factory: RendererFactory,
         *,
         free_settings: Callable[[GeoPoint], RenderSettings] | None = None,
+        on_published: Callable[[int, int, bytes], None] | None = None,
     ) -> None:
         self.bus = bus
+        # Told (frame, sim time ns, JPEG) of each frame published from truth (camera-bridge
+        # --ros2 publishes it as ROS 2 too).
+        self.on_published = on_published
         self.keys = keys
         self._factory = factory
         self._free_settings = free_settings
@@ -330,3 +334,5 @@ class CameraBridgeServer:
         out = self._renderer(self._free_settings(home))(state, frame)
         self._image.put(out.jpeg, self._rendered(frame, state, out))
         self.published += 1
+        if self.on_published is not None:
+            self.on_published(frame, state.sim_time_ns, out.jpeg)

@@ -33,12 +33,12 @@ from pathlib import Path
 from typing import Any, Literal
 
 import zenoh
+import zenoh.ext
 
+from air_sitl.bus.defaults import DEFAULT_ENDPOINT
 from air_sitl.closeable import Closeable
 from air_sitl.errors import BusError
 
-DEFAULT_PORT = 7447
-DEFAULT_ENDPOINT = f"tcp/127.0.0.1:{DEFAULT_PORT}"
 TX_QUEUE_BATCHES = 16  # zenoh's default is 2 batches of 64 kB per priority
 
 Mode = Literal["peer", "client", "router"]
@@ -57,6 +57,7 @@ class BusConfig:
     connect: tuple[str, ...] | None = None
     config_file: Path | None = None
     serves: bool = False  # True for the simulator and the router: listen by default
+    timestamping: bool = False  # stamp every sample (cached publishers need it; ROS 2 view)
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,6 +95,8 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
         mode = cfg.mode
         if mode == "peer" and not listen and connect:
             listen = peer_listen_endpoints(connect)
+    if cfg.timestamping:
+        _insert(conf, "timestamping/enabled", True)
     if mode is not None:
         _insert(conf, "mode", mode)
     if listen is not None:
@@ -237,6 +240,25 @@ class Bus(Closeable):
             key, encoding=encoding, congestion_control=cc, express=express
         )
         return Publisher(pub)
+
+    def cached_publisher(self, key: str, *, encoding: str, depth: int) -> Publisher:
+        """A publisher whose last ``depth`` samples late subscribers can ask for (zenoh-ext's
+        advanced publisher, detectable: a ROS 2 transient-local publisher). Needs a session
+        opened with ``timestamping``."""
+        pub = zenoh.ext.declare_advanced_publisher(
+            self._session,
+            key,
+            encoding=encoding,
+            cache=zenoh.ext.CacheConfig(max_samples=depth),
+            publisher_detection=True,
+        )
+        return Publisher(pub)  # type: ignore[arg-type]
+
+    def liveliness_token(self, key: str) -> None:
+        """Declare a liveliness token on ``key`` until the session closes."""
+        token = self._session.liveliness().declare_token(key)
+        with self._lock:
+            self._handles.append(token)
 
     def subscribe(self, key: str, callback: Callable[[Message], None]) -> None:
         """Call ``callback`` (on a zenoh thread) for every sample on ``key`` until closed."""

@@ -14,8 +14,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import cv2
 
-from air_sitl.camera.options import close_map
 from air_sitl.camera.render import Renderer, render_camera_frame
+from air_sitl.maps.choose import close_map
 from air_sitl.state import CameraFrame, SimSample
 
 

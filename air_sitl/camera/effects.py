@@ -31,10 +31,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from air_sitl.camera.defaults import EFFECT_NAMES as NAMES
 from air_sitl.errors import CameraError
 from air_sitl.files import parse_yaml_mapping
 
-NAMES = ("blur", "rolling-shutter", "vignette", "exposure", "haze", "distortion")
 DEFAULT_DISTORTION = (-0.05, 0.01, 0.0, 0.0, 0.0)
 
 

@@ -18,17 +18,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from air_sitl.camera.defaults import DEFAULT_JPEG_QUALITY, DEFAULT_NOISE_SIGMA
 from air_sitl.camera.effects import CameraEffects
 from air_sitl.errors import CameraError
 from air_sitl.frames import euler2quat, quat2matrix
 from air_sitl.state import Quat
 
 Mat3 = npt.NDArray[np.float64]
-
-# Gazebo's camera sensors (as PX4 SITL used for AIR) add Gaussian noise of stddev 0.007 of
-# full scale: 1.8 grey levels of 255.
-DEFAULT_NOISE_SIGMA = 1.8
-DEFAULT_JPEG_QUALITY = 90
 
 _R_DEFAULT_CAM_TO_BODY: Mat3 = np.array(
     [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], dtype=np.float64

@@ -1,20 +1,19 @@
 """Command-line options for maps and the camera, shared by fly, serve, dataset and render,
-and the map they choose."""
+and the renderer they choose (the map and surface themselves: ``maps.choose``)."""
 
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
-from air_sitl.camera.effects import NAMES as EFFECT_NAMES
-from air_sitl.camera.effects import effects_from_options
-from air_sitl.camera.model import DEFAULT_JPEG_QUALITY, DEFAULT_NOISE_SIGMA, CameraModel
-from air_sitl.camera.render import Renderer
+from air_sitl.camera.defaults import DEFAULT_JPEG_QUALITY, DEFAULT_NOISE_SIGMA, EFFECT_NAMES
 from air_sitl.errors import CameraError
-from air_sitl.maps.base import MapSource
-from air_sitl.maps.open import default_map_for_plan, open_map, open_surface
-from air_sitl.maps.surface import SurfaceModel
 from air_sitl.options import MapChoice
-from air_sitl.state import GeoPoint
+
+if TYPE_CHECKING:  # the renderer and the maps load when a command runs, not for its --help
+    from air_sitl.camera.model import CameraModel
+    from air_sitl.camera.render import Renderer
+    from air_sitl.maps.base import MapSource
 
 
 def add_map_arguments(parser: argparse.ArgumentParser) -> None:
@@ -91,33 +90,21 @@ def map_choice_from_args(args: argparse.Namespace) -> MapChoice:
     )
 
 
-def open_chosen_map(choice: MapChoice, home: GeoPoint, plan_name: str = "") -> MapSource:
-    """The MapSource ``choice`` names (default from the plan name: U* urban, F* forest)."""
-    spec = choice.spec or default_map_for_plan(plan_name)
-    return open_map(spec, home, seed=choice.seed, date=choice.date)
-
-
-def open_chosen_surface(choice: MapChoice, map_source: MapSource) -> SurfaceModel | None:
-    """The surface ``choice.dem`` names over ``map_source`` (None: the flat ground)."""
-    return open_surface(choice.dem, map_source)
-
-
 def open_chosen_renderer(
     choice: MapChoice, map_source: MapSource, camera: CameraModel, seed: int
 ) -> Renderer:
     """The Renderer of ``map_source`` for ``camera``, over the surface ``choice.dem`` names."""
+    from air_sitl.camera.render import Renderer
+    from air_sitl.maps.choose import open_chosen_surface
+
     return Renderer(map_source, camera, seed=seed, surface=open_chosen_surface(choice, map_source))
-
-
-def close_map(source: object) -> None:
-    """Release a map's files (GeoTIFF maps hold some; procedural ones hold none)."""
-    close = getattr(source, "close", None)
-    if callable(close):
-        close()
 
 
 def camera_from_args(args: argparse.Namespace) -> CameraModel:
     """The CameraModel the options describe (CameraError on bad values)."""
+    from air_sitl.camera.effects import effects_from_options
+    from air_sitl.camera.model import CameraModel
+
     text = str(args.camera_mount_rpy_deg)
     try:
         parts = tuple(float(p) for p in text.split(","))

@@ -1,42 +1,43 @@
-"""Frames over relief: every pixel shows the FIRST surface its ray meets (ray marching).
+"""Frames over relief: every pixel shows the FIRST surface its ray meets, exactly.
 
-Rays are marched over the surface's height field on the map's level-L pixel grid, from the
-highest height in the footprint (or the camera) down to the lowest, in equal altitude steps
-that move the ray by at most one level pixel; the first step under the surface is refined
-by bisection and a secant (exact on a plane). So tall things lean away from the nadir and
-hide what is behind them (a "project at the height found there" iteration would not
-occlude). A wall shows the map's colour at its foot, stretched.
+The surface is the bilinear interpolation of the surface model's posts on the map's level-L
+pixel grid (the level the frame takes its colours from). Each pixel's ray walks the cells
+it crosses from the top of the height range down, and the first cell whose bilinear patch
+it meets gives the hit by solving a quadratic (``relief_march.first_hit``): so tall things
+lean away from the nadir and hide what is behind them, crowns keep their outline, and no
+ground shows through at their edges. A wall shows the map's colour at its foot, stretched.
 
-Speed: a coarse grid of rays (every ``STRIDE``-th pixel, half a stride beyond the image) is
-marched; the grid is refined by halving the stride down to 2 only in cells next to a sample
-where the parallax (pixels of lean) bends by more than ``EDGE_PX`` (roof edges, crowns,
-occlusion boundaries); then every pixel of the remaining edge cells is solved on its own and
-the rest is interpolated bilinearly (exact for a plane to far below a pixel). A new ray
-inside a cell first tries the altitudes its cell's corners hit (``settle_ray``: one height
-sample each, then up to three secant steps); only rays under the surface there (walls,
-things no corner saw), or not settling, are marched over the corners' altitude range; new
-samples whose corners all hit one height (within ``FLAT_M``) keep the interpolation. A
-march skips 8-pixel tiles whose highest point is below the ray (a max-height tile per
-window), steps one level pixel at a time near the surface, then refines. Then a remap
-from the map window (in strips). The samples sit half a pixel off the pixel grid, so the
-last step to full resolution is one ``cv2.resize``. The loops are compiled (``relief_march``,
-numba, imported and compiled or loaded from its cache by :func:`warm` when a renderer over
-relief is built, before the clock runs).
+Speed: blocks of 8 x 8 pixels first descend together: at one altitude a block's rays lie
+inside the quadrilateral of its corner rays, so the block comes down, a tile's height at a
+time, while every 8 x 8-cell tile under the box of those corners is lower (a max-height
+tile grid per window). Then each ray walks alone from there, passing every cell whose
+highest post is below it where it leaves the cell (a grid walk without divisions), and
+solves only the patches it may meet: over the forest about 6 cells and 1.5 patches a ray,
+over the town about 3 and 1.1. A window's posts, cell tops and tile tops are read once and
+kept by the thread for the next frames (a frame's search may read two windows). Rays that
+leave the window before reaching the lowest height (views toward the horizon, where the
+window is clipped) are marched by fine steps instead (a one-pixel step and bisection).
+Then a remap from the map window (in strips, each from a copy of the map pixels it samples
+where the mosaic is large). The loops are compiled (``relief_march``, numba, imported and
+compiled or loaded from its cache by :func:`warm` when a renderer over relief is built,
+before the clock runs). Tried and slower here: a second max-height grid of 4-cell tiles
+skipped per ray, 4 x 4-pixel blocks, two rays walked in one loop, the walk stepping along
+the major axis: the cost is the latency of each ray's chain of dependent steps, not the
+number of cells.
 
-Cost (bench_camera.py part 4, this 2-core machine, flat in the same run, load average 5.6
-falling to 3.4): 5.9 / 7.0 / 3.6x the flat render at 200 / 300 / 3000 m over the built-in
-urban surface, 5.0 / 7.1 / 3.3x over it as a 1.2 m GeoTIFF DSM, 13.0 / 21.7 / 6.4x over the
-rough forest canopy. The remap runs in strips, each from a copy of the map pixels it samples
-where the mosaic is large (3000 m: 0.3-0.7 ms less a frame), and a thread keeps its last
-three height windows (a frame's search may read two, which before were read again every
-frame). At urban 200 m (about 5 ms a frame): the ground maps 3.5 ms (sample_grid 2.0 ms of
-which 0.5 ms coarse grid and bookkeeping, then about 9,000 refinement rays at ~200 ns, and
-9,000 edge pixels 1.1 ms), the remap 0.7 ms, geometry 0.2 ms. The forest needs 120,000 rays
-a frame at 300 m (nearly every cell is an edge), and is approximate there: against a march
-of every pixel, 20% of its pixels are off by more than 0.5 px (urban: 0.9%). Tried: each
-new ray marched from the smallest nadir distance its cell's corners hit at (the first hit
-moves outward with the angle from the nadir) cuts those to 4.8% (forest) and 0.26% (urban),
-but costs twice the time. The 3x target needs fewer rays, not only faster ones.
+Cost (``bench_camera.py --relief-only --frames 100``, one core, 640 x 480, load average
+5.5-6 on this 2-core machine): at 200 / 300 / 3000 m, urban 16.8 / 17.1 / 15.4 ms a frame
+(59 / 59 / 65 frames/s; 18.6 / 17.8 / 16.3x the flat render of the same frames, 0.9-1.0
+ms), forest 22.7 / 26.3 / 19.8 ms (44 / 38 / 51 frames/s: under the 50 aimed at below
+3000 m), urban over a 1.2 m GeoTIFF DSM 16.7 / 17.7 / 16.3 ms (60 / 57 / 62 frames/s). Of
+a forest frame at 300 m about 5 ms are the rays and their blocks, 8 ms the walks up to the
+first cell they may meet, 11 ms the patches solved and the walks after a miss.
+
+Until issue 24 an adaptive grid (rays on a 16-pixel grid, refined at parallax edges and
+interpolated elsewhere) was used: cheaper, but 9-14 % of the forest's pixels (15-22 % in
+an image corner) were more than 0.5 px from the first hit (blobby crowns, ground showing
+through at their edges), 0.5-6 % of the town's.
+Figures of the exact walk: ``benchmarks/bench_camera.py --relief-only``.
 """
 
 from __future__ import annotations
@@ -45,7 +46,6 @@ import functools
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 
@@ -56,7 +56,6 @@ if TYPE_CHECKING:
     from types import ModuleType
 
 F32 = npt.NDArray[np.float32]
-STRIDE = 16  # image pixels between the coarse grid's rays
 _MIN_DOWN = 1e-6
 
 
@@ -82,7 +81,8 @@ class HeightWindow:
     y0: int
     h_min: float
     h_max: float
-    tile_max: F32  # highest height of each relief_march.TILE-pixel tile
+    tile_max: F32  # highest post of each relief_march.TILE-cell tile
+    cell_max: F32  # highest of the four posts of each cell
 
 
 def ray_slopes(
@@ -109,8 +109,16 @@ def read_window(
     ax1, ay1 = -(-(x1 + 1) // t) * t, -(-(y1 + 1) // t) * t
     values = np.ascontiguousarray(surface.heights(level, ax0, ay0, ax1 - ax0, ay1 - ay0),
                                   dtype=np.float32)  # fmt: skip
-    tops = _kernels().tile_max(values)
-    return HeightWindow(values, ax0, ay0, float(values.min()), float(values.max()), tops)
+    return _window(values, ax0, ay0)
+
+
+def _window(values: Heights, x0: int, y0: int) -> HeightWindow:
+    """A HeightWindow of ``values`` (float32, contiguous) at level pixel (x0, y0)."""
+    k = _kernels()
+    return HeightWindow(
+        values, x0, y0, float(values.min()), float(values.max()), k.tile_max(values),
+        k.cell_max(values),
+    )  # fmt: skip
 
 
 def march_one(window: HeightWindow, cx: float, cy: float, cam_z: float, ax: float,
@@ -118,8 +126,8 @@ def march_one(window: HeightWindow, cx: float, cy: float, cam_z: float, ax: floa
     """Altitude of the first surface point of one ray (level-pixel slopes ax, ay) between
     the window's highest point (or the camera) and its lowest."""
     top = float(np.float32(min(window.h_max, cam_z)))
-    z, _found = _kernels().march_ray(
-        window.values, window.tile_max, (cx - window.x0) + cam_z * ax,
+    z, _found = _kernels().first_hit(
+        window.values, window.cell_max, window.tile_max, (cx - window.x0) + cam_z * ax,
         (cy - window.y0) + cam_z * ay, ax, ay, top, window.h_min,
     )  # fmt: skip
     return float(np.float32(z))  # as the float32 arrays of rays did before
@@ -136,35 +144,23 @@ def ground_maps(
     width: int,
     height: int,
     rows: int = 0,
-) -> tuple[F32, F32, dict[str, float]]:
+) -> tuple[F32, F32]:
     """Level-pixel coordinates (relative to the window) of the surface each pixel sees.
 
     Returns ((height, width, 2) map x, y; (x min, y min, x max, y max) of them in each strip
-    of ``rows`` image rows (0: one strip); stats of the march). Rays that never descend
-    are the caller's to mask (sky). Samples sit at image points (STRIDE * j - PAD + 0.5,
-    STRIDE * i - PAD + 0.5); each level halves the stride, interpolating midpoints and
-    solving again only the cells whose corners' parallax differs by more than EDGE_PX.
+    of ``rows`` image rows (0: one strip)). Rays that never descend are the caller's to
+    mask (sky).
     """
-    k = _kernels()
-    args = (
-        window.values, window.tile_max, np.asarray(r, dtype=np.float64),
-        np.asarray(jac, dtype=np.float64), float(1 << level), float(cx - window.x0),
-        float(cy - window.y0), float(cam_z), window.h_min, window.h_max,
-    )  # fmt: skip
-    grid, edge, rays, solved = k.sample_grid(*args, width, height, STRIDE)
-    # Full resolution: bilinear from the stride-2 grid (sample (j, i) is image point
-    # (2i - pad + 0.5, 2j - pad + 0.5): cv2.resize's x2 grid puts output pixel x - pad at
-    # input x / 2 - 0.25), then every pixel of a remaining edge cell solved on its own.
-    pad = STRIDE // 2
-    coarse = cv2.merge((grid[0], grid[1]))
-    size = (2 * coarse.shape[1], 2 * coarse.shape[0])
-    full: F32 = cv2.resize(coarse, size, interpolation=cv2.INTER_LINEAR)
     rows = rows if rows > 0 else height
-    bounds = k.strip_bounds(grid, pad, height, rows)
-    fixed = k.solve_edge_pixels(full, grid, edge, *args, pad, width, height, bounds, rows)
-    stats = {"rays": float(rays), "rays_before_full": float(solved),
-             "fixed_rays": float(solved + fixed)}  # fmt: skip
-    return full[pad : pad + height, pad : pad + width], bounds, stats  # a view: remap takes it
+    maps = np.empty((height, width, 2), dtype=np.float32)
+    bounds = np.empty((-(-height // rows), 4), dtype=np.float32)
+    _kernels().hit_maps(
+        window.values, window.cell_max, window.tile_max, np.asarray(r, dtype=np.float64),
+        np.asarray(jac, dtype=np.float64), float(1 << level), float(cx - window.x0),
+        float(cy - window.y0), float(cam_z), window.h_min, window.h_max, width, height, rows,
+        maps, bounds,
+    )  # fmt: skip
+    return maps, bounds
 
 
 def _kernels() -> ModuleType:
@@ -181,10 +177,9 @@ def warm() -> None:
     the very calls a frame makes, on a small window: a renderer over relief calls this when
     it is built, before the clock runs, so its first frame does not stall the render threads
     (seconds compiling after an install, about a second loading the cache)."""
-    k = _kernels()
     values = np.zeros((2 * TILE_PX, 2 * TILE_PX), dtype=np.float32)
-    values[TILE_PX:, :] = 5.0  # a step: edge cells, so every path of the grid is typed
-    window = HeightWindow(values, 0, 0, 0.0, 5.0, k.tile_max(values))
+    values[TILE_PX:, :] = 5.0  # a step: every path of the walk is typed
+    window = _window(values, 0, 0)
     nadir = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)  # image (u, v, 1) -> NED, looking down
     ground_maps(window, nadir, (1.0, 0.0, 0.0, 1.0), 0, 8.0, 8.0, 100.0, 8, 8)
     march_one(window, 8.0, 8.0, 100.0, 0.01, 0.01)

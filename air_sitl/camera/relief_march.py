@@ -1,13 +1,15 @@
-"""Compiled kernels of the relief renderer (numba): ray marching over a height field.
+"""Compiled kernels of the relief renderer (numba): exact first hits of rays on a height field.
 
-``relief`` holds the design; these are its loops, compiled once (about 6 s of CPU on the
-first frame over relief; ``cache=True``: later processes load the machine code from
-``__pycache__`` in well under a second) and run without the GIL. No
-fastmath: every operation rounds as written, so the same inputs give the same bytes.
+``relief`` holds the design; these are its loops, compiled once (seconds of CPU after an
+install; ``cache=True``: later processes load the machine code from ``__pycache__`` in well
+under a second) and run without the GIL. No fastmath: every operation rounds as written, so
+the same inputs give the same bytes.
 
 A ray is a straight line over the level-pixel grid of a height window: at altitude z it is
-at (px0 - z * ax, py0 - z * ay). Heights are sampled bilinearly, edges repeated outward
-(as ``cv2.remap`` with ``BORDER_REPLICATE``, without its 1/32-pixel rounding).
+at (px0 - z * ax, py0 - z * ay). The surface is the bilinear interpolation of the window's
+posts (heights at level-pixel centres), edges repeated outward (as ``cv2.remap`` with
+``BORDER_REPLICATE``, without its 1/32-pixel rounding). Cell (i, j) is the square between
+posts (i, j) and (i + 1, j + 1); inside it the surface is h00 + b u + c v + d u v.
 """
 
 from __future__ import annotations
@@ -17,36 +19,50 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from air_sitl.compiled import compiled
+from air_sitl.compiled import compiled, compiled_inline
 
 F32 = npt.NDArray[np.float32]
+F64 = npt.NDArray[np.float64]
 _TILE_BITS = 3
-TILE = 1 << _TILE_BITS  # level pixels per side of a max-height tile (overlapping by one)
-MAX_FINE = 4096  # fine steps over a march's altitude range, at most
-REFINE = 4  # bisection steps after the march, before the secant
-TOL_M = 1.0  # a ray this close to the surface at a corner's hit altitude may settle there (m)
-SETTLED_M = 0.05  # ... if after a secant step it is this close (m)
-SECANT = 3  # secant steps at most (after the first, each staying within TOL_M)
-EDGE_PX = 2.0  # a cell is re-solved where the parallax bends by more at a corner (px)
-FLAT_M = 0.25  # a 2-pixel cell whose corners' hits differ by less is interpolated (m)
+TILE = 1 << _TILE_BITS  # cells per side of a max-height tile
+BLOCK = 8  # image pixels per side of a block whose rays skip the empty space above together
+MAX_FINE = 4096  # fine steps over a march's altitude range, at most (rays leaving the window)
+REFINE = 4  # bisection steps after a fine march, before the secant
 _MIN_DOWN = 1e-6
+_BIG = 1e30
+_TINY = 1e-12  # level pixels per metre: the slope a walk takes for a zero one
 
 
 @compiled
 def tile_max(values: F32) -> F32:
-    """Highest height of each TILE x TILE tile, its far edges included (what a bilinear
-    sample inside the tile can reach)."""
+    """Highest post of each TILE x TILE-cell tile, its far edges included (the highest
+    point the bilinear surface reaches over the tile)."""
+    n = TILE
     h, w = values.shape
-    th = max(1, -(-(h - 1) // TILE))
-    tw = max(1, -(-(w - 1) // TILE))
+    th = max(1, -(-(h - 1) // n))
+    tw = max(1, -(-(w - 1) // n))
     out = np.full((th, tw), -np.inf, dtype=np.float32)
     for ty in range(th):
-        for y in range(ty * TILE, min(ty * TILE + TILE + 1, h)):
+        for y in range(ty * n, min(ty * n + n + 1, h)):
             for tx in range(tw):
                 m = out[ty, tx]
-                for x in range(tx * TILE, min(tx * TILE + TILE + 1, w)):
+                for x in range(tx * n, min(tx * n + n + 1, w)):
                     m = max(m, values[y, x])
                 out[ty, tx] = m
+    return out
+
+
+@compiled
+def cell_max(values: F32) -> F32:
+    """Highest of the four posts of each cell (the highest point of its bilinear patch)."""
+    h, w = values.shape
+    out = np.empty((max(1, h - 1), max(1, w - 1)), dtype=np.float32)
+    if h < 2 or w < 2:
+        out[:] = values.max()
+        return out
+    for y in range(h - 1):
+        for x in range(w - 1):
+            out[y, x] = max(values[y, x], values[y, x + 1], values[y + 1, x], values[y + 1, x + 1])
     return out
 
 
@@ -89,7 +105,9 @@ def march_ray(
     values: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
     z_top: float, z_bot: float,
 ) -> tuple[float, bool]:  # fmt: skip
-    """(altitude of the first surface point within [z_bot, z_top], found).
+    """(altitude of the first surface point within [z_bot, z_top], found) by fine steps: for
+    rays that leave the window (where the surface is its edges repeated outward), which
+    :func:`first_hit` hands over.
 
     A ray already under the surface at z_top hits there; one still above it at z_bot is not
     found (z_bot). Over a tile whose highest point is below the ray, the ray jumps to where
@@ -138,63 +156,131 @@ def march_ray(
         z, f = zn, fn
 
 
-@compiled
-def settle_ray(
-    values: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
-    corners: npt.NDArray[np.float64], cam_z: float, h_min: float, h_max: float,
-) -> tuple[float, bool]:  # fmt: skip
-    """First surface point of a ray inside a cell, from the altitudes its corners' rays hit.
+@compiled_inline
+def _patch_root(
+    values: F32, i: int, j: int, x: float, y: float, z: float, ax: float, ay: float,
+    span: float,
+) -> float:  # fmt: skip
+    """Descent (>= 0, at most ``span``) from altitude z at level pixel (x, y) in cell (i, j)
+    to the first point where the ray is not above the cell's bilinear patch; -1 if it stays
+    above over the cell.
 
-    The ray is tried at the corners' hit altitudes, highest first. At the first one where
-    it is not above the surface (by more than TOL_M), a surface within TOL_M of the ray
-    gives the hit by secant steps through "the height found there" (exact on a plane; up
-    to SECANT on a curved surface), kept once the ray is within SETTLED_M of the surface.
-    Rays under the surface there
-    (a wall, or something no corner saw), above it at every corner altitude, or not settled
-    are marched (:func:`march_ray`) from the candidate above (or 1 m over the highest
-    corner) down to that one (or 0.25 m under the lowest corner).
+    Along the ray, g(t) = z - t - height is a quadratic in the descent t (the patch is
+    bilinear, the ray straight): ga + gb t + gc t^2 with ga = g(0). It has a root in
+    [0, span] where it is not above at the end, or where it is convex and dips below
+    between; only then is the root solved (a square root and a division, in the form that
+    does not cancel).
     """
-    a, b, c, d = corners[0], corners[1], corners[2], corners[3]
-    a, b = max(a, b), min(a, b)  # a sorting network: highest first
-    c, d = max(c, d), min(c, d)
-    a, c = max(a, c), min(a, c)
-    b, d = max(b, d), min(b, d)
-    b, c = max(b, c), min(b, c)
-    cand = (a, b, c, d)
-    k, f_k, not_above = 3, 0.0, False
-    for i in range(4):
-        f_k = cand[i] - _height(values, px0 - cand[i] * ax, py0 - cand[i] * ay)
-        if f_k <= TOL_M:
-            k, not_above = i, True
-            break
-    z_k = cand[k]
-    if not_above and f_k >= -TOL_M:
-        z_0, f_0 = z_k, f_k
-        z_1 = z_k - f_k  # the height found there
-        f_1 = z_1 - _height(values, px0 - z_1 * ax, py0 - z_1 * ay)
-        for step in range(SECANT):
-            denom = f_1 - f_0
-            z_2 = z_1 - f_1 * (z_1 - z_0) / denom if abs(denom) > 1e-6 else z_1
-            if step > 0 and abs(z_2 - z_k) > TOL_M:
-                break  # wandering off: marched instead
-            f_2 = z_2 - _height(values, px0 - z_2 * ax, py0 - z_2 * ay)
-            if abs(f_2) <= SETTLED_M:
-                return z_2, True
-            z_0, f_0, z_1, f_1 = z_1, f_1, z_2, f_2
-    top = min(a + 1.0, h_max, cam_z)
-    bot = max(d - 0.25, h_min)
-    if k > 0:
-        top = min(top, cand[k - 1])
-    if not_above:
-        bot = max(bot, z_k - TOL_M)
-    z_hit, found = march_ray(values, tmax, px0, py0, ax, ay, top, bot)
-    return z_hit, found
+    h00 = float(values[j, i])
+    hx = float(values[j, i + 1]) - h00
+    hy = float(values[j + 1, i]) - h00
+    hxy = float(values[j + 1, i + 1]) - h00 - hx - hy
+    u, v = x - i, y - j
+    ga = z - (h00 + hx * u + hy * v + hxy * u * v)
+    if ga <= 0.0:
+        return 0.0
+    gb = -1.0 - hx * ax - hy * ay - hxy * (u * ay + v * ax)
+    gc = -hxy * ax * ay
+    if ga + span * (gb + span * gc) > 0.0 and (
+        gc <= 0.0 or gb >= 0.0 or -gb >= 2.0 * gc * span or 4.0 * ga * gc > gb * gb
+    ):
+        return -1.0  # above at both ends and nowhere below between
+    root = math.sqrt(max(gb * gb - 4.0 * gc * ga, 0.0))
+    # The first root on the way down: with gb < 0 the smaller positive one; else g is
+    # concave (gc < 0) and it is the only positive one.
+    t = 2.0 * ga / (root - gb) if gb < 0.0 else (-gb - root) / (2.0 * gc)
+    return min(max(t, 0.0), span)
 
 
-@compiled
-def _ray(
-    r: npt.NDArray[np.float64], jac: npt.NDArray[np.float64], s: float, u: float, v: float
-) -> tuple[float, float]:
+@compiled_inline
+def _stays_inside(
+    w: int, h: int, px0: float, py0: float, ax: float, ay: float, z_top: float, z_bot: float
+) -> bool:
+    """Whether the ray stays over a w x h window of posts between z_top and z_bot."""
+    xa, ya = px0 - z_top * ax, py0 - z_top * ay
+    xb, yb = px0 - z_bot * ax, py0 - z_bot * ay
+    hi_x, hi_y = w - 1.0, h - 1.0
+    return (
+        0.0 <= xa <= hi_x and 0.0 <= ya <= hi_y and 0.0 <= xb <= hi_x and 0.0 <= yb <= hi_y
+        and w >= 2 and h >= 2
+    )  # fmt: skip
+
+
+@compiled_inline
+def _walk(
+    values: F32, cmax: F32, px0: float, py0: float, ax: float, ay: float, z_top: float,
+    z_bot: float,
+) -> tuple[float, bool]:  # fmt: skip
+    """:func:`first_hit` of a ray that stays over the window (the walk itself, kept apart
+    from the fine march so the per-pixel loop holds no call)."""
+    h, w = values.shape
+    xa, ya = px0 - z_top * ax, py0 - z_top * ay
+    span = z_top - z_bot
+    if span < 0.0:
+        return z_top, False
+    ci, cj = w - 2, h - 2  # the last cell in each direction
+    i, j = min(int(xa), ci), min(int(ya), cj)
+    sx, sy = max(abs(ax), _TINY), max(abs(ay), _TINY)
+    scale = sx * sy
+    inv_scale = 1.0 / scale
+    if ax >= 0.0:
+        step_i, next_x = 1, (i + 1 - xa) * sy
+    else:
+        step_i, next_x = -1, (xa - i) * sy
+    if ay >= 0.0:
+        step_j, next_y = 1, (j + 1 - ya) * sx
+    else:
+        step_j, next_y = -1, (ya - j) * sx
+    end = span * scale
+    here = 0.0  # the descent at the cell's entry, times scale
+    while True:
+        out = min(next_x, next_y, end)  # ... at its exit
+        if out >= (z_top - cmax[j, i]) * scale:  # not above the cell's top at the exit
+            t = here * inv_scale
+            root = _patch_root(values, i, j, xa + ax * t, ya + ay * t, z_top - t, ax, ay,
+                               (out - here) * inv_scale)  # fmt: skip
+            if root >= 0.0:
+                return z_top - t - root, True
+        if out >= end:
+            return z_bot, False
+        here = out
+        if next_x < next_y:
+            i += step_i
+            next_x += sy
+        else:
+            j += step_j
+            next_y += sx
+        if i < 0 or i > ci or j < 0 or j > cj:
+            return z_bot, False  # (only by rounding at the window's edge)
+
+
+@compiled_inline
+def first_hit(
+    values: F32, cmax: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
+    z_top: float, z_bot: float,
+) -> tuple[float, bool]:  # fmt: skip
+    """(altitude of the first point of the ray on the surface within [z_bot, z_top], found).
+
+    Exact: the ray walks the cells it crosses in order (a grid walk over the level-pixel
+    grid), passes every cell whose highest post is below the ray where it leaves the cell,
+    and solves the quadratic of the cells it may meet (:func:`_patch_root`). A ray already
+    under the surface at z_top hits there. A ray that leaves the window between z_top and
+    z_bot is marched by fine steps (:func:`march_ray`).
+
+    The walk divides nothing: descents t are kept multiplied by |ax| |ay| (the next
+    boundary across x is at t |ax| |ay| = (distance in x) |ay|), so the comparisons of a
+    step are products; a zero slope is taken as 1e-12 level pixels per metre.
+    """
+    h, w = values.shape
+    if _stays_inside(w, h, px0, py0, ax, ay, z_top, z_bot):
+        z, found = _walk(values, cmax, px0, py0, ax, ay, z_top, z_bot)
+    else:
+        z, found = march_ray(values, tmax, px0, py0, ax, ay, z_top, z_bot)
+    return z, found
+
+
+@compiled_inline
+def _ray(r: F64, jac: F64, s: float, u: float, v: float) -> tuple[float, float]:
     """Level pixels travelled per metre of descent by the ray of image point (u, v) (zero
     for a ray that never descends)."""
     dd = r[6] * u + r[7] * v + r[8]
@@ -206,180 +292,90 @@ def _ray(
     return (jac[0] * dn + jac[1] * de) * inv, (jac[2] * dn + jac[3] * de) * inv
 
 
-@compiled
-def _edges(grid: F32, h_min: float, parent: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
-    """Cells next to a sample where the parallax (pixels of lean) bends by more than
-    EDGE_PX: its second difference along rows and columns, zero on a plane or a steady
-    slope (where interpolation is exact), large at steps and on rough surfaces. Only cells
-    inside an edge cell of the coarser ``parent`` grid (cell (j, i) in (j // 2, i // 2))
-    can be edges; an empty ``parent`` means every cell can."""
-    ny, nx = grid.shape[1:]
-    par = np.empty((ny, nx), dtype=np.float32)
-    base = np.float32(h_min)
-    for j in range(ny):
-        for i in range(nx):
-            par[j, i] = (grid[2, j, i] - base) * grid[3, j, i]
-    hot = np.zeros((ny, nx), dtype=np.bool_)
-    lim, two = np.float32(EDGE_PX), np.float32(2.0)
-    for j in range(ny):
-        for i in range(1, nx - 1):
-            hot[j, i] = abs(par[j, i - 1] - two * par[j, i] + par[j, i + 1]) > lim
-    for j in range(1, ny - 1):
-        for i in range(nx):
-            hot[j, i] |= abs(par[j - 1, i] - two * par[j, i] + par[j + 1, i]) > lim
-    edge = np.empty((ny - 1, nx - 1), dtype=np.bool_)
-    whole = parent.size == 0
-    for j in range(ny - 1):
-        for i in range(nx - 1):
-            edge[j, i] = (hot[j, i] or hot[j, i + 1] or hot[j + 1, i] or hot[j + 1, i + 1]) and (
-                whole or parent[j // 2, i // 2]
-            )
-    return edge
+@compiled_inline
+def _block_top(
+    tmax: F32, r: F64, jac: F64, s: float, ox: float, oy: float, cam_z: float,
+    u0: int, v0: int, u1: int, v1: int, z_top: float, z_bot: float,
+) -> float:  # fmt: skip
+    """An altitude above which no ray of image pixels [u0, u1] x [v0, v1] meets the surface.
 
-
-@compiled
-def _upsample(grid: F32) -> F32:
-    """Nested x2 upsampling of each plane: old samples kept, midpoints and centres averaged
-    (bilinear)."""
-    nc, ny, nx = grid.shape
-    out = np.empty((nc, 2 * ny - 1, 2 * nx - 1), dtype=np.float32)
-    half = np.float32(0.5)
-    for c in range(nc):
-        for j in range(ny):
-            for i in range(nx - 1):
-                out[c, 2 * j, 2 * i] = grid[c, j, i]
-                out[c, 2 * j, 2 * i + 1] = (grid[c, j, i] + grid[c, j, i + 1]) * half
-            out[c, 2 * j, 2 * nx - 2] = grid[c, j, nx - 1]
-        for j in range(ny - 1):
-            for i in range(2 * nx - 1):
-                out[c, 2 * j + 1, i] = (out[c, 2 * j, i] + out[c, 2 * j + 2, i]) * half
-    return out
-
-
-@compiled
-def sample_grid(
-    values: F32, tmax: F32, r: npt.NDArray[np.float64], jac: npt.NDArray[np.float64],
-    s: float, ox: float, oy: float, cam_z: float, h_min: float, h_max: float,
-    width: int, height: int, stride: int,
-) -> tuple[F32, npt.NDArray[np.bool_], int, int]:  # fmt: skip
-    """The stride-2 grid, as planes (map x, map y, hit altitude, parallax rate), and its edge
-    cells.
-
-    Sample (j, i) of a stride-``st`` grid is image point (st * i - pad + 0.5, st * j - pad +
-    0.5), pad = stride / 2. The coarse grid is marched; each halving of the stride
-    interpolates the new samples and solves again (:func:`settle_ray`) those inside edge
-    cells. Returns (grid, edge cells, coarse rays, solved rays).
+    At one altitude the rays of a block lie inside the quadrilateral of its four corner rays
+    (a homography of the image block), so between two altitudes inside the bounding box of
+    the eight corner points: the block descends while the tiles under that box are all
+    lower than the bottom of the step, then to their top, and stops there.
     """
-    pad = stride // 2
-    nx = -(-(width + pad) // stride) + 1
-    ny = -(-(height + pad) // stride) + 1
-    grid = np.empty((4, ny, nx), dtype=np.float32)  # planes: map x, map y, z, px per m
+    th, tw = tmax.shape
+    for u, v in ((u0, v0), (u1, v0), (u0, v1), (u1, v1)):
+        if r[6] * u + r[7] * v + r[8] <= _MIN_DOWN:
+            return z_top  # a ray of the block misses the ground: each ray on its own
+    ax0, ay0 = _ray(r, jac, s, float(u0), float(v0))
+    ax1, ay1 = _ray(r, jac, s, float(u1), float(v0))
+    ax2, ay2 = _ray(r, jac, s, float(u0), float(v1))
+    ax3, ay3 = _ray(r, jac, s, float(u1), float(v1))
+    # The box of the corners' offsets from the camera, per metre of descent.
+    lo_x, hi_x = min(ax0, ax1, ax2, ax3), max(ax0, ax1, ax2, ax3)
+    lo_y, hi_y = min(ay0, ay1, ay2, ay3), max(ay0, ay1, ay2, ay3)
+    slope = max(abs(lo_x), abs(hi_x), abs(lo_y), abs(hi_y))
+    dz = TILE / slope if slope > 0.0 else z_top - z_bot
+    z = z_top
+    while z > z_bot:
+        zn = max(z - dz, z_bot)
+        d0, d1 = cam_z - z, cam_z - zn  # descents from the camera, d0 < d1
+        x_lo = ox + min(d0 * lo_x, d1 * lo_x)
+        x_hi = ox + max(d0 * hi_x, d1 * hi_x)
+        y_lo = oy + min(d0 * lo_y, d1 * lo_y)
+        y_hi = oy + max(d0 * hi_y, d1 * hi_y)
+        tx0 = min(max(math.floor(x_lo) >> _TILE_BITS, 0), tw - 1)
+        tx1 = min(max(math.floor(x_hi) >> _TILE_BITS, 0), tw - 1)
+        ty0 = min(max(math.floor(y_lo) >> _TILE_BITS, 0), th - 1)
+        ty1 = min(max(math.floor(y_hi) >> _TILE_BITS, 0), th - 1)
+        top = -_BIG
+        for ty in range(ty0, ty1 + 1):
+            for tx in range(tx0, tx1 + 1):
+                top = max(top, float(tmax[ty, tx]))
+        if top < zn:
+            z = zn
+        elif top < z:
+            z = top
+        else:
+            break
+    return z
+
+
+@compiled
+def hit_maps(
+    values: F32, cmax: F32, tmax: F32, r: F64, jac: F64, s: float, ox: float, oy: float,
+    cam_z: float, h_min: float, h_max: float, width: int, height: int, rows: int,
+    maps: F32, bounds: F32,
+) -> None:  # fmt: skip
+    """Every pixel's first surface point into ``maps`` ((height, width, 2) window level
+    pixels) and the (x min, y min, x max, y max) of each strip of ``rows`` image rows into
+    ``bounds``. Blocks of BLOCK x BLOCK pixels start their rays together below the empty
+    space above them (:func:`_block_top`); each ray then finds its own first hit."""
+    for k in range(bounds.shape[0]):
+        bounds[k, 0] = bounds[k, 1] = np.float32(np.inf)
+        bounds[k, 2] = bounds[k, 3] = np.float32(-np.inf)
     z_top = min(h_max, cam_z)
-    for j in range(ny):
-        for i in range(nx):
-            ax, ay = _ray(r, jac, s, i * stride - (pad - 0.5), j * stride - (pad - 0.5))
-            px0, py0 = ox + cam_z * ax, oy + cam_z * ay
-            z, _ = march_ray(values, tmax, px0, py0, ax, ay, z_top, h_min)
-            grid[0, j, i], grid[1, j, i] = px0 - z * ax, py0 - z * ay
-            grid[2, j, i], grid[3, j, i] = z, math.sqrt(ax * ax + ay * ay)
-    edge = _edges(grid, h_min, np.zeros((0, 0), dtype=np.bool_))
-    st, solved = stride, 0
-    corners = np.empty(4, dtype=np.float64)
-    fresh_at = ((1, 0), (0, 1), (1, 1), (2, 1), (1, 2))  # new samples around a coarse cell
-    while st > 2:
-        grid = _upsample(grid)
-        st //= 2
-        gy, gx = grid.shape[1:]
-        fresh = np.zeros((gy, gx), dtype=np.bool_)
-        for j in range(edge.shape[0]):
-            for i in range(edge.shape[1]):
-                if edge[j, i]:
-                    for dj, di in fresh_at:
-                        fresh[2 * j + dj, 2 * i + di] = True
-        for jj in range(gy):
-            for ii in range(gx):
-                if not fresh[jj, ii]:
-                    continue
-                # The corners of the coarse cell below and right (old samples: even indices).
-                pj, pi = (jj // 2) * 2, (ii // 2) * 2
-                pj1, pi1 = min(pj + 2, gy - 1), min(pi + 2, gx - 1)
-                corners[0], corners[1] = grid[2, pj, pi], grid[2, pj, pi1]
-                corners[2], corners[3] = grid[2, pj1, pi], grid[2, pj1, pi1]
-                if corners.max() - corners.min() <= FLAT_M:
-                    continue
-                ax, ay = _ray(r, jac, s, ii * st - (pad - 0.5), jj * st - (pad - 0.5))
-                px0, py0 = ox + cam_z * ax, oy + cam_z * ay
-                z, ok = settle_ray(values, tmax, px0, py0, ax, ay, corners, cam_z, h_min, h_max)
-                if ok:
-                    grid[0, jj, ii], grid[1, jj, ii] = px0 - z * ax, py0 - z * ay
-                    grid[2, jj, ii] = z
-                grid[3, jj, ii] = math.sqrt(ax * ax + ay * ay)
-                solved += 1
-        edge = _edges(grid, h_min, edge)  # only inside the coarser level's edge cells
-    return grid, edge, ny * nx, solved
-
-
-@compiled
-def strip_bounds(grid: F32, pad: int, height: int, rows: int) -> F32:
-    """(x min, y min, x max, y max) of the map points of each strip of ``rows`` image rows
-    (rows [k * rows, (k + 1) * rows)), from the stride-2 samples its pixels interpolate
-    (a bilinear value lies between its samples'; cv2.resize's x2 puts output row Y at input
-    row Y / 2 - 0.25), a row of samples to spare on each side."""
-    ny, nx = grid.shape[1:]
-    count = -(-height // rows)
-    out = np.empty((count, 4), dtype=np.float32)
-    for k in range(count):
-        v0, v1 = k * rows, min(height, (k + 1) * rows)
-        j0 = max(0, (v0 + pad) // 2 - 2)
-        j1 = min(ny - 1, (v1 - 1 + pad) // 2 + 2)
-        x_lo, y_lo = grid[0, j0, 0], grid[1, j0, 0]
-        x_hi, y_hi = x_lo, y_lo
-        for j in range(j0, j1 + 1):
-            for i in range(nx):
-                x, y = grid[0, j, i], grid[1, j, i]
-                x_lo, x_hi = min(x_lo, x), max(x_hi, x)
-                y_lo, y_hi = min(y_lo, y), max(y_hi, y)
-        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = x_lo, y_lo, x_hi, y_hi
-    return out
-
-
-@compiled
-def solve_edge_pixels(
-    full: F32, grid: F32, edge: npt.NDArray[np.bool_], values: F32, tmax: F32,
-    r: npt.NDArray[np.float64], jac: npt.NDArray[np.float64], s: float, ox: float,
-    oy: float, cam_z: float, h_min: float, h_max: float, pad: int, width: int, height: int,
-    bounds: F32, rows: int,
-) -> int:  # fmt: skip
-    """Every pixel of a stride-2 edge cell whose corners' hits differ by more than FLAT_M,
-    solved on its own into ``full`` (pixel (px, py) at full[py + pad, px + pad]), widening
-    its strip's ``bounds`` (:func:`strip_bounds`); the number of pixels solved."""
-    corners = np.empty(4, dtype=np.float64)
-    solved = 0
-    for j in range(edge.shape[0]):
-        for i in range(edge.shape[1]):
-            if not edge[j, i]:
-                continue
-            corners[0], corners[1] = grid[2, j, i], grid[2, j, i + 1]
-            corners[2], corners[3] = grid[2, j + 1, i], grid[2, j + 1, i + 1]
-            if corners.max() - corners.min() <= FLAT_M:
-                continue
-            # The cell's four pixels (none is a sample: they sit half a pixel off).
-            for dy in (1, 2):
-                py = 2 * j - pad + dy
-                if py < 0 or py >= height:
-                    continue
-                for dx in (1, 2):
-                    px = 2 * i - pad + dx
-                    if px < 0 or px >= width:
-                        continue
+    h, w = values.shape
+    for v0 in range(0, height, BLOCK):
+        v1 = min(v0 + BLOCK, height) - 1
+        for u0 in range(0, width, BLOCK):
+            u1 = min(u0 + BLOCK, width) - 1
+            top = _block_top(tmax, r, jac, s, ox, oy, cam_z, u0, v0, u1, v1, z_top, h_min)
+            for py in range(v0, v1 + 1):
+                k = py // rows
+                x_lo, y_lo = bounds[k, 0], bounds[k, 1]
+                x_hi, y_hi = bounds[k, 2], bounds[k, 3]
+                for px in range(u0, u1 + 1):
                     ax, ay = _ray(r, jac, s, float(px), float(py))
                     px0, py0 = ox + cam_z * ax, oy + cam_z * ay
-                    z, ok = settle_ray(values, tmax, px0, py0, ax, ay, corners, cam_z, h_min, h_max)
-                    if ok:
-                        x, y = np.float32(px0 - z * ax), np.float32(py0 - z * ay)
-                        full[py + pad, px + pad, 0], full[py + pad, px + pad, 1] = x, y
-                        b = bounds[py // rows]
-                        b[0], b[1] = min(b[0], x), min(b[1], y)
-                        b[2], b[3] = max(b[2], x), max(b[3], y)
-                    solved += 1
-    return solved
+                    if _stays_inside(w, h, px0, py0, ax, ay, top, h_min):
+                        z, _ = _walk(values, cmax, px0, py0, ax, ay, top, h_min)
+                    else:
+                        z, _ = march_ray(values, tmax, px0, py0, ax, ay, top, h_min)
+                    x, y = np.float32(px0 - z * ax), np.float32(py0 - z * ay)
+                    maps[py, px, 0], maps[py, px, 1] = x, y
+                    x_lo, y_lo = min(x_lo, x), min(y_lo, y)
+                    x_hi, y_hi = max(x_hi, x), max(y_hi, y)
+                bounds[k, 0], bounds[k, 1] = x_lo, y_lo
+                bounds[k, 2], bounds[k, 3] = x_hi, y_hi

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
@@ -31,20 +31,48 @@ from air_sitl.camera.homography import (
     to_level,
     tuple9,
 )
+from air_sitl.camera.model import CameraModel
 from air_sitl.frames import ned2geodetic, quat_multiply, quat_normalize
-from air_sitl.maps.base import FILL_BGRX, TILE_PX
+from air_sitl.maps.base import FILL_BGRX, TILE_PX, MapSource
 from air_sitl.maps.procedural.noise import key_of
+from air_sitl.maps.surface import SurfaceModel
 from air_sitl.state import VehicleState
-
-if TYPE_CHECKING:
-    from air_sitl.camera.render import Renderer
 
 Image = npt.NDArray[np.uint8]
 Jac4 = tuple[float, float, float, float]
+Point = tuple[float, float]
 FILL_BGR: tuple[int, int, int] = FILL_BGRX[:3]
 _WINDOWS_KEPT = 3  # height windows kept per thread (a frame's search may read two)
 _SOURCE_BYTES = 640 * 1024  # largest map window copied for one strip of a relief frame
 _SMALL_MOSAIC_BYTES = 2 * 1024 * 1024  # a mosaic this small is remapped without copies
+
+
+class FrameOwner(Protocol):
+    """What the per-pixel paths read from the renderer that owns them (``render.Renderer``;
+    this module does not import it: the arrow points from ``render`` to here)."""
+
+    map: MapSource
+    camera: CameraModel
+    seed: int
+    surface: SurfaceModel | None
+    _c2b_kinv: Mat9
+    _corners: tuple[Point, Point, Point, Point]
+    _border: npt.NDArray[np.float64]
+    _strip_rows: int
+
+    def geometry(self, state: VehicleState, *, warn: bool = True) -> FrameGeometry:
+        """The frame's homography, level and centre."""
+        ...
+
+    def _jacobian(self, lat_deg: float, lon_deg: float) -> tuple[float, float, float, float]: ...
+
+    def _sky(self, state: VehicleState) -> npt.NDArray[np.bool_]: ...
+
+    def _mosaic(self, level: int, x0: int, y0: int, x1: int, y1: int) -> tuple[Image, int, int]: ...
+
+    def _note_nodata(self, warped: npt.NDArray[Any], sky: npt.NDArray[np.bool_] | None) -> None: ...
+
+    def _noised(self, rows: Image, noise: tuple[Image, Image], v0: int, v1: int) -> Image: ...
 
 
 class RemapPaths:
@@ -54,7 +82,7 @@ class RemapPaths:
     the noise), so both paths share the owner's caches.
     """
 
-    def __init__(self, owner: Renderer) -> None:
+    def __init__(self, owner: FrameOwner) -> None:
         self._owner = owner
         self.map = owner.map
         self.camera = camera = owner.camera
@@ -191,7 +219,7 @@ class RemapPaths:
         r, jac, cx, cy = self.relief_setup(state, g.level)
         window = self.relief_window(state, g, r, jac, cx, cy)
         rows = self._owner._strip_rows
-        maps, bounds, _stats = relief.ground_maps(
+        maps, bounds = relief.ground_maps(
             window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px,
             rows,
         )  # fmt: skip
@@ -289,7 +317,7 @@ class RemapPaths:
         g = FrameGeometry(g.h_img_to_map0, level, g.center_map_px, g.sees_horizon, g.height_m)
         size = (cam.width_px + 2 * m, cam.height_px + 2 * m)
         window = self.relief_window(state, g, r, jac, cx, cy, size)
-        maps, _, _ = relief.ground_maps(
+        maps, _ = relief.ground_maps(
             window, r, jac, level, cx, cy, state.alt_amsl_m, cam.width_px + 2 * m,
             cam.height_px + 2 * m,
         )  # fmt: skip

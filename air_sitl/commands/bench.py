@@ -12,18 +12,25 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from air_sitl.bench import BenchConfig, parse_localizer, parse_methods, run_bench
-from air_sitl.bench.config import FLIGHT_DATE, REFERENCE_DATE
 from air_sitl.bus.args import DEFAULT_WAIT_TIMEOUT_S
 from air_sitl.commands.sweep import add_executor_arguments
-from air_sitl.dataset.scenarios import missions_dir, parse_scenarios
 from air_sitl.errors import OptionError
-from air_sitl.eval import ALIGNMENTS
-from air_sitl.localize import METHODS
 from air_sitl.options import int_in_range, positive_number
 
+if TYPE_CHECKING:
+    from air_sitl.bench import BenchConfig
+
 HELP = "rank localization methods over the AIR scenarios: leaderboard, box plots"
+
+# What --help shows without loading the methods and the bench (numpy, OpenCV, zenoh, JSBSim);
+# tests/test_cli_startup.py keeps them equal to air_sitl.localize.METHODS, eval's ALIGNMENTS
+# and air_sitl.bench.config's FLIGHT_DATE and REFERENCE_DATE.
+METHOD_NAMES = ("deadreckon", "vo", "mapmatch", "fused")
+ALIGNMENTS = ("none", "posyaw", "se3", "sim3")
+FLIGHT_DATE = 1
+REFERENCE_DATE = 0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--methods",
         default="all",
-        help=f"built-in methods, comma-separated: {', '.join(METHODS)} (default all)",
+        help=f"built-in methods, comma-separated: {', '.join(METHOD_NAMES)} (default all)",
     )
     parser.add_argument(
         "--localizer",
@@ -74,6 +81,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def config_from_args(args: argparse.Namespace) -> BenchConfig:
     """Validate every option before anything flies."""
+    from air_sitl.bench import BenchConfig, parse_localizer, parse_methods
+    from air_sitl.dataset.scenarios import missions_dir, parse_scenarios
+    from air_sitl.localize import METHODS
+
     folder = missions_dir(args.missions)
     localizers = tuple(parse_localizer(text) for text in args.localizer)
     methods = parse_methods(args.methods, tuple(METHODS))
@@ -105,6 +116,8 @@ def config_from_args(args: argparse.Namespace) -> BenchConfig:
 
 def run(args: argparse.Namespace) -> int:
     """Run the bench; 0 when every cell was measured, 1 when some failed."""
+    from air_sitl.bench import run_bench
+
     config = config_from_args(args)
     board = run_bench(config)
     sys.stdout.write(board.to_markdown().split("\n## ", 2)[1].join(["## ", "\n"]))

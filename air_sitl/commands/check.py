@@ -6,10 +6,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from air_sitl.dataset.air_schema import METADATA_CSV, RECORDING_JSON
-from air_sitl.dataset.check import check_archive
-from air_sitl.dataset.reader import open_archive
-
 HELP = "validate a dataset archive: columns, images, 50 Hz cadence, checksums, geometry"
 
 
@@ -23,6 +19,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the report; exit 0 when the archive is valid, 1 when it is not."""
+    from air_sitl.dataset.air_schema import METADATA_CSV, RECORDING_JSON
+    from air_sitl.dataset.check import check_archive
+    from air_sitl.dataset.reader import open_archive
+
     folder = Path(args.archive)
     if (folder / RECORDING_JSON).is_file() and not (folder / METADATA_CSV).exists():
         # Killed in its first instants: nothing recorded yet, nothing to be wrong.

@@ -1,8 +1,11 @@
 """``air-sitl dataset``: fly AIR's scenarios from ``missions/`` into ``ROOT/<scenario>/``.
 
 Each scenario is one ``fly`` recording (camera, dataset writer, manifest). ``-j N`` runs N
-scenarios at once in separate processes. Prints one progress line per scenario and an overall
-one, then the AIR table beside the paper's figures, also written as ``ROOT/stats.csv``.
+scenarios at once in separate processes. Says first how much disk the recordings will take
+(and refuses when the file system has less free, unless ``--ignore-free-space``), shows a
+progress bar per scenario and an overall one (frames, frames/s, ETA; plain lines every 10 % or
+30 s when stderr is not a terminal), then the AIR table beside the paper's figures, also
+written as ``ROOT/stats.csv``.
 """
 
 from __future__ import annotations
@@ -15,22 +18,14 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from air_sitl.builder import load_setup, open_setup_map
-from air_sitl.camera.options import add_camera_arguments, camera_from_args, close_map
-from air_sitl.dataset.scenarios import (
-    PAPER_TABLE,
-    ScenarioStats,
-    format_table,
-    missions_dir,
-    parse_scenarios,
-    stats_table,
-)
+from air_sitl.camera.options import add_camera_arguments, camera_from_args
 from air_sitl.errors import DatasetError, OptionError
-from air_sitl.files import require_writable_folder, write_bytes_atomic
 from air_sitl.options import MapChoice, add_flight_arguments, flight_options_from_args, int_in_range
-from air_sitl.progress import JobsDisplay
-from air_sitl.recording.batch import Job, run_jobs
+
+if TYPE_CHECKING:  # the flights' modules load when they fly, not for --help
+    from air_sitl.recording.batch import Job
 
 HELP = "fly the AIR scenarios (all 12 or a list) into ROOT/<scenario>/ and print the AIR table"
 
@@ -65,6 +60,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--resume", action="store_true", help="continue unfinished folders, skip complete ones"
     )
+    parser.add_argument(
+        "--ignore-free-space",
+        action="store_true",
+        help="fly even when the file system of ROOT has less free space than the estimate",
+    )
     parser.add_argument("--quiet", action="store_true", help="only the final table")
     add_flight_arguments(parser, default_speed=0.0)
     add_camera_arguments(parser)
@@ -72,6 +72,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def build_jobs(args: argparse.Namespace) -> list[Job]:
     """Validate the options, load the plans and list the jobs (errors before anything flies)."""
+    from air_sitl.builder import load_setup, open_setup_map
+    from air_sitl.dataset.scenarios import missions_dir, parse_scenarios
+    from air_sitl.maps.choose import close_map
+    from air_sitl.recording.batch import Job
+
     options = flight_options_from_args(args)
     camera = camera_from_args(args)
     int_in_range("-j", args.jobs, 1, 64)  # validated before anything flies
@@ -130,29 +135,42 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
 
 def run(args: argparse.Namespace) -> int:
     """Fly every job; exit 0 when all completed, 1 when a mission did not, 2 on errors."""
+    from air_sitl.dataset.scenarios import PAPER_TABLE, ScenarioStats, format_table, stats_table
+    from air_sitl.files import require_writable_folder, write_bytes_atomic
+    from air_sitl.progress import JobsProgress
+    from air_sitl.recording.batch import Outcome, run_jobs
+
     jobs = build_jobs(args)
     root = Path(args.out)
-    require_writable_folder(root, "output folder")  # found before anything flies
-    n = min(int_in_range("-j", args.jobs, 1, 64), len(jobs))
     expected = {j.name: PAPER_TABLE.get(j.setup.name.upper(), (0, 0))[0] for j in jobs}
-    stream = sys.stderr
-    display = JobsDisplay([j.name for j in jobs], expected, stream, tty=stream.isatty())
-    if args.quiet:
-        display.tty = False
-        display.stream = open(os.devnull, "w")  # noqa: SIM115  (closed below)
+    require_writable_folder(root, "output folder")  # a read-only disk: before anything flies
+    check_disk(jobs, expected, root, args)
+    n = min(int_in_range("-j", args.jobs, 1, 64), len(jobs))
+    display = JobsProgress([j.name for j in jobs], expected, enabled=not args.quiet)
+
+    def on_progress(name: str, frames: int, sim_s: float) -> None:
+        display.update(name, frames, f"sim {sim_s:.0f} s")
+
+    def on_done(o: Outcome) -> None:
+        if o.error:
+            line = f"FAILED: {o.error}"
+        else:
+            ok = "done" if o.mission_completed else "done (mission NOT completed)"
+            line = f"{ok}, {o.distance_m:.0f} m, {o.sim_time_s:.0f} s simulated"
+        display.done(o.name, o.images, line)
+
     start = time.monotonic()
     try:
         # Longest first (the paper's image counts): the processes finish together.
         outcomes = run_jobs(
             jobs,
             n,
-            on_progress=display.update,
-            on_done=display.done,
+            on_progress=on_progress,
+            on_done=on_done,
             first=lambda j: -expected[j.name],
         )
     finally:
-        if args.quiet:
-            display.stream.close()
+        display.close()
     wall = time.monotonic() - start
     stats = [
         ScenarioStats(
@@ -191,3 +209,43 @@ def run(args: argparse.Namespace) -> int:
     if errors:
         return 2
     return 0 if all(o.mission_completed for o in outcomes) else 1
+
+
+def check_disk(
+    jobs: list[Job], expected: dict[str, int], root: Path, args: argparse.Namespace
+) -> None:
+    """Say how much the recordings will write; DatasetError when ROOT's file system has less
+    free space (unless ``--ignore-free-space``). Estimated from the paper's frame counts and the
+    JPEG quality (:mod:`air_sitl.dataset.size`); a resumed folder counts only what is missing."""
+    from air_sitl.dataset.size import frames_on_disk, free_bytes, human_bytes, recording_bytes
+
+    total = 0
+    frames = 0
+    unknown = []
+    for job in jobs:
+        camera = job.setup.camera
+        if not expected.get(job.name) or camera is None:
+            unknown.append(job.name)
+            continue
+        missing = expected[job.name] - (frames_on_disk(job.out) if args.resume else 0)
+        frames += max(0, missing)
+        total += recording_bytes(
+            max(0, missing), camera.jpeg_quality, camera.width_px, camera.height_px
+        )
+    free = free_bytes(root)
+    quality = jobs[0].setup.camera.jpeg_quality if jobs and jobs[0].setup.camera else None
+    note = f" (and {', '.join(unknown)} of unknown size)" if unknown else ""
+    if not args.quiet:
+        print(
+            f"dataset: {len(jobs)} recording{'' if len(jobs) == 1 else 's'}, about {frames} "
+            f"frames: about {human_bytes(total)} "
+            f"into {root} at JPEG quality {quality}{note}; {human_bytes(free)} free there",
+            file=sys.stderr,
+            flush=True,
+        )
+    if total > free and not args.ignore_free_space:
+        msg = (
+            f"{root}: the recordings need about {human_bytes(total)}, the file system has "
+            f"{human_bytes(free)} free (--ignore-free-space to fly anyway)"
+        )
+        raise DatasetError(msg)

@@ -13,9 +13,6 @@ import sys
 from pathlib import Path
 
 from air_sitl.errors import OptionError
-from air_sitl.eval import score_sources
-from air_sitl.eval.report import table
-from air_sitl.eval.require import failures, parse
 
 HELP = "score position estimates against an archive's truth (report, JSON, plots, CI gate)"
 
@@ -52,6 +49,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Score, print, write; 0 when every requirement holds, 1 otherwise."""
+    from air_sitl.eval import score_sources
+    from air_sitl.eval.report import table
+    from air_sitl.eval.require import failures, parse
 
     requirements = [parse(text) for text in args.require]
     scored = score_sources(Path(args.archive), args.estimate, args.align)

@@ -6,8 +6,6 @@ import argparse
 import sys
 from pathlib import Path
 
-from air_sitl.dataset.export import export_rosbag, export_tum
-from air_sitl.dataset.reader import open_archive
 from air_sitl.errors import OptionError
 
 HELP = "export an archive as a rosbag2 (MCAP) folder, a rosbag1 file or a TUM trajectory"
@@ -30,6 +28,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Export; exit 0 on success."""
+    from air_sitl.dataset.export import export_rosbag, export_tum
+    from air_sitl.dataset.reader import open_archive
+    from air_sitl.progress import Progress
+
     if args.estimate is not None and args.tum is None:
         msg = "--estimate: only with --tum"
         raise OptionError(msg)
@@ -39,7 +41,13 @@ def run(args: argparse.Namespace) -> int:
             sys.stdout.write(f"{args.tum}: {n} poses\n")
             return 0
         out = Path(args.rosbag1 if args.rosbag1 is not None else args.rosbag2)
-        counts = export_rosbag(archive, out, ros1=args.rosbag1 is not None)
+        with Progress(f"export {out.name}", len(archive.rows), unit="frames") as bar:
+            counts = export_rosbag(
+                archive,
+                out,
+                ros1=args.rosbag1 is not None,
+                progress=lambda done, _total: bar.update_to(done),
+            )
     total = sum(counts.values())
     detail = ", ".join(f"{t} {n}" for t, n in sorted(counts.items()))
     sys.stdout.write(f"{out}: {total} messages ({detail})\n")

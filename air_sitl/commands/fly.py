@@ -12,21 +12,21 @@ import argparse
 import contextlib
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from air_sitl.builder import FlightSetup, load_setup, open_setup_map
-from air_sitl.bus.hookup import bus_sinks_from_args
-from air_sitl.camera.options import camera_from_args, close_map, map_choice_from_args
+from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import MapError
-from air_sitl.maps.base import MapSource
 from air_sitl.mission.geometry import POSITIONED_COMMANDS
 from air_sitl.mission.items import MavCmd, Mission
 from air_sitl.mission.validate import mission_warnings, require_startable
 from air_sitl.options import flight_options_from_args, int_in_range
-from air_sitl.progress import ProgressBar, print_summary
-from air_sitl.recording import RecordingRequest, record_flight
-from air_sitl.runner import Flight
 from air_sitl.state import GeoPoint, SimSample
+
+if TYPE_CHECKING:  # the flight's modules load when it flies, not for --help
+    from air_sitl.builder import FlightSetup
+    from air_sitl.maps.base import MapSource
+    from air_sitl.runner import Flight
 
 HELP = (
     "fly a QGC mission plan (.plan or QGC WPL) to its end and record trajectory, summary and frames"
@@ -85,6 +85,9 @@ def plan_off_map(mission: Mission, home: GeoPoint, map_source: MapSource) -> str
 
 def require_on_map(setup: FlightSetup) -> None:
     """MapError when the plan leaves the flight's map (the same check with or without camera)."""
+    from air_sitl.builder import open_setup_map
+    from air_sitl.maps.choose import close_map
+
     map_source = open_setup_map(setup)
     try:
         problem = plan_off_map(setup.mission, setup.home, map_source)
@@ -97,6 +100,11 @@ def require_on_map(setup: FlightSetup) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Fly the plan; exit 0 when the mission completed, 1 when it did not."""
+    from air_sitl.builder import load_setup
+    from air_sitl.bus.hookup import bus_sinks_from_args
+    from air_sitl.progress import Progress, print_summary
+    from air_sitl.recording import RecordingRequest, record_flight
+
     setup = load_setup(
         Path(args.plan),
         flight_options_from_args(args),
@@ -110,32 +118,39 @@ def run(args: argparse.Namespace) -> int:
     request = RecordingRequest(
         setup=setup, out=out, resume=bool(args.resume), bus=bus_sinks_from_args(args)
     )
-    show = not args.quiet and sys.stderr.isatty()
-    bars: list[ProgressBar] = []
+    bars: list[Progress] = []  # made when the flight starts (the mission as flown)
 
     def on_start(mission: Mission, first_frame: int) -> None:
         if not args.quiet:
             for warning in mission_warnings(mission):
                 print(f"{mission.source}: warning: {warning}", file=sys.stderr)
-        if show:
-            bars.append(ProgressBar(mission, sys.stderr))
         if first_frame and not args.quiet:
             print(f"resuming {out} from frame {first_frame}", file=sys.stderr)
+        total = max(1, len(mission.items))
+        bars.append(Progress(mission.name or "flight", total, unit="items", enabled=not args.quiet))
 
     def progress(sample: SimSample, flight: Flight) -> None:
         if bars:
-            bars[0].update(sample, flight)
+            seq = max(0, sample.autopilot.current_seq)
+            note = f"sim {sample.state.sim_time_ns / 1e9:.0f} s, {sample.autopilot.mode.value}"
+            if not args.no_camera:
+                note += f", {flight.stats.capture_frames} frames"
+            bars[0].update_to(min(seq, bars[0].total or seq), note)
 
-    with request.bus or contextlib.nullcontext():
-        result = record_flight(request, progress=progress, on_start=on_start)
-    if bars:
-        bars[0].finish()
+    try:
+        with request.bus or contextlib.nullcontext():
+            result = record_flight(request, progress=progress, on_start=on_start)
+        if bars and result.mission_completed:  # the last item done
+            bars[0].update_to(bars[0].total or 0, bars[0].postfix)
+    finally:
+        for bar in bars:
+            bar.close()
     if result.already_complete:
         if not args.quiet:
             print(f"{out}: already complete ({result.resumed_from_frame} frames); nothing to do")
         return 0
     if not args.quiet:
-        print_summary(result.summary, out, sys.stdout)
+        print_summary(result.summary, out, sys.stdout, camera=not args.no_camera)
         if result.manifest is not None:
             print(
                 f"  archive          {result.manifest.get('frame_count')} frames, manifest written"

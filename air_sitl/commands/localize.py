@@ -11,21 +11,13 @@ from __future__ import annotations
 
 import argparse
 import signal
-import sys
 import threading
-import time
 from pathlib import Path
 from types import FrameType
-from typing import IO
 
 from air_sitl.bus.args import add_connection_arguments, bus_config_from_args
 from air_sitl.bus.keys import KeySpace, check_chunk
-from air_sitl.bus.session import open_bus
 from air_sitl.errors import OptionError
-from air_sitl.localize.archive import run_archive
-from air_sitl.localize.methods import make_method
-from air_sitl.localize.online import BusLocalizer
-from air_sitl.progress import InPlaceLine
 
 HELP = "run a baseline localizer (deadreckon, vo, ...) over an archive or on the zenoh bus"
 
@@ -83,18 +75,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_connection_arguments(parser, serves=False)
 
 
-class _Progress(InPlaceLine):
-    """A localizer's line: frames done, rate."""
-
-    def __init__(self, label: str, stream: IO[str]) -> None:
-        super().__init__(label, stream, label_width=12)
-        self.start = time.perf_counter()
-
-    def __call__(self, done: int, total: int) -> None:
-        rate = done / max(time.perf_counter() - self.start, 1e-9)
-        self.draw(done / total if total else 1.0, f"frame {done}/{total}  {rate:5.0f} frames/s")
-
-
 def run(args: argparse.Namespace) -> int:
     """Offline over ``ARCHIVE`` or online with ``--bus``; exit 0 when done."""
 
@@ -124,10 +104,18 @@ def _method_options(args: argparse.Namespace) -> dict[str, int]:
 
 
 def _run_offline(args: argparse.Namespace) -> int:
+    from air_sitl.localize.archive import run_archive
+    from air_sitl.progress import Progress
 
     name = args.name or args.method
     options = _method_options(args)
-    progress = None if args.quiet or not sys.stderr.isatty() else _Progress(name, sys.stderr)
+    bar = Progress(f"localize {name}", None, unit="frames", enabled=not args.quiet)
+
+    def progress(done: int, total: int) -> None:
+        if bar.total is None:
+            bar.set_total(total)
+        bar.update_to(done)
+
     try:
         result = run_archive(
             Path(args.archive),
@@ -141,8 +129,7 @@ def _run_offline(args: argparse.Namespace) -> int:
             options=options,
         )
     finally:
-        if progress is not None:
-            progress.finish()
+        bar.close()
     if not args.quiet:
         print(
             f"localize {result.method}: {result.frames} frames, {result.estimated_frames} "
@@ -153,6 +140,9 @@ def _run_offline(args: argparse.Namespace) -> int:
 
 
 def _run_bus(args: argparse.Namespace) -> int:
+    from air_sitl.bus.session import open_bus
+    from air_sitl.localize.methods import make_method
+    from air_sitl.localize.online import BusLocalizer
 
     name = check_chunk("--name", args.name or args.method)
     keys = KeySpace(args.vehicle)

@@ -16,9 +16,6 @@ import sys
 from pathlib import Path
 
 from air_sitl.errors import OptionError
-from air_sitl.maps.geotiff import write_geotiff
-from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
-from air_sitl.maps.stac import fetch, parse_bbox, parse_datetime
 from air_sitl.state import GeoPoint
 
 HELP = "make map files (map make {urban,forest} --out FILE.tif)"
@@ -99,6 +96,10 @@ def run(args: argparse.Namespace) -> int:
     """Generate the map window block by block and write it as a COG (or fetch one)."""
     if args.map_command == "fetch":
         return _fetch(args)
+    from air_sitl.maps.geotiff import write_geotiff
+    from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
+    from air_sitl.progress import Progress
+
     lat, lon = _parse_origin(args.origin)
     out = Path(args.out)
     if out.suffix.lower() not in (".tif", ".tiff"):
@@ -132,18 +133,28 @@ def run(args: argparse.Namespace) -> int:
     t0, t1, t2, t3, t4, t5 = pmap.georef.transform
     transform = (t0 + c0 * t1, t1, t2, t3 + r0 * t5, t4, t5)
 
-    def pixels(x0: int, y0: int, w: int, h: int):  # type: ignore[no-untyped-def]
-        return pmap.read_bgr(c0 + x0, r0 + y0, w, h)
+    bar = Progress(f"map make {args.kind}", w_px * h_px, unit="px", unit_scale=True)
 
-    write_geotiff(
-        out,
-        pixels,
-        width_px=w_px,
-        height_px=h_px,
-        crs=pmap.georef.crs,
-        transform=transform,
-        lossless=args.lossless,
-    )
+    def pixels(x0: int, y0: int, w: int, h: int):  # type: ignore[no-untyped-def]
+        block = pmap.read_bgr(c0 + x0, r0 + y0, w, h)
+        bar.advance(w * h)
+        if bar.n >= w_px * h_px:  # the last block: GDAL now compresses and builds overviews
+            bar.close()
+            print(f"{out}: compressing, building overviews", file=sys.stderr, flush=True)
+        return block
+
+    try:
+        write_geotiff(
+            out,
+            pixels,
+            width_px=w_px,
+            height_px=h_px,
+            crs=pmap.georef.crs,
+            transform=transform,
+            lossless=args.lossless,
+        )
+    finally:
+        bar.close()
     print(
         f"{out}: {args.kind} seed {args.seed} date {pmap.date.label}, {w_px}x{h_px} px at "
         f"{gsd} m, {pmap.georef.crs}",
@@ -154,6 +165,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _fetch(args: argparse.Namespace) -> int:
     """``map fetch``: STAC items over a box to one COG per date."""
+    from air_sitl.maps.stac import fetch, parse_bbox, parse_datetime
+
     record = fetch(
         str(args.stac),
         str(args.collection),

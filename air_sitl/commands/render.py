@@ -7,19 +7,14 @@ import math
 import sys
 from pathlib import Path
 
-import cv2
-
 from air_sitl.camera.options import (
     add_camera_arguments,
     add_map_arguments,
     camera_from_args,
     map_choice_from_args,
-    open_chosen_map,
     open_chosen_renderer,
 )
-from air_sitl.camera.render import pose_state
 from air_sitl.errors import OptionError
-from air_sitl.files import write_bytes_atomic
 from air_sitl.state import GeoPoint
 
 HELP = "render one camera frame of a map at a pose to a JPEG (or PNG) file"
@@ -58,6 +53,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Render and write the frame; print where its centre falls on the map."""
+    import cv2
+
+    from air_sitl.camera.render import pose_state
+    from air_sitl.files import write_bytes_atomic
+    from air_sitl.maps.choose import open_chosen_map
+
     out = Path(args.out)
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         msg = f"--out {out}: expected a .jpg, .jpeg or .png file name"

@@ -9,8 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from air_sitl.bus.session import DEFAULT_ENDPOINT, BusConfig, open_bus
-from air_sitl.bus.signals import wait_until_signalled
+from air_sitl.bus.defaults import DEFAULT_ENDPOINT
 from air_sitl.errors import OptionError
 
 HELP = "run a zenoh router that simulators, camera bridges and estimators connect to"
@@ -36,6 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Route until interrupted; exit 0 on SIGINT/SIGTERM."""
+    from air_sitl.bus.session import BusConfig, open_bus
+    from air_sitl.bus.signals import wait_until_signalled
+
     config_file = Path(args.zenoh_config) if args.zenoh_config else None
     if config_file is not None and not config_file.is_file():
         msg = f"--zenoh-config {config_file}: no such file"

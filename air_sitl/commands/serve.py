@@ -1,7 +1,8 @@
 """``air-sitl serve``: a PX4-like vehicle on MAVLink links, flown by ground stations.
 
 Parses the options into a FlightSetup and serves it (:mod:`air_sitl.serving`) until SIGINT or
-SIGTERM.
+SIGTERM. The camera streams as RTP/H.264 (``--video``, :mod:`air_sitl.video`); ``--instance N``
+numbers the vehicle as PX4 multi-vehicle SITL does (:mod:`air_sitl.instance`).
 """
 
 from __future__ import annotations
@@ -13,21 +14,21 @@ import sys
 import threading
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
 
-from air_sitl.builder import FlightSetup, home_on_terrain
-from air_sitl.bus.hookup import bus_sinks_from_args
+from air_sitl.bus.keys import DEFAULT_VEHICLE
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import OptionError
 from air_sitl.files import require_writable_folder
-from air_sitl.mavlink.codec import load_signing_key
-from air_sitl.mavlink.links import DEFAULT_LINKS, parse_link
-from air_sitl.mission.items import Mission
-from air_sitl.mission.plan_file import load_mission
+from air_sitl.instance import Instance, add_instance_arguments, instance_from_args
+from air_sitl.mavlink.links import parse_link
 from air_sitl.options import OPEN_END_NS, FlightOptions, flight_options_from_args
-from air_sitl.runner import home_of
-from air_sitl.serving import serve_vehicle
 from air_sitl.state import GeoPoint
+from air_sitl.video.options import add_video_arguments, video_options_from_args
+
+if TYPE_CHECKING:
+    from air_sitl.builder import FlightSetup
 
 HELP = "run a PX4-like MAVLink vehicle that ground stations connect to, upload missions to and fly"
 DEFAULT_HOME = (47.397742, 8.545594, 488.0)  # PX4 SITL's default home (Zurich)
@@ -40,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="append",
         metavar="URL",
         help="udpout:HOST:PORT, udpin:HOST:PORT or tcpin:HOST:PORT; repeatable "
-        "(default: udpout:127.0.0.1:14550 and udpout:127.0.0.1:14540, as PX4 SITL)",
+        "(default: udpout:127.0.0.1:14550 and udpout:127.0.0.1:14540+N, as PX4 SITL)",
     )
     parser.add_argument("--plan", default=None, help="preload this .plan as if uploaded")
     parser.add_argument(
@@ -55,6 +56,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--signing-key", default=None, metavar="HEX|@FILE", help="MAVLink 2 signing key"
     )
     parser.add_argument("--quiet", action="store_true", help="print only errors")
+    add_video_arguments(parser)
+    add_instance_arguments(parser)
     add_vehicle_arguments(parser, default_speed=1.0)
     # A vehicle serves until stopped: no time limit unless one is given.
     for action in parser._actions:
@@ -79,6 +82,10 @@ def parse_home(text: str) -> GeoPoint:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until interrupted; exit 0 on SIGINT/SIGTERM."""
+    from air_sitl.bus.hookup import bus_sinks_from_args
+    from air_sitl.mavlink.codec import load_signing_key
+    from air_sitl.serving import serve_vehicle
+
     limited = args.max_sim_time is not None
     if not limited:
         # The options keep their default; the served flight gets no limit (OPEN_END_NS).
@@ -88,7 +95,11 @@ def run(args: argparse.Namespace) -> int:
     if options.air_start:
         msg = "--air-start: serve starts on the ground; upload, arm and start from a client"
         raise OptionError(msg)
-    specs = [parse_link(url) for url in (args.mavlink or DEFAULT_LINKS)]
+    instance = instance_from_args(args)
+    if args.instance is not None and args.vehicle == DEFAULT_VEHICLE:
+        args.vehicle = instance.vehicle_name  # zenoh keys air/uavN/...
+    video = video_options_from_args(args, default_port=instance.video_port)
+    specs = [parse_link(url) for url in (args.mavlink or instance.links)]
     for spec in specs:
         if not spec.loopback:
             print(
@@ -96,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
     key = load_signing_key(args.signing_key) if args.signing_key else None
-    setup = _setup(args, options)
+    setup = _setup(args, options, instance)
     if args.out:
         # Refused now, not after "Capture started" was told to the ground station.
         require_writable_folder(Path(args.out), "--out folder")
@@ -117,6 +128,8 @@ def run(args: argparse.Namespace) -> int:
                 out=Path(args.out) if args.out else None,
                 signing_key=key,
                 quiet=bool(args.quiet),
+                system_id=instance.system_id,
+                video=video,
             )
     finally:
         for s, handler in previous.items():
@@ -141,18 +154,32 @@ def _max_sim_ns(max_sim_time_s: float) -> int:
     return int(max_sim_time_s * 1e9)
 
 
-def _setup(args: argparse.Namespace, options: FlightOptions) -> FlightSetup:
-    """The served flight: the preloaded plan (or none) at ``--home``, the plan's, or PX4's."""
+def _setup(args: argparse.Namespace, options: FlightOptions, instance: Instance) -> FlightSetup:
+    """The served flight: the preloaded plan (or none) at ``--home``, else the plan's or PX4's
+    moved by the instance's offset."""
+    from air_sitl.builder import FlightSetup, home_on_terrain
+    from air_sitl.mission.items import Mission
+    from air_sitl.mission.plan_file import load_mission
+    from air_sitl.runner import home_of
+
     if args.plan:
         mission = load_mission(Path(args.plan), terrain=args.dem is not None)
         for note in mission.notes:  # item warnings come as STATUSTEXT from the executor
             print(f"{mission.source}: warning: {note}", file=sys.stderr)
-        home = parse_home(args.home) if args.home else home_of(mission)
+        home = parse_home(args.home) if args.home else instance.home(home_of(mission))
     else:
         mission = Mission(items=(), source="serve")
         lat, lon, alt = DEFAULT_HOME
         default = GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
-        home = parse_home(args.home) if args.home else default
+        home = parse_home(args.home) if args.home else instance.home(default)
+        if not args.home and not args.quiet:
+            print(
+                f"air-sitl serve: no --plan or --home: home at {home.lat_deg:.6f}, "
+                f"{home.lon_deg:.6f}, {home.alt_amsl_m:.0f} m AMSL (PX4 SITL's default, Zurich"
+                f"{'' if instance.number == 0 else f', moved for instance {instance.number}'})",
+                file=sys.stderr,
+                flush=True,
+            )
     setup = FlightSetup(
         mission=mission,
         home=home,

@@ -13,11 +13,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from air_sitl.dataset.scenarios import missions_dir
 from air_sitl.errors import OptionError
 from air_sitl.options import int_in_range
-from air_sitl.sweep import PoolExecutor, RayExecutor, load_spec, print_outcome, run_sweep
-from air_sitl.sweep.report import write_report
 
 HELP = "many runs from one SPEC (axes x seeds): fly, localize, eval; on a process pool or Ray"
 
@@ -73,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         msg = "sweep: --out DIR is required (where results.jsonl and the runs go)"
         raise OptionError(msg)
+    from air_sitl.dataset.scenarios import missions_dir
+    from air_sitl.sweep import PoolExecutor, RayExecutor, load_spec, print_outcome, run_sweep
 
     missions = None
     if args.missions is not None:
@@ -100,9 +99,12 @@ def _report(args: argparse.Namespace) -> int:
     if args.dir is None:
         msg = "sweep report: give the sweep folder: air-sitl sweep report DIR"
         raise OptionError(msg)
+    from air_sitl.sweep.report import coverage_notes, write_report
 
     written = write_report(Path(args.dir))
     if not args.quiet:
+        for note in coverage_notes(Path(args.dir)):
+            print(f"sweep report: {note}", file=sys.stderr)
         for path in written:
             print(path)
     return 0

@@ -18,9 +18,13 @@ from __future__ import annotations
 
 import math
 
-from air_sitl.frames import quat2euler, quat_multiply
+from air_sitl.frames import (  # the AIR CSV's ROS conventions (SPEC 2), re-exported here
+    ned2enu,
+    q_frd_ned_to_flu_enu,
+    quat2euler,
+)
 from air_sitl.nav.columns import NAV_COLUMNS, nav_fields
-from air_sitl.state import CameraFrame, GpsFix, ImuSample, Quat, SimSample, Vec3
+from air_sitl.state import CameraFrame, GpsFix, ImuSample, SimSample, Vec3
 
 AIR_COLUMNS: tuple[str, ...] = (
     "Filename",
@@ -140,11 +144,6 @@ FRAME_SUFFIX = ".jpg"
 # A GPS fix older than this is reported as "no fix" in frames.csv (denied or lost).
 GPS_STALE_NS = 400_000_000
 
-_S = math.sqrt(0.5)
-# NED -> ENU is the 180 degree rotation about (1, 1, 0)/sqrt(2); FLU -> FRD is 180 about x.
-Q_NED_TO_ENU: Quat = (0.0, _S, _S, 0.0)
-Q_FLU_TO_FRD: Quat = (0.0, 1.0, 0.0, 0.0)
-
 
 def frame_filename(index: int) -> str:
     """The image file name of frame ``index`` (relative to the archive folder)."""
@@ -157,38 +156,6 @@ def frame_index_of(name: str) -> int | None:
         return None
     digits = name[len(FRAME_PREFIX) : -len(FRAME_SUFFIX)]
     return int(digits) if digits.isdigit() else None
-
-
-def ned2enu(v: Vec3) -> Vec3:
-    """A NED vector (north, east, down) as ENU (east, north, up)."""
-    return (v[1], v[0], -v[2])
-
-
-def enu2ned(v: Vec3) -> Vec3:
-    """An ENU vector as NED."""
-    return (v[1], v[0], -v[2])
-
-
-def q_frd_ned_to_flu_enu(q_body_to_ned_wxyz: Quat) -> Quat:
-    """Body FRD->NED quaternion (w, x, y, z) as body FLU->ENU (w, x, y, z), scalar part >= 0."""
-    q = quat_multiply(quat_multiply(Q_NED_TO_ENU, q_body_to_ned_wxyz), Q_FLU_TO_FRD)
-    return q if q[0] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
-
-
-def q_flu_enu_to_frd_ned(q_flu_to_enu_wxyz: Quat) -> Quat:
-    """Inverse of :func:`q_frd_ned_to_flu_enu` (both fixed rotations are their own inverse)."""
-    q = quat_multiply(quat_multiply(Q_NED_TO_ENU, q_flu_to_enu_wxyz), Q_FLU_TO_FRD)
-    return q if q[0] >= 0.0 else (-q[0], -q[1], -q[2], -q[3])
-
-
-def wxyz2xyzw(q: Quat) -> Quat:
-    """Scalar-first to scalar-last order (the CSV and ROS order)."""
-    return (q[1], q[2], q[3], q[0])
-
-
-def xyzw2wxyz(q: Quat) -> Quat:
-    """Scalar-last to scalar-first order."""
-    return (q[3], q[0], q[1], q[2])
 
 
 def _svo_text(svo_enu_m: Vec3 | None) -> str:

@@ -27,13 +27,12 @@ from air_sitl.dataset.air_schema import (
     ESTIMATES_DIR,
     IMU_COLUMNS,
     IMU_CSV,
-    q_frd_ned_to_flu_enu,
-    wxyz2xyzw,
 )
 from air_sitl.dataset.estimates import parse_estimates
 from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive
 from air_sitl.errors import DatasetError
+from air_sitl.frames import q_frd_ned_to_flu_enu, wxyz2xyzw
 from air_sitl.state import Quat
 
 TOPIC_IMAGE = "/camera/image/compressed"
@@ -268,9 +267,17 @@ def _check_out(out: Path) -> None:
         raise DatasetError(msg)
 
 
-def export_rosbag(archive: Archive, out: Path, *, ros1: bool) -> dict[str, int]:
-    """Write every message of ``archive`` to a rosbag2 (MCAP) folder or a rosbag1 file."""
+def export_rosbag(
+    archive: Archive,
+    out: Path,
+    *,
+    ros1: bool,
+    progress: Callable[[int, int], None] | None = None,
+) -> dict[str, int]:
+    """Write every message of ``archive`` to a rosbag2 (MCAP) folder or a rosbag1 file;
+    ``progress(frames written, frames)`` hears every 50th frame and the last."""
     _check_out(out)
+    total = len(archive.rows)
     builder = _Builder(ros1)
     counts: dict[str, int] = {}
     writer: Any = (
@@ -289,6 +296,10 @@ def export_rosbag(archive: Archive, out: Path, *, ros1: bool) -> dict[str, int]:
             msg = builder.build(m, archive.jpeg)
             writer.write(conns[m.topic], m.stamp_ns, builder.serialize(msg, TYPES[m.topic]))
             counts[m.topic] = counts.get(m.topic, 0) + 1
+            if progress is not None and m.topic == TOPIC_IMAGE:
+                done = counts[m.topic]
+                if done % 50 == 0 or done == total:
+                    progress(done, total)
     except OSError as err:
         msg = f"{out}: cannot write the bag: {err.strerror}"
         raise DatasetError(msg) from None

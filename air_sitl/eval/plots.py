@@ -195,12 +195,13 @@ def error_distance(scored: Sequence[Scored], path: Path) -> Path:
 def error_cdf(scored: Sequence[Scored], path: Path) -> Path:
     """CDF of the horizontal error over all capture frames, recall thresholds marked.
 
-    The x axis spans the thresholds and the estimates' 95th percentiles (at most
-    ``CDF_MAX_M``): an estimate far off leaves the figure to the right, its recall stays read.
+    The x axis fits the errors: it ends a little after the largest error of the estimates, or
+    at twice an estimate's 95th percentile when its tail runs further (at most ``CDF_MAX_M``):
+    errors that end at 4 m fill the figure, an estimate far off leaves it to the right (its
+    recall stays read in the legend). Thresholds beyond the axis are not drawn.
     """
     fig, ax = _figure(8.5, 5.2)
-    p95 = [s.report["horizontal_error_m"]["p95"] for s in scored]
-    x_max = min(max([max(RECALL_THRESHOLDS_M) * 1.6] + [1.3 * v for v in p95 if v]), CDF_MAX_M)
+    x_max = _cdf_axis_end(scored)
     for s in scored:
         n = s.truth.frames
         err: F64 = np.sort(s.h_err_m) if s.h_err_m is not None else np.empty(0)
@@ -228,7 +229,7 @@ def error_cdf(scored: Sequence[Scored], path: Path) -> Path:
             value = r["recall"][f"{d:g}m"]
             if value is not None:
                 ax.plot([d], [value], "o", color=colour, ms=5, zorder=5)
-    for d in RECALL_THRESHOLDS_M:
+    for d in (d for d in RECALL_THRESHOLDS_M if d <= x_max):
         ax.axvline(d, color="0.5", lw=0.8, ls="--", zorder=0)
         ax.annotate(
             f"{d:g} m",
@@ -249,6 +250,20 @@ def error_cdf(scored: Sequence[Scored], path: Path) -> Path:
     ax.legend(loc="lower right", fontsize=7.5, title="recall at 5/10/25/50 m", title_fontsize=8)
     ax.set_title(f"{Path(str(scored[0].report['archive'])).name}: error CDF", fontsize=9, pad=26)
     return _save(fig, path)
+
+
+def _cdf_axis_end(scored: Sequence[Scored]) -> float:
+    """Where the CDF's x axis ends (see :func:`error_cdf`)."""
+    reach = []
+    for s in scored:
+        if s.h_err_m is None or s.h_err_m.size == 0:
+            continue
+        largest = float(np.max(s.h_err_m))
+        p95 = s.report["horizontal_error_m"]["p95"]
+        reach.append(largest if p95 is None else min(largest, 2.0 * p95))
+    if not reach:
+        return max(RECALL_THRESHOLDS_M) * 1.1  # nothing to show: the thresholds
+    return min(max(1.05 * max(reach), 1.0), CDF_MAX_M)
 
 
 def write_plots(scored: Sequence[Scored], out_dir: Path) -> list[Path]:

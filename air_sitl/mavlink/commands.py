@@ -9,7 +9,7 @@ import sys
 import time
 import traceback
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from air_sitl.errors import AirSitlError
 from air_sitl.mavlink import telemetry as tm
@@ -18,6 +18,7 @@ from air_sitl.mavlink.interfaces import (
     SEVERITY_CRITICAL,
     SEVERITY_INFO,
     AutopilotLike,
+    EndpointLike,
     EndpointPart,
     Handler,
     outcome,
@@ -26,13 +27,10 @@ from air_sitl.mavlink.interfaces import (
 from air_sitl.mavlink.links import Channel
 from air_sitl.mission.items import MissionType
 
-if TYPE_CHECKING:  # the endpoint is made of parts like this one: a real cycle
-    from air_sitl.mavlink.vehicle import VehicleEndpoint
-
 SimCommand = Callable[[AutopilotLike], tuple[int, str]]  # -> (MAV_RESULT, STATUSTEXT or "")
 
 
-def run_then_ack(ep: VehicleEndpoint, fn: SimCommand, ack: Callable[[int, str], None]) -> None:
+def run_then_ack(ep: EndpointLike, fn: SimCommand, ack: Callable[[int, str], None]) -> None:
     """Run an autopilot command on the simulation thread, then ``ack(result, text)`` on the I/O
     thread: TEMPORARILY_REJECTED at once without an autopilot, DENIED when the command raises
     an AirSitlError, FAILED (and the traceback on stderr) when it raises anything else."""

@@ -42,9 +42,8 @@ from air_sitl.state import CameraFrame, GpsFix, SimSample
 
 if TYPE_CHECKING:
     from air_sitl.autopilot.params import ParamStore
+    from air_sitl.mavlink.interfaces import Builder, EndpointLike
     from air_sitl.mavlink.links import Channel
-    from air_sitl.mavlink.streams import Builder
-    from air_sitl.mavlink.vehicle import VehicleEndpoint
     from air_sitl.nav.onboard import OnboardNav
 
 EV_AID = "mavlink:ev"
@@ -97,7 +96,7 @@ class NavLink:
     """Decodes aids (I/O thread), feeds them to the filter (simulation thread), and serves the
     estimate's telemetry. Also a Sink: it polls the filter's events for STATUSTEXT."""
 
-    def __init__(self, endpoint: VehicleEndpoint, *, aid: bool) -> None:
+    def __init__(self, endpoint: EndpointLike, *, aid: bool) -> None:
         self.ep = endpoint
         self.aid = aid
         self.nav: OnboardNav | None = None

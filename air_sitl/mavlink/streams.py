@@ -18,7 +18,6 @@ import math
 import threading
 import time
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING
 
 from air_sitl import battery
 from air_sitl.mavlink import telemetry as tm
@@ -29,23 +28,19 @@ from air_sitl.mavlink.interfaces import (
     SEVERITY_CRITICAL,
     SEVERITY_INFO,
     SEVERITY_WARNING,
+    Builder,
+    EndpointLike,
 )
 from air_sitl.mavlink.links import Link
 from air_sitl.mission.items import MissionType
 from air_sitl.sinks import FlightResult
 from air_sitl.state import CameraFrame, FlightMode, GpsFix, SimSample
 
-if TYPE_CHECKING:
-    from air_sitl.mavlink.vehicle import VehicleEndpoint
-
 EVENT_PERIOD_NS = 50_000_000  # autopilot events polled every 50 ms of simulated time
 FENCE_PERIOD_NS = 200_000_000
 WALL_BURST_S = 0.1  # the wall-clock cap lets a stream catch up this much after a stall
 MAX_PENDING_JOBS = 64  # telemetry jobs queued for the I/O thread before the simulation waits
 BACKPRESSURE_POLL_S = 0.1  # how often a waiting simulation checks that the I/O thread still runs
-
-# Builds one message from the latest sample and GNSS fix; None when it cannot be built yet.
-Builder = Callable[[SimSample | None, GpsFix | None], Message | None]
 
 
 # REQUEST_DATA_STREAM groups (ArduPilot's, as MAVProxy expects them) of the streams we have.
@@ -77,7 +72,7 @@ class Streams:
     REQUEST_DATA_STREAM change those of the link they arrive on only.
     """
 
-    def __init__(self, ep: VehicleEndpoint) -> None:
+    def __init__(self, ep: EndpointLike) -> None:
         self._ep = ep
         self.builders: dict[int, Builder] = {}
         self.default_rates_hz: dict[int, float] = {}
@@ -133,7 +128,7 @@ class Streams:
             ),
             mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION: lambda _s, _f: tm.autopilot_version(),
             mav.MAVLINK_MSG_ID_CAMERA_INFORMATION: lambda s, _f: tm.camera_information(
-                sim_ns(s), ep.options.camera
+                sim_ns(s), ep.options.camera, video=ep.options.video is not None
             ),
             mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: needs_sample(
                 lambda s: tm.global_position_int(s, ep.home)
@@ -222,8 +217,9 @@ def _interval_ns(rate_hz: float) -> int:
 class TelemetrySink:
     """The endpoint's Sink: sees every SimSample on the simulation thread, never blocks."""
 
-    def __init__(self, endpoint: VehicleEndpoint) -> None:
+    def __init__(self, endpoint: EndpointLike, streams: Streams) -> None:
         self._ep = endpoint
+        self._message_streams = streams
         self._next_due: dict[tuple[int, int], int] = {}
         self._tokens: dict[tuple[int, int], tuple[float, float]] = {}
         self._outbox: list[Callable[[], None]] = []  # for the I/O thread, oldest first
@@ -246,6 +242,9 @@ class TelemetrySink:
         """Queue what is due: events at once, streams by simulated time (capped in wall time)."""
         ep = self._ep
         ep.latest = sample
+        tick = sample.camera
+        if tick is not None and tick.capture_index is not None:
+            ep.images_captured = tick.capture_index + 1
         if sample.gps is not None:
             self.last_fix = sample.gps
         ap = sample.autopilot
@@ -266,7 +265,7 @@ class TelemetrySink:
                     self._send(lambda: ep.broadcast(mav.MAVLink_mission_item_reached_message(last)))
             self._last_seq, self._last_completed = ap.current_seq, ap.mission_completed
             ids = [mav.MAVLINK_MSG_ID_MISSION_CURRENT]
-            self._send(lambda: ep.streams.send(ids, sample, None))
+            self._send(lambda: self._message_streams.send(ids, sample, None))
         if t >= self._next_event_ns:
             self._next_event_ns = t + EVENT_PERIOD_NS
             self._poll_events()
@@ -291,7 +290,7 @@ class TelemetrySink:
         now = time.monotonic()
         cap = ep.options.wall_cap_hz
         next_any = t + NS_PER_S
-        for link, intervals in ep.streams.tables.items():
+        for link, intervals in self._message_streams.tables.items():
             due: list[int] = []
             for msg_id, interval in intervals.items():
                 if interval <= 0:
@@ -306,7 +305,11 @@ class TelemetrySink:
                     self._next_due[key] = when
                 next_any = min(next_any, when)
             if due:
-                self._send(functools.partial(ep.streams.send_on, link, due, sample, self.last_fix))
+                self._send(
+                    functools.partial(
+                        self._message_streams.send_on, link, due, sample, self.last_fix
+                    )
+                )
         self._next_any_due_ns = next_any
 
     def _send(self, job: Callable[[], None]) -> None:

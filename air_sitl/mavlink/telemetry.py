@@ -302,17 +302,71 @@ class CameraInfo:
     pixel_um: float = 10.0  # a nominal sensor: focal length and sensor size follow from it
 
 
-def camera_information(sim_time_ns: int, camera: CameraInfo | None = None) -> Message:
+def camera_information(
+    sim_time_ns: int, camera: CameraInfo | None = None, *, video: bool = False
+) -> Message:
     """CAMERA_INFORMATION of the nadir camera: its resolution and a sensor/focal length pair
-    that gives its horizontal field of view (square pixels)."""
+    that gives its horizontal field of view (square pixels); with ``video`` the flag that
+    sends QGroundControl and MAVSDK on to VIDEO_STREAM_INFORMATION."""
     cam = camera or CameraInfo()
+    flags = mav.CAMERA_CAP_FLAGS_CAPTURE_IMAGE
+    if video:
+        flags |= mav.CAMERA_CAP_FLAGS_HAS_VIDEO_STREAM
     sensor_w_mm = cam.width_px * cam.pixel_um / 1000
     focal_mm = (sensor_w_mm / 2) / math.tan(math.radians(cam.hfov_deg) / 2)
     return mav.MAVLink_camera_information_message(
         sim_time_ns // 1_000_000, _padded(b"air-sitl"), _padded(b"nadir camera"), 0, focal_mm,
         sensor_w_mm, sensor_w_mm * cam.height_px / cam.width_px, cam.width_px, cam.height_px, 0,
-        mav.CAMERA_CAP_FLAGS_CAPTURE_IMAGE, 0, b"", 0, 0,
+        flags, 0, b"", 0, 0,
     )  # fmt: skip
+
+
+VIDEO_STREAM_ID = 1  # the camera's one stream
+VIDEO_STREAM_NAME = b"downward camera"
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class VideoStreamInfo:
+    """What VIDEO_STREAM_INFORMATION and VIDEO_STREAM_STATUS say of the stream now."""
+
+    running: bool
+    fps: float
+    bitrate_bps: int
+    uri: str  # as QGroundControl opens it: udp://0.0.0.0:PORT
+
+
+def video_stream_information(camera: CameraInfo, video: VideoStreamInfo) -> Message:
+    """VIDEO_STREAM_INFORMATION of stream 1 of 1: RTP/UDP H.264, as PX4 SITL's stream."""
+    flags = mav.VIDEO_STREAM_STATUS_FLAGS_RUNNING if video.running else 0
+    return mav.MAVLink_video_stream_information_message(
+        VIDEO_STREAM_ID, 1, mav.VIDEO_STREAM_TYPE_RTPUDP, flags, video.fps, camera.width_px,
+        camera.height_px, min(video.bitrate_bps, 0xFFFFFFFF), 0, round(camera.hfov_deg),
+        VIDEO_STREAM_NAME, video.uri.encode("ascii")[:160], mav.VIDEO_STREAM_ENCODING_H264, 0,
+    )  # fmt: skip
+
+
+def video_stream_status(camera: CameraInfo, video: VideoStreamInfo) -> Message:
+    """VIDEO_STREAM_STATUS of stream 1: running or not, and what it sends."""
+    flags = mav.VIDEO_STREAM_STATUS_FLAGS_RUNNING if video.running else 0
+    return mav.MAVLink_video_stream_status_message(
+        VIDEO_STREAM_ID, flags, video.fps, camera.width_px, camera.height_px,
+        min(video.bitrate_bps, 0xFFFFFFFF), 0, round(camera.hfov_deg), 0,
+    )  # fmt: skip
+
+
+def camera_settings(sim_time_ns: int, mode_id: int) -> Message:
+    """CAMERA_SETTINGS: the mode (image or video), no zoom or focus (NaN: not supported)."""
+    nan = float("nan")
+    return mav.MAVLink_camera_settings_message(sim_time_ns // 1_000_000, mode_id, nan, nan, 0)
+
+
+def camera_capture_status(sim_time_ns: int, *, capturing: bool, images: int) -> Message:
+    """CAMERA_CAPTURE_STATUS: interval capture at the camera's 50 Hz inside the capture window
+    (image_status 3), idle outside (0); no video recording; ``images`` taken so far."""
+    status, interval = (3, 0.02) if capturing else (0, 0.0)
+    return mav.MAVLink_camera_capture_status_message(
+        sim_time_ns // 1_000_000, status, 0, interval, 0, float("nan"), images, 0
+    )
 
 
 def camera_heartbeat() -> Message:

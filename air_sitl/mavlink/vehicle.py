@@ -23,7 +23,6 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 from air_sitl.errors import AirSitlError
 from air_sitl.mavlink import telemetry as tm
@@ -36,7 +35,6 @@ from air_sitl.mavlink.codec import (
     Parser,
     Signing,
     from_mission_message,
-    mav,
     to_mission_message,
 )
 from air_sitl.mavlink.commands import Commands
@@ -45,7 +43,9 @@ from air_sitl.mavlink.ftp import Ftp
 from air_sitl.mavlink.interfaces import (
     SEVERITY_CRITICAL,
     SEVERITY_WARNING,
+    WALL_CAP_HZ,
     AutopilotLike,
+    EndpointOptions,
     Handler,
     Job,
     ParamsLike,
@@ -60,6 +60,7 @@ from air_sitl.mission.items import Mission, MissionItem, MissionResult, MissionT
 from air_sitl.state import FlightMode, GeoPoint, SimSample
 
 __all__ = [
+    "WALL_CAP_HZ",
     "AutopilotLike",
     "EndpointOptions",
     "Job",
@@ -71,19 +72,6 @@ __all__ = [
 
 HEARTBEAT_PERIOD_S = 1.0  # wall clock
 MAX_ROUTES = 1024  # peers remembered for replies; forgotten ones are the links' dropped peers
-WALL_CAP_HZ = 200.0  # no stream goes faster than max(this, its own rate) in wall time
-
-
-@dataclass(frozen=True, slots=True, kw_only=True)
-class EndpointOptions:
-    """Identity and behaviour of the endpoint."""
-
-    system_id: int = 1
-    component_id: int = mav.MAV_COMP_ID_AUTOPILOT1
-    signing_key: bytes | None = None
-    wall_cap_hz: float | None = WALL_CAP_HZ  # None: rates in simulated time, uncapped
-    camera: tm.CameraInfo | None = None  # None: no camera component (component id 100)
-    terrain: bool = False  # a terrain model (--dem): uploads may use terrain-relative frames
 
 
 class VehicleEndpoint:
@@ -112,9 +100,10 @@ class VehicleEndpoint:
         )
         self.counters = ParseCounters()
         self.streams = Streams(self)
-        self.sink = TelemetrySink(self)
+        self.sink = TelemetrySink(self, self.streams)
         self.sink.zones = zones_of(m.fence)
         self.latest: SimSample | None = None
+        self.images_captured = 0  # capture-window frames so far (CAMERA_CAPTURE_STATUS)
         self.autopilot: AutopilotLike | None = None
         self.params: ParamsLike | None = None
         self._routes: dict[int, Channel] = {}  # Peer.route -> the channel it came from
@@ -134,7 +123,7 @@ class VehicleEndpoint:
         self.param_protocol = ParamProtocol(self)
         self.handlers: dict[str, Handler] = {}
         cam = self.options.camera
-        self.camera = CameraComponent(self, cam) if cam is not None else None
+        self.camera = CameraComponent(self, cam, self.options.video) if cam is not None else None
         for part in (self.commands, self.param_protocol, Ftp(self)):
             for name, handler in part.handlers().items():
                 self.register(name, handler)

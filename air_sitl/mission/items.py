@@ -92,7 +92,7 @@ SKIPPED_COMMANDS: dict[MavCmd, str] = {
     MavCmd.SET_CAMERA_MODE: "the camera has one mode (still frames)",
 }
 MISSION_COMMANDS = NAV_COMMANDS | DO_COMMANDS | frozenset(SKIPPED_COMMANDS)
-# Flown as a waypoint: a spline waypoint is flown on straight legs (see README).
+# Flown as a waypoint: a spline waypoint is flown on straight legs (see docs/flights.md).
 WAYPOINT_COMMANDS = frozenset({MavCmd.NAV_WAYPOINT, MavCmd.NAV_SPLINE_WAYPOINT})
 # Capture control items (camera section of a plan, survey trigger items).
 CAPTURE_COMMANDS = frozenset(

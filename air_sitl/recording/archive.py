@@ -22,7 +22,6 @@ from typing import Any
 from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
 from air_sitl.bus.hookup import BusHookup
 from air_sitl.camera.coverage import DemCoverage, DemExtent, NodataFrames
-from air_sitl.camera.options import close_map
 from air_sitl.clock import NS_PER_S
 from air_sitl.dataset.air_schema import (
     MANIFEST_JSON,
@@ -36,6 +35,7 @@ from air_sitl.dataset.writer import ArchiveInfo, DatasetWriter, read_run_key, re
 from air_sitl.errors import DatasetError, OptionError
 from air_sitl.files import sha256_file, write_json_atomic
 from air_sitl.flightlog import NavTrajectoryWriter, TrajectoryWriter
+from air_sitl.maps.choose import close_map
 from air_sitl.mission.items import Mission
 from air_sitl.recording.inputs import GPS_DENIAL_JSON, archive_info_for, gps_denial_record
 from air_sitl.runner import Flight

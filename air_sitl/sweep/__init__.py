@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import IO, Any, Protocol
 
 from air_sitl.files import write_json_atomic
+from air_sitl.progress import Progress
 from air_sitl.sweep.errors import SweepError
 from air_sitl.sweep.executors import PoolExecutor, RayExecutor
 from air_sitl.sweep.measurements import archive_id, load
@@ -110,17 +111,16 @@ def make_tasks(spec: SweepSpec, out: Path, keep: str = "all") -> list[RunTask]:
 
 
 class _Progress:
-    """``sweep [#####.....] 7/16  3f2a.. map-date=1 seed=2: 1.4 s, deadreckon 2.1 m``."""
+    """A line per finished run (``sweep [7/16] 3f2a.. map-date=1 seed=2: 1.4 s, deadreckon 2.1 m``)
+    under a bar of the runs with their rate and ETA (:mod:`air_sitl.progress`)."""
 
     def __init__(self, total: int, done: int, stream: IO[str] | None, axes: Sequence[str]):
         self.total, self.done, self.stream, self.axes = total, done, stream, axes
-        self.tty = stream is not None and stream.isatty()
+        self.bar = Progress("sweep", total, unit="runs", stream=stream, enabled=stream is not None)
+        self.bar.update_to(done)
 
     def update(self, row: dict[str, Any], what: str) -> None:
         self.done += 1
-        if self.stream is None:
-            return
-        filled = int(30 * self.done / max(1, self.total))
         if row.get("error"):
             result = f"failed: {row['error']}"
         else:
@@ -129,13 +129,11 @@ class _Progress:
                 median = ((report or {}).get("horizontal_error_m") or {}).get("median")
                 parts.append(f"{name} {'-' if median is None else f'{median:.1f} m'}")
             result = ", ".join(parts)
-        bar = f"[{'#' * filled}{'.' * (30 - filled)}]"
-        line = f"sweep {bar} {self.done}/{self.total}  {what}: {result}"
-        if self.tty:
-            self.stream.write("\r\x1b[K" + line[:200] + ("\n" if self.done == self.total else ""))
-        else:
-            self.stream.write(line + "\n")
-        self.stream.flush()
+        self.bar.note(f"sweep [{self.done}/{self.total}] {what}: {result}")
+        self.bar.update_to(self.done)
+
+    def close(self) -> None:
+        self.bar.close()
 
 
 def _all_measured(task: RunTask) -> bool:
@@ -232,6 +230,8 @@ def run_tasks(
                 executor.run(todo, take_row)
         except KeyboardInterrupt:
             interrupted = True
+        finally:
+            progress.close()
     rows = latest_rows(results_path)
     failed_total = sum(1 for t in tasks if (rows.get(t.id) or {}).get("error"))
     return SweepOutcome(

@@ -183,8 +183,10 @@ def markdown(
     entries: Sequence[str],
     metrics: Sequence[Metric],
     title: str,
+    notes: Sequence[str] = (),
 ) -> str:
-    """The report as markdown: counts, one table per axis, the failed runs."""
+    """The report as markdown: counts (and ``notes``: coverage), one table per axis, the
+    failed runs."""
     failed = [r for r in rows if r.get("error")]
     hosts = sorted({str(r.get("host")) for r in rows if r.get("host")})
     lines = [
@@ -195,6 +197,8 @@ def markdown(
         "(seeds and the other axes), and in brackets the 25-75 % range.",
         "",
     ]
+    if notes:
+        lines += [*(f"- {note}" for note in notes), ""]
     constant = constant_metrics(rows, entries, metrics)
     if constant:
         text = _constant_text(constant)
@@ -281,19 +285,52 @@ def plot(
     plt.close(fig)
 
 
-def write_report(folder: Path) -> list[Path]:
-    """Write ``report.md`` and ``report.png`` for the sweep in ``folder``; their paths."""
+def _sweep_info(folder: Path) -> dict[str, Any]:
+    """``sweep.json`` (the SPEC's path, axes and planned run ids), {} without one."""
+    info_path = folder / "sweep.json"
+    if not info_path.is_file():
+        return {}
+    info = json.loads(info_path.read_text(encoding="utf-8"))
+    return info if isinstance(info, dict) else {}
+
+
+def _rows(folder: Path) -> list[dict[str, Any]]:
     rows = list(latest_rows(folder / RESULTS).values())
     if not rows:
         msg = f"{folder / RESULTS}: no runs to report on (run the sweep first)"
         raise SweepError(msg)
-    listed: list[str] = []
-    info_path = folder / "sweep.json"
-    title = folder.name
-    if info_path.is_file():
-        info = json.loads(info_path.read_text(encoding="utf-8"))
-        listed = [str(a) for a in info.get("axes") or []]
-        title = Path(str(info.get("spec") or folder.name)).name
+    return rows
+
+
+def coverage_notes(folder: Path) -> list[str]:
+    """What the report covers when it is not the whole SPEC: runs done of those planned (a
+    sweep still running or interrupted), and the SPEC's axes left out for having one value
+    among those runs."""
+    rows = _rows(folder)
+    info = _sweep_info(folder)
+    notes = []
+    planned = {str(i) for i in info.get("runs") or []}
+    done = {str(r["id"]) for r in rows} & planned if planned else set()
+    if planned and len(done) < len(planned):
+        notes.append(
+            f"partial sweep: {len(done)} of {len(planned)} planned runs have results "
+            f"({len(planned) - len(done)} not run yet)"
+        )
+    listed = [str(a) for a in info.get("axes") or []]
+    axes = find_axes(rows, listed)
+    for axis in listed:
+        values = axis_values(rows, axis)
+        if axis not in axes and len(values) == 1:
+            notes.append(f"axis {axis} left out: one value among these runs ({_text(values[0])})")
+    return notes
+
+
+def write_report(folder: Path) -> list[Path]:
+    """Write ``report.md`` and ``report.png`` for the sweep in ``folder``; their paths."""
+    rows = _rows(folder)
+    info = _sweep_info(folder)
+    listed = [str(a) for a in info.get("axes") or []]
+    title = Path(str(info.get("spec") or folder.name)).name
     axes = find_axes(rows, listed)
     if not axes:
         axes = ["id"] if len(rows) > 1 else []
@@ -303,6 +340,7 @@ def write_report(folder: Path) -> list[Path]:
     metrics = FLIGHT_METRICS if entries == [FLIGHT] else EVAL_METRICS
     md = folder / REPORT_MD
     png = folder / REPORT_PNG
-    write_bytes_atomic(md, markdown(rows, axes, entries, metrics, title).encode("utf-8"))
+    notes = coverage_notes(folder)
+    write_bytes_atomic(md, markdown(rows, axes, entries, metrics, title, notes).encode("utf-8"))
     plot(rows, axes or ["id"], entries, metrics, png, title)
     return [md, png]

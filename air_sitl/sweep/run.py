@@ -37,7 +37,7 @@ import cv2
 
 from air_sitl.builder import load_setup
 from air_sitl.bus.hookup import bus_sinks_from_args
-from air_sitl.camera.options import camera_from_args, map_choice_from_args, open_chosen_map
+from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.dataset.air_schema import ESTIMATES_DIR, SUMMARY_JSON
 from air_sitl.errors import AirSitlError, DatasetError
 from air_sitl.eval import Scored, score_sources
@@ -48,6 +48,7 @@ from air_sitl.localize.external import (
     fly_in_lockstep,
     same_flight,
 )
+from air_sitl.maps.choose import open_chosen_map
 from air_sitl.maps.open import default_map_for_plan
 from air_sitl.maps.procedural import KINDS
 from air_sitl.options import flight_options_from_args, int_in_range

@@ -300,7 +300,7 @@ def test_serve_publishes_on_the_bus_and_stops_cleanly(plan: Path) -> None:
         bus.subscribe(f"{keys.root}/**", lambda m: got.setdefault(m.key, []).append(m.payload))
         serve = start(cli("serve", "--plan", str(plan), "--zenoh-connect", endpoint,
                           "--vehicle", "srv", "--mavlink", "udpin:127.0.0.1:0",
-                          "--speed", "4", "--quiet"))  # fmt: skip
+                          "--speed", "4", "--quiet", "--no-video"))  # fmt: skip
         try:
             assert wait_until(lambda: len(got.get(keys.imu, [])) > 50)
             assert wait_until(lambda: keys.mission_status in got)
@@ -314,7 +314,7 @@ def test_serve_publishes_on_the_bus_and_stops_cleanly(plan: Path) -> None:
         assert (info.width_px, info.height_px, info.hfov_deg) == (640, 480, 57.0)
 
 
-# The README's client example, verbatim but for the endpoint (raw zenoh, nothing of air-sitl).
+# docs/bus.md's client example, verbatim but for the endpoint (raw zenoh, nothing of air-sitl).
 README_CLIENT = """
 import json
 import zenoh

@@ -7,6 +7,7 @@ from typing import Any
 
 import pytest
 
+from air_sitl import serving
 from air_sitl.cli import build_parser
 from air_sitl.commands import serve
 from air_sitl.options import OPEN_END_NS
@@ -22,7 +23,7 @@ def _served_limit(monkeypatch: pytest.MonkeyPatch, argv: list[str]) -> int:
         seen.update(kw)
         return _Counters()
 
-    monkeypatch.setattr(serve, "serve_vehicle", fake_serve)
+    monkeypatch.setattr(serving, "serve_vehicle", fake_serve)  # serve imports it when it runs
     args = build_parser().parse_args(["serve", "--quiet", "--mavlink", "udpout:127.0.0.1:1", *argv])
     assert serve.run(args) == 0
     return int(seen["max_sim_time_ns"])

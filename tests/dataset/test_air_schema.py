@@ -10,11 +10,14 @@ from hypothesis import strategies as st
 from air_sitl.dataset.air_schema import (
     AIR_COLUMNS,
     AIR_HEADER,
+)
+from air_sitl.frames import (
+    euler2quat,
     ned2enu,
     q_flu_enu_to_frd_ned,
     q_frd_ned_to_flu_enu,
+    quat_rotate,
 )
-from air_sitl.frames import euler2quat, quat_rotate
 
 S = math.sqrt(0.5)
 

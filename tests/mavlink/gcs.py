@@ -63,7 +63,9 @@ def serve(
     *args: str, timeout_s: float = SAFETY_S, stderr: IO[str] | None = None
 ) -> Iterator[Served]:
     """Start ``air-sitl serve ARGS``, wait for its banner, stop it at the end."""
-    cmd = [sys.executable, "-m", "air_sitl", "serve", *args]
+    # No video unless asked for: the tests never send to QGroundControl's port 5600.
+    video = () if any(a.startswith(("--video", "--no-video")) for a in args) else ("--no-video",)
+    cmd = [sys.executable, "-m", "air_sitl", "serve", *args, *video]
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen(
         cmd, stdout=subprocess.PIPE, stderr=stderr, text=True, env=env, bufsize=1

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 from air_sitl.cli import main
 from air_sitl.sweep.results import RESULTS
 
@@ -59,3 +61,33 @@ def test_a_metric_the_same_in_every_run_is_named_not_drawn(tmp_path: Path) -> No
     flat_h = _png_height((flat / "report.png").read_bytes())
     varied_h = _png_height((varied / "report.png").read_bytes())
     assert flat_h < varied_h
+
+
+def test_a_partial_sweep_says_how_many_runs_and_which_axes_it_left_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = _sweep(tmp_path / "partial", [1.0, 0.8, 0.9, 0.7])
+    # The SPEC planned 6 runs over three axes; 4 ran, all at one wind.
+    rows = [json.loads(line) for line in (folder / RESULTS).read_text().splitlines()]
+    for row in rows:
+        row["options"]["wind"] = "5@270"
+    (folder / RESULTS).write_text("".join(json.dumps(r) + "\n" for r in rows))
+    info = {"axes": ["map-date", "wind", "seed"], "runs": [f"run{k}" for k in range(6)]}
+    (folder / "sweep.json").write_text(json.dumps(info))
+    assert main(["sweep", "report", str(folder)]) == 0
+    err = capsys.readouterr().err
+    assert "sweep report: partial sweep: 4 of 6 planned runs have results (2 not run yet)" in err
+    assert "sweep report: axis wind left out: one value among these runs (5@270)" in err
+    md = (folder / "report.md").read_text()
+    assert "- partial sweep: 4 of 6 planned runs have results (2 not run yet)" in md
+    assert "## wind" not in md
+
+
+def test_a_complete_sweep_has_no_coverage_notes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = _sweep(tmp_path / "whole", [1.0, 0.8, 0.9, 0.7])
+    info = {"axes": ["map-date", "seed"], "runs": [f"run{k}" for k in range(4)]}
+    (folder / "sweep.json").write_text(json.dumps(info))
+    assert main(["sweep", "report", str(folder)]) == 0
+    assert "sweep report:" not in capsys.readouterr().err
