@@ -20,7 +20,6 @@ from air_sitl.bus.keys import DEFAULT_VEHICLE
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import OptionError
-from air_sitl.files import require_writable_folder
 from air_sitl.instance import Instance, add_instance_arguments, instance_from_args
 from air_sitl.mavlink.links import parse_link
 from air_sitl.options import OPEN_END_NS, FlightOptions, flight_options_from_args
@@ -109,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
     key = load_signing_key(args.signing_key) if args.signing_key else None
     setup = _setup(args, options, instance)
     if args.out:
+        from air_sitl.files import require_writable_folder
+
         # Refused now, not after "Capture started" was told to the ground station.
         require_writable_folder(Path(args.out), "--out folder")
     stop = threading.Event()

@@ -26,7 +26,7 @@ def test_a_read_only_out_folder_is_refused_before_the_vehicle_is_ready(tmp_path:
     with tmpfs(tmp_path / "ro", read_only=True) as folder:
         done = subprocess.run(
             [sys.executable, "-m", "air_sitl", "serve", "--out", str(folder / "rec"),
-             "--mavlink", "udpin:127.0.0.1:0"],
+             "--mavlink", "udpin:127.0.0.1:0", "--home", "47.3769,8.5417,400"],
             capture_output=True, text=True, timeout=120, check=False,
         )  # fmt: skip
     assert done.returncode == 2
