@@ -9,6 +9,7 @@ listens on an ephemeral port (air_sitl/bus/session.py).
 
 from __future__ import annotations
 
+import contextlib
 import ipaddress
 import json
 import socket
@@ -72,6 +73,10 @@ def fly_beside_deadreckon(
                 "dr", *WAIT_SAFETY, *fly_net),
             capture_output=True, text=True, timeout=300, check=False,
         )  # fmt: skip
+        # The localizer leaves by itself once the capture window is over (a signal then could
+        # land while it restores its handlers).
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            loc.wait(timeout=60)
     finally:
         code, _, loc_err = stop(loc)
     assert flown.returncode == 0, flown.stderr
