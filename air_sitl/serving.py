@@ -107,11 +107,13 @@ def serve_vehicle(
     quiet: bool = False,
     system_id: int = 1,
     video: VideoOptions | None = None,
+    home_note: str = "",
 ) -> ParseCounters:
     """Fly ``setup`` for MAVLink clients until ``stop`` is set; what the links received.
 
     ``system_id``: MAV_SYS_ID (instance N of several is N+1). ``video``: stream the camera
-    (ignored without a camera); what it sent and dropped is printed when it stops."""
+    (ignored without a camera); what it sent and dropped is printed when it stops.
+    ``home_note``: where the home came from, said in the ready line (a default home)."""
     inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
 
     def post(job: Job) -> None:
@@ -175,7 +177,8 @@ def serve_vehicle(
             shown = f"; video: {stream.options.url}" if stream is not None else ""
             print(
                 f"air-sitl serve: vehicle ready at {home.lat_deg:.7f},{home.lon_deg:.7f},"
-                f"{home.alt_amsl_m:.1f} speed {setup.options.speed:g}; links: {where}{shown}",
+                f"{home.alt_amsl_m:.1f}{f' ({home_note})' if home_note else ''} "
+                f"speed {setup.options.speed:g}; links: {where}{shown}",
                 flush=True,
             )
         crash = CrashResponse(flight, endpoint.sink)

@@ -20,7 +20,7 @@ from air_sitl.bus.keys import DEFAULT_VEHICLE
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import OptionError
-from air_sitl.instance import Instance, add_instance_arguments, instance_from_args
+from air_sitl.instance import HOME_SPACING_M, Instance, add_instance_arguments, instance_from_args
 from air_sitl.mavlink.links import parse_link
 from air_sitl.options import OPEN_END_NS, FlightOptions, flight_options_from_args
 from air_sitl.state import GeoPoint
@@ -131,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
                 quiet=bool(args.quiet),
                 system_id=instance.system_id,
                 video=video,
+                home_note=_home_note(args, instance),
             )
     finally:
         for s, handler in previous.items():
@@ -155,6 +156,15 @@ def _max_sim_ns(max_sim_time_s: float) -> int:
     return int(max_sim_time_s * 1e9)
 
 
+def _home_note(args: argparse.Namespace, instance: Instance) -> str:
+    """What the ready line says of a home no option gave: PX4 SITL's default (moved for
+    instance N); nothing for a home of ``--home`` or of the plan."""
+    if args.plan or args.home:
+        return ""
+    moved = f", {instance.number * HOME_SPACING_M:g} m east for instance {instance.number}"
+    return f"no --plan or --home: PX4 SITL's default home, Zurich{moved if instance.number else ''}"
+
+
 def _setup(args: argparse.Namespace, options: FlightOptions, instance: Instance) -> FlightSetup:
     """The served flight: the preloaded plan (or none) at ``--home``, else the plan's or PX4's
     moved by the instance's offset."""
@@ -173,14 +183,6 @@ def _setup(args: argparse.Namespace, options: FlightOptions, instance: Instance)
         lat, lon, alt = DEFAULT_HOME
         default = GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
         home = parse_home(args.home) if args.home else instance.home(default)
-        if not args.home and not args.quiet:
-            print(
-                f"air-sitl serve: no --plan or --home: home at {home.lat_deg:.6f}, "
-                f"{home.lon_deg:.6f}, {home.alt_amsl_m:.0f} m AMSL (PX4 SITL's default, Zurich"
-                f"{'' if instance.number == 0 else f', moved for instance {instance.number}'})",
-                file=sys.stderr,
-                flush=True,
-            )
     setup = FlightSetup(
         mission=mission,
         home=home,

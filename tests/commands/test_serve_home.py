@@ -25,23 +25,31 @@ def _serve(monkeypatch: pytest.MonkeyPatch, *argv: str) -> Any:
     return seen["home"]
 
 
-def test_the_default_home_is_said(
-    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
-) -> None:
-    home = _serve(monkeypatch)
-    err = capsys.readouterr().err
+def test_the_default_home_is_said(capsys: pytest.CaptureFixture[str]) -> None:
+    """A real served vehicle (its link on a free port), for a simulated half second."""
+    argv = ["serve", "--mavlink", "udpin:127.0.0.1:0", "--no-video", "--max-sim-time", "0.5"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
     assert (
-        "air-sitl serve: no --plan or --home: home at 47.397742, 8.545594, 488 m AMSL "
-        "(PX4 SITL's default, Zurich)\n"
-    ) in err
+        "vehicle ready at 47.3977420,8.5455940,488.0 (no --plan or --home: PX4 SITL's default "
+        "home, Zurich) speed"
+    ) in out
+    assert main([*argv, "--instance", "2"]) == 0
+    assert "Zurich, 40 m east for instance 2) speed" in capsys.readouterr().out
+
+
+def test_the_default_home_is_px4s(monkeypatch: pytest.MonkeyPatch) -> None:
+    home = _serve(monkeypatch)
     assert (home.lat_deg, home.lon_deg) == (47.397742, 8.545594)
 
 
 def test_a_given_home_is_not_announced(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    argv = ["serve", "--mavlink", "udpin:127.0.0.1:0", "--no-video", "--max-sim-time", "0.5"]
+    assert main([*argv, "--home", "46.5,7.5,600"]) == 0
+    out = capsys.readouterr().out
+    assert "vehicle ready at 46.5000000,7.5000000,600.0 speed" in out
+    assert "default" not in out
     home = _serve(monkeypatch, "--home", "46.5,7.5,600")
-    assert "default" not in capsys.readouterr().err
     assert (home.lat_deg, home.lon_deg) == (46.5, 7.5)
-    _serve(monkeypatch, "--quiet")
-    assert capsys.readouterr().err == ""

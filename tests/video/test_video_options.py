@@ -11,6 +11,7 @@ import yaml
 from bus.helpers import free_endpoint
 from cli_errors import one_line_error
 
+from air_sitl import serving
 from air_sitl.cli import build_parser
 from air_sitl.commands import serve
 from air_sitl.instance import instance_from_args
@@ -96,7 +97,7 @@ def test_instance_n_publishes_under_air_uav_n(
         return SimpleNamespace(messages=0, dropped=0, parse_errors=0, unknown_ids=0,
                                signature_rejected=0)  # fmt: skip
 
-    monkeypatch.setattr(serve, "serve_vehicle", fake_serve)
+    monkeypatch.setattr(serving, "serve_vehicle", fake_serve)
     args = build_parser().parse_args(["serve", "--quiet", "--zenoh", "--zenoh-listen",
                                       free_endpoint(), *argv])  # fmt: skip
     assert serve.run(args) == 0
