@@ -12,6 +12,7 @@ import contextlib
 import hashlib
 import json
 import os
+import tempfile
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -26,6 +27,18 @@ TMP_SUFFIX = ".tmp"  # the temporary name of a file being written: <name>.tmp
 def write_error(path: str | os.PathLike[str], err: OSError) -> DatasetError:
     """The one-line error of a failed write of ``path``."""
     return DatasetError(f"{os.fspath(path)}: cannot write: {err.strerror or err}")
+
+
+def require_writable_folder(folder: Path, what: str) -> None:
+    """Create ``folder`` if need be and check a file can be written in it; DatasetError with
+    one line naming it (a read-only file system, no permission) before anything runs."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder, prefix=".air-sitl-probe-"):
+            pass
+    except OSError as err:
+        msg = f"{folder}: cannot write in the {what}: {err.strerror or err}"
+        raise DatasetError(msg) from None
 
 
 def write_all(fd: int, data: bytes) -> None:

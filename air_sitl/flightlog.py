@@ -6,12 +6,15 @@ hands its summary to every sink in :class:`~air_sitl.sinks.FlightResult`.
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S
 from air_sitl.errors import DatasetError
+from air_sitl.files import write_all, write_error
 from air_sitl.nav.columns import NAV_COLUMNS, nav_fields
 from air_sitl.sinks import FlightResult, NullSink
 from air_sitl.state import BatteryState, FlightMode, SimSample, VehicleState
@@ -57,29 +60,76 @@ def _row(sample: SimSample) -> str:
 
 
 class TrajectoryWriter(NullSink):
-    """Writes truth at 50 Hz over the whole flight to ``trajectory.csv``."""
+    """Writes truth at 50 Hz over the whole flight to ``trajectory.csv``.
+
+    Rows are written whole, once a simulated second, with ``os.write``; the bytes known on
+    disk are counted. A write that fails (a full disk, an I/O error) cuts the file back to its
+    last whole row and stops the flight with one line (DatasetError): the CSV stays readable
+    to its last row, as the camera archive's files do.
+    """
 
     def __init__(self, path: Path) -> None:
         self.path = path
         try:
-            self._file: IO[str] = path.open("w", encoding="ascii", newline="")
+            self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
         except OSError as err:
             msg = f"{path}: cannot write the trajectory: {err.strerror}"
             raise DatasetError(msg) from None
-        self._file.write(",".join(TRAJECTORY_COLUMNS) + "\n")
+        self._size = 0  # bytes of whole rows on disk
+        self._pending: list[str] = [",".join(self.columns()) + "\n"]
         self._last_flush_ns = 0
+        self.error: DatasetError | None = None
+        self._write_pending()
+
+    def columns(self) -> tuple[str, ...]:
+        """The header of the file."""
+        return TRAJECTORY_COLUMNS
+
+    def row(self, sample: SimSample) -> str:
+        """One line of the file."""
+        return _row(sample)
 
     def on_sample(self, sample: SimSample) -> None:
         t = sample.state.sim_time_ns
-        if t % CAMERA_PERIOD_NS:
+        if t % CAMERA_PERIOD_NS or self.error is not None:
             return
-        self._file.write(_row(sample))
+        self._pending.append(self.row(sample))
         if t - self._last_flush_ns >= NS_PER_S:
-            self._file.flush()
+            self._write_pending()
             self._last_flush_ns = t
 
+    def _write_pending(self) -> None:
+        if not self._pending:
+            return
+        data = "".join(self._pending).encode("ascii")
+        self._pending.clear()
+        try:
+            write_all(self._fd, data)
+        except OSError as err:
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._fd, self._size)  # back to the last whole row
+            self.error = write_error(self.path, err)
+            raise self.error from None
+        self._size += len(data)
+
     def close(self, result: FlightResult) -> None:
-        self._file.close()
+        """Write what is left and close (a failure is kept in :attr:`error`: the runner closes
+        the other sinks too; :meth:`raise_if_failed` reports it)."""
+        if self._fd < 0:
+            return
+        try:
+            if self.error is None:
+                self._write_pending()
+        except DatasetError:
+            pass
+        finally:
+            os.close(self._fd)
+            self._fd = -1
+
+    def raise_if_failed(self) -> None:
+        """The write error of the file, if any (one line)."""
+        if self.error is not None:
+            raise self.error
 
 
 def _rounded(value: float | None) -> float | None:
@@ -272,18 +322,10 @@ class FlightStats:
 class NavTrajectoryWriter(TrajectoryWriter):
     """TrajectoryWriter whose rows carry the onboard estimate too."""
 
-    def __init__(self, path: Path) -> None:
-        super().__init__(path)
-        # The base wrote the truth header: replace it (nothing else written yet).
-        self._file.seek(0)
-        self._file.truncate()
-        self._file.write(",".join(TRAJECTORY_COLUMNS + NAV_COLUMNS) + "\n")
+    def columns(self) -> tuple[str, ...]:
+        """Truth, then the onboard estimate."""
+        return TRAJECTORY_COLUMNS + NAV_COLUMNS
 
-    def on_sample(self, sample: SimSample) -> None:
-        t = sample.state.sim_time_ns
-        if t % CAMERA_PERIOD_NS:
-            return
-        self._file.write(f"{_row(sample)[:-1]},{nav_fields(sample.nav)}\n")
-        if t - self._last_flush_ns >= NS_PER_S:
-            self._file.flush()
-            self._last_flush_ns = t
+    def row(self, sample: SimSample) -> str:
+        """Truth, then the onboard estimate."""
+        return f"{_row(sample)[:-1]},{nav_fields(sample.nav)}\n"

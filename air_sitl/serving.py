@@ -25,7 +25,7 @@ from air_sitl.camera.options import open_chosen_renderer
 from air_sitl.clock import CAMERA_PERIOD_NS
 from air_sitl.maps.choose import close_map
 from air_sitl.mavlink.codec import ParseCounters
-from air_sitl.mavlink.interfaces import SEVERITY_CRITICAL
+from air_sitl.mavlink.interfaces import SEVERITY_CRITICAL, SEVERITY_ERROR
 from air_sitl.mavlink.links import LinkSpec
 from air_sitl.mavlink.nav_aid import NavLink
 from air_sitl.mavlink.streams import TelemetrySink
@@ -167,6 +167,7 @@ def serve_vehicle(
         endpoint.attach(flight.autopilot, flight.autopilot.params)
         if recorder is not None:
             recorder.autopilot = flight.autopilot
+            recorder.on_failure = lambda text: endpoint.text(SEVERITY_ERROR, text)
         endpoint.start()
         if not quiet:
             where = ", ".join(

@@ -56,6 +56,7 @@ class Localizer:
         self._fix: GnssFix | None = None
         self.frames = self.published = 0
         self.last_frame = -1
+        self._last_answer: bytes | None = None  # the estimate of last_frame, as published
         self._handlers: dict[str, Callable[[Message], None]] = {
             keys.imu: self._on_imu,
             keys.gps: self._on_gps,
@@ -100,6 +101,8 @@ class Localizer:
     def _on_image(self, message: Message) -> None:
         meta = codec.decode_frame_meta(message.attachment)
         if meta.frame <= self.last_frame:
+            if meta.frame == self.last_frame and self._last_answer is not None:
+                self._out.put(self._last_answer)  # offered again: our answer may have been lost
             return  # a repeat: already answered
         first = self.last_frame < 0
         self.last_frame = meta.frame
@@ -123,9 +126,10 @@ class Localizer:
             est = self.vo.step(obs)
         # Every frame gets an answer (no position while the estimator cannot tell).
         enu = None if est is None else est.enu_m
-        self._out.put(
-            codec.encode_estimate(frame=meta.frame, sim_time_ns=meta.sim_time_ns, enu_m=enu)
+        self._last_answer = codec.encode_estimate(
+            frame=meta.frame, sim_time_ns=meta.sim_time_ns, enu_m=enu
         )
+        self._out.put(self._last_answer)
         self.published += 1
 
 

@@ -7,11 +7,11 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from air_sitl.bus.defaults import DEFAULT_ENDPOINT
+from air_sitl.bus.defaults import DEFAULT_ENDPOINT, DEFAULT_MAX_NAMES
 from air_sitl.bus.keys import DEFAULT_VEHICLE, KeySpace, check_chunk
 from air_sitl.bus.ros2.options import Ros2Options, add_ros2_arguments, ros2_options_from_args
 from air_sitl.errors import OptionError
-from air_sitl.options import positive_number
+from air_sitl.options import int_in_range, positive_number
 
 if TYPE_CHECKING:  # zenoh loads when a command opens the bus, not for its --help
     from air_sitl.bus.lockstep import WaitFor
@@ -100,6 +100,13 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
         help="fill AIR's SvoX/SvoY/SvoZ with the positions the estimator NAME sent (ENU, home)",
     )
     g.add_argument(
+        "--max-estimate-names",
+        default=str(DEFAULT_MAX_NAMES),
+        metavar="N",
+        help="estimators (estimate/<name> keys) one flight logs; estimates under further names "
+        f"are rejected and counted (default {DEFAULT_MAX_NAMES})",
+    )
+    g.add_argument(
         "--camera",
         choices=("local", "remote"),
         default="local",
@@ -123,6 +130,8 @@ class BusOptions:
     wait_timeout_s: float
     svo_columns: str | None
     remote_camera: bool
+    max_estimate_names: int = DEFAULT_MAX_NAMES
+    expected: tuple[str, ...] = ()  # estimators the flight relies on (wait-for, svo, nav-aid)
     ros2: Ros2Options | None = None  # --ros2: the ROS 2 view beside our keys
 
 
@@ -190,12 +199,15 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
     wait = parse_wait_for(args.wait_for, timeout) if args.wait_for else None
     svo = check_chunk("--svo-columns", args.svo_columns) if args.svo_columns else None
     remote = args.camera == "remote"
+    max_names = int_in_range("--max-estimate-names", args.max_estimate_names, 1, 100_000)
     explicit = bool(args.zenoh_listen or args.zenoh_connect or args.zenoh_config)
     aid = getattr(args, "nav_aid", None)
     zenoh_aid = aid is not None and aid != "mavlink"  # --nav-aid NAME implies --zenoh
     ros2 = ros2_options_from_args(args)
     publish = bool(args.zenoh or args.publish_truth or wait or svo or zenoh_aid or ros2)
     config = bus_config_from_args(args, serves=True)
+    named = (wait.name if wait else None, svo, aid if zenoh_aid else None)
+    expected = tuple(dict.fromkeys(n for n in named if n))
     return BusOptions(
         enabled=publish or remote or explicit,
         publish=publish or explicit,
@@ -207,5 +219,7 @@ def bus_options_from_args(args: argparse.Namespace) -> BusOptions:
         wait_timeout_s=timeout,
         svo_columns=svo,
         remote_camera=remote,
+        max_estimate_names=max_names,
+        expected=expected,
         ros2=ros2,
     )

@@ -15,6 +15,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, fields
 from typing import Any
 
+from air_sitl.bus.estimate_contract import check_estimate
 from air_sitl.bus.keys import CONTRACT_VERSION
 from air_sitl.errors import BusError
 from air_sitl.files import parse_json_object
@@ -290,44 +291,21 @@ def encode_estimate(
 
 
 def decode_estimate(payload: bytes, what: str) -> Estimate:
-    """Parse and validate an estimate; BusError with a one-line reason when it is unusable."""
-    m = loads(payload, what)
-    with fields_of(what, "estimate"):
-        frame = None if m.get("frame") is None else int(m["frame"])
-        t = None if m.get("sim_time_ns") is None else int(m["sim_time_ns"])
-        if frame is None and t is None:
-            msg = f"{what}: needs 'frame' or 'sim_time_ns'"
-            raise BusError(msg)
-        enu = None if m.get("enu_m") is None else _vec3_or_nan(m["enu_m"])
-        geo = None
-        if m.get("lat_deg") is not None:
-            geo = decode_geo(m)
-            if not (-90.0 <= geo.lat_deg <= 90.0 and -180.0 <= geo.lon_deg <= 180.0):
-                msg = f"{what}: lat/lon {geo.lat_deg}, {geo.lon_deg} out of range"
-                raise BusError(msg)
-        q = None if m.get("q_body_to_ned_wxyz") is None else _quat(m["q_body_to_ned_wxyz"])
-        cov = None
-        if m.get("cov_enu_m2") is not None:
-            cov = tuple(float(x) for x in m["cov_enu_m2"])
-            if len(cov) != 9:
-                msg = f"{what}: 'cov_enu_m2' needs 9 numbers (3x3 row-major), got {len(cov)}"
-                raise BusError(msg)
-    for x in (*(enu or ()), *(q or ())):
-        if math.isinf(x):
-            msg = f"{what}: non-finite number in the estimate"
-            raise BusError(msg)
+    """Parse and check an estimate against the contract; EstimateRejectedError (a BusError) with
+    the reason and a one-line message when it is unusable (:mod:`.estimate_contract`)."""
+    f = check_estimate(payload, what)
     return Estimate(
-        frame=frame, sim_time_ns=t, enu_m=enu, geo=geo, q_body_to_ned_wxyz=q, cov_enu_m2=cov
+        frame=f["frame"],
+        sim_time_ns=f["sim_time_ns"],
+        enu_m=f["enu_m"],
+        geo=f["geo"],
+        q_body_to_ned_wxyz=f["q"],
+        cov_enu_m2=f["cov"],
     )
 
 
 def _vec3(value: Any) -> Vec3:
     x, y, z = (float(v) for v in value)
-    return (x, y, z)
-
-
-def _vec3_or_nan(value: Any) -> Vec3:
-    x, y, z = (math.nan if v is None else float(v) for v in value)
     return (x, y, z)
 
 

@@ -5,3 +5,4 @@ from __future__ import annotations
 
 DEFAULT_PORT = 7447
 DEFAULT_ENDPOINT = f"tcp/127.0.0.1:{DEFAULT_PORT}"
+DEFAULT_MAX_NAMES = 16  # estimators one flight hears (--max-estimate-names)

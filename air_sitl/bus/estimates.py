@@ -5,6 +5,12 @@ Subscribes to ``air/<vehicle>/estimate/*``. Each estimate of a capture-window fr
 frame's capture index (the archive's frame), with its latency in wall milliseconds and in
 frames, counted from the moment its frame was published. Estimates of frames outside the
 window (a camera kept on for an aid) are awaited and handed to the listeners, not logged.
+
+Every estimate is checked against the contract (:mod:`air_sitl.bus.estimate_contract`) and
+against the flight: its frame must have been exposed, its time must lie between the start and
+the latest exposure, and one row is kept per frame: the **first** estimate of a frame (what
+lockstep waited for) counts, a later one is a rejected duplicate. At most ``max_names``
+estimators are heard (one CSV each). Rejections are counted by reason.
 """
 
 from __future__ import annotations
@@ -18,10 +24,11 @@ from pathlib import Path
 from typing import IO
 
 from air_sitl.bus import codec
+from air_sitl.bus import estimate_contract as contract
+from air_sitl.bus.defaults import DEFAULT_MAX_NAMES
 from air_sitl.bus.keys import KeySpace
 from air_sitl.bus.publisher import FrameLedger
 from air_sitl.bus.session import Bus, Message
-from air_sitl.errors import BusError
 from air_sitl.frames import geodetic2ned, ned2geodetic
 from air_sitl.state import GeoPoint, Quat, Vec3
 
@@ -43,6 +50,7 @@ ESTIMATE_COLUMNS = (
     "latency_frames",
 )
 ESTIMATE_HEADER = ",".join(ESTIMATE_COLUMNS) + "\n"
+KEPT_PAYLOADS = 8  # per estimator, the payloads of its latest frames (to know a repeat)
 
 
 @dataclass(slots=True)
@@ -52,6 +60,8 @@ class _Track:
     file: IO[str] | None
     frames: set[int] = field(default_factory=set)
     enu_by_frame: dict[int, Vec3] = field(default_factory=dict)  # by capture index
+    times: set[int] = field(default_factory=set)  # sim times answered without a frame
+    kept: dict[int, bytes] = field(default_factory=dict)  # the latest frames' kept payloads
     rows: int = 0  # logged (capture-window frames, or frames the ledger does not know)
     received: int = 0
 
@@ -67,6 +77,7 @@ class EstimateLog:
         *,
         out_dir: Path | None,
         home: GeoPoint | None,
+        max_names: int = DEFAULT_MAX_NAMES,
     ) -> None:
         self.keys = keys
         self.ledger = ledger
@@ -75,7 +86,9 @@ class EstimateLog:
         self._cond = threading.Condition()
         self._tracks: dict[str, _Track] = {}
         self._closed = False
-        self.rejected = 0
+        self.max_names = max_names
+        self.rejected: dict[str, int] = {}  # by reason (estimate_contract.REASONS)
+        self.repeats = 0  # identical answers to a frame offered again (not rejections)
         self.first_error: str | None = None
         self._prefix = keys.estimate("x")[:-1]
         # Called with (name, frame, sim_time_ns, estimate or None when refused) on the zenoh
@@ -90,13 +103,12 @@ class EstimateLog:
         received = time.monotonic()
         try:
             est = codec.decode_estimate(message.payload, message.key)
-        except BusError as err:
+            frame, t, wall, last = self._place(est, message.key)
+        except contract.EstimateRejectedError as err:
             with self._cond:
-                self.rejected += 1
-                self.first_error = self.first_error or str(err)
+                self._reject(err)
                 self._tell(name, None, None, None)
             return
-        frame, t, wall, last = self.ledger.lookup(est.frame, est.sim_time_ns)
         capture = frame if frame is None else self.ledger.capture_index(frame)
         logged = frame is None or capture is not None
         enu, geo = self._positions(est)
@@ -111,8 +123,30 @@ class EstimateLog:
                 return
             track = self._tracks.get(name)
             if track is None:
+                if len(self._tracks) >= self.max_names:
+                    self._reject(
+                        contract.EstimateRejectedError(
+                            contract.TOO_MANY_NAMES,
+                            f"{message.key}: more than {self.max_names} estimators "
+                            "(--max-estimate-names)",
+                        )
+                    )
+                    return
                 track = _Track(self._open(name))
                 self._tracks[name] = track
+            answered = track.frames if frame is not None else track.times
+            if frame is not None and track.kept.get(frame) == message.payload:
+                self.repeats += 1  # the same answer again (a frame offered twice): no news
+                return
+            if (frame if frame is not None else t) in answered:
+                what = f"frame {frame}" if frame is not None else f"sim_time_ns {t}"
+                self._reject(
+                    contract.EstimateRejectedError(
+                        contract.DUPLICATE,
+                        f"{message.key}: {what} answered already (the first estimate counts)",
+                    )
+                )
+                return
             track.received += 1
             if logged:
                 if track.file is not None:
@@ -120,10 +154,41 @@ class EstimateLog:
                 track.rows += 1
             if frame is not None:
                 track.frames.add(frame)
+                track.kept[frame] = message.payload
+                if len(track.kept) > KEPT_PAYLOADS:
+                    del track.kept[next(iter(track.kept))]
                 if capture is not None and all(math.isfinite(c) for c in enu):
                     track.enu_by_frame[capture] = enu
+            elif t is not None:
+                track.times.add(t)
             self._tell(name, frame, t, est)
             self._cond.notify_all()
+
+    def _place(
+        self, est: codec.Estimate, key: str
+    ) -> tuple[int | None, int | None, float | None, int]:
+        """(frame, sim time, publish wall time, last published index) of an estimate inside
+        the flight; EstimateRejectedError (outside_flight) for a frame never exposed or a
+        time beyond the latest exposure."""
+        frame, t, wall, last = self.ledger.lookup(est.frame, est.sim_time_ns)
+        now = self.ledger.now_ns
+        if est.frame is not None and not self.ledger.exposed(est.frame):
+            msg = f"{key}: frame {est.frame} was never taken (latest frame {last})"
+            raise contract.EstimateRejectedError(contract.OUTSIDE_FLIGHT, msg)
+        if t is not None and (now is None or t > now):
+            msg = f"{key}: sim_time_ns {t} is after the flight's time so far ({now})"
+            raise contract.EstimateRejectedError(contract.OUTSIDE_FLIGHT, msg)
+        return frame, t, wall, last
+
+    def _reject(self, err: contract.EstimateRejectedError) -> None:
+        """Count one rejection (under the lock)."""
+        self.rejected[err.reason] = self.rejected.get(err.reason, 0) + 1
+        self.first_error = self.first_error or str(err)
+
+    def rejected_total(self) -> int:
+        """Estimates not taken, all reasons."""
+        with self._cond:
+            return sum(self.rejected.values())
 
     def _tell(
         self, name: str, frame: int | None, t: int | None, est: codec.Estimate | None
@@ -206,6 +271,12 @@ class EstimateLog:
         """Estimators heard from, sorted."""
         with self._cond:
             return sorted(self._tracks)
+
+    def answered(self, name: str) -> int:
+        """Frames ``name`` answered (an estimate naming the frame, or its exposure time)."""
+        with self._cond:
+            track = self._tracks.get(name)
+            return 0 if track is None else len(track.frames)
 
     def rows(self, name: str) -> int:
         """Estimates of ``name`` logged (those of the capture window's frames)."""

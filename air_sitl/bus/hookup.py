@@ -22,6 +22,7 @@ from air_sitl.bus.aid_feed import BusAidFeed
 from air_sitl.bus.args import BusOptions, bus_options_from_args
 from air_sitl.bus.codec import CameraInfo
 from air_sitl.bus.estimates import EstimateLog
+from air_sitl.bus.estimator_watch import EstimatorWatch, estimate_summary, estimate_warnings
 from air_sitl.bus.lockstep import LockstepFrameSource
 from air_sitl.bus.publisher import BusPublisher, FrameLedger, PublishOptions
 from air_sitl.bus.remote_camera import RemoteCamera, RenderSettings
@@ -47,6 +48,7 @@ class BusHookup(Closeable):
     ros2: Ros2View | None = None
     ros2_estimates: Ros2Estimates | None = None
     _lockstep: LockstepFrameSource | None = None
+    _watch: EstimatorWatch | None = None
 
     @property
     def needs_camera(self) -> bool:
@@ -99,7 +101,11 @@ class BusHookup(Closeable):
             ledger,
         )
         sinks.append(self.publisher)
-        self.log = EstimateLog(self.bus, opts.keys, ledger, out_dir=out, home=home)
+        self.log = EstimateLog(
+            self.bus, opts.keys, ledger, out_dir=out, home=home, max_names=opts.max_estimate_names
+        )
+        if opts.expected:
+            self._watch = EstimatorWatch(self.log, opts.expected, sys.stderr)
         publish_frame, subscriber_present = self._attach_ros2(opts, camera)
         if opts.wait is not None and source is not None:
             publisher = self.publisher
@@ -111,6 +117,7 @@ class BusHookup(Closeable):
                 log=self.log,
                 image_key=opts.keys.image,
                 subscriber_present=subscriber_present,
+                reoffer=publisher.reoffer_frame,
             )
             source = self._lockstep
             publisher.gate = self._lockstep.wait_for_consumer
@@ -145,21 +152,30 @@ class BusHookup(Closeable):
         return publish_both, lambda: publisher.image_matched or view.image_matched
 
     def after_flight(self) -> dict[str, Any]:
-        """Collect late estimates, close the logs; a summary of what the bus did."""
+        """Collect late estimates, close the logs; a summary of what the bus did (and one
+        warning line per thing the user should know: rejected estimates, an awaited estimator
+        never heard, frames it left unanswered)."""
         summary: dict[str, Any] = {}
-        if self.log is not None:
-            self.log.settle(quiet_s=0.3, max_s=2.0)
-            self.log.close()
-            summary["estimates"] = {n: self.log.rows(n) for n in self.log.names()}
-            if self.log.rejected:
-                summary["estimates_rejected"] = self.log.rejected
-                print(
-                    f"air-sitl: warning: {self.log.rejected} estimate(s) rejected, first: "
-                    f"{self.log.first_error}",
-                    file=sys.stderr,
-                )
+        if self._watch is not None:
+            self._watch.stop()
+        log = self.log
+        if log is not None:
+            log.settle(quiet_s=0.3, max_s=2.0)
+            log.close()
+            summary.update(estimate_summary(log, self.expected))
+            for line in estimate_warnings(summary, log):
+                print(f"air-sitl: warning: {line}", file=sys.stderr)
+        if self.bus is not None and self.bus.callback_errors:
+            errors = self.bus.callback_errors
+            summary["bus_callback_errors"] = len(errors)
+            print(
+                f"air-sitl: warning: {len(errors)} error(s) in bus callbacks, first: {errors[0]}",
+                file=sys.stderr,
+            )
         if self.publisher is not None:
             summary["frames_published"] = self.publisher.frames_published
+            if self.publisher.frames_reoffered:
+                summary["frames_reoffered"] = self.publisher.frames_reoffered
         if self.ros2 is not None and self.ros2_estimates is not None:
             est = self.ros2_estimates
             summary["ros2"] = {
@@ -177,6 +193,12 @@ class BusHookup(Closeable):
         if self._lockstep is not None:
             summary["lockstep_wait_wall_s"] = round(self._lockstep.wait_wall_s, 3)
         return summary
+
+    @property
+    def expected(self) -> tuple[str, ...]:
+        """The estimators this flight relies on (``--wait-for``, ``--svo-columns``,
+        ``--nav-aid``)."""
+        return () if self.options is None else self.options.expected
 
     def nav_aid_feed(self, name: str) -> BusAidFeed | None:
         """The estimates of ``name`` for the onboard filter (``--nav-aid NAME``); None when
@@ -209,6 +231,8 @@ class BusHookup(Closeable):
 
     def close(self) -> None:
         """Close the logs and the session."""
+        if self._watch is not None:
+            self._watch.stop()
         if self.log is not None:
             self.log.close()
         if self.bus is not None:

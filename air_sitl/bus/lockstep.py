@@ -5,6 +5,11 @@ rendering, frame ``k`` is published (taken from the camera early if need be) and
 simulation thread waits until the estimate for frame ``k`` arrived; a silent estimator stops
 the run with a :class:`BusError` after ``timeout_s`` of wall time. The frames are still handed
 to every sink in order; the publisher sees they already went out and does not repeat them.
+
+A lost connection (a router killed and restarted, a network cut) can swallow the awaited frame
+or its estimate: every :data:`REOFFER_S` of wall time without the estimate, the frame is
+offered again (``reoffer``); the estimators answer a repeat of their last frame with the same
+estimate (an identical repeat is not a second row), so the flight goes on once the bus is back.
 """
 
 from __future__ import annotations
@@ -18,6 +23,8 @@ from air_sitl.bus.publisher import FrameLedger
 from air_sitl.errors import BusError
 from air_sitl.sinks import FrameSource
 from air_sitl.state import CameraFrame, SimSample
+
+REOFFER_S = 2.0  # wall seconds without the awaited estimate before its frame goes out again
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,6 +49,7 @@ class LockstepFrameSource:
         log: EstimateLog,
         image_key: str,
         subscriber_present: Callable[[], bool],
+        reoffer: Callable[[CameraFrame], None] | None = None,
     ) -> None:
         self.inner = inner
         self.wait = wait
@@ -50,6 +58,8 @@ class LockstepFrameSource:
         self._log = log
         self._image_key = image_key
         self._subscriber_present = subscriber_present
+        self._reoffer = reoffer
+        self._unanswered: dict[int, CameraFrame] = {}  # published, estimate not yet awaited
         self._held: list[CameraFrame] = []  # published early, not yet handed to the runner
         self._first_submitted: int | None = None
         self._consumer_seen = False
@@ -92,6 +102,7 @@ class LockstepFrameSource:
             return
         self.wait_for_consumer()
         self._publish(frame)
+        self._unanswered[frame.index] = frame
 
     def wait_for_consumer(self) -> None:
         """Block until the estimator listens (once). Called before the flight's first sample is
@@ -127,10 +138,19 @@ class LockstepFrameSource:
 
     def _await(self, frame: int) -> None:
         start = time.monotonic()
-        if not self._log.wait_for(self.wait.name, frame, self.wait.timeout_s):
-            msg = (
-                f"--wait-for {self.wait.name}: no estimate for frame {frame} within "
-                f"{self.wait.timeout_s:g} s of wall time (the estimator stopped?)"
-            )
-            raise BusError(msg)
+        deadline = start + self.wait.timeout_s
+        while not self._log.wait_for(
+            self.wait.name, frame, max(0.0, min(REOFFER_S, deadline - time.monotonic()))
+        ):
+            if time.monotonic() >= deadline:
+                msg = (
+                    f"--wait-for {self.wait.name}: no estimate for frame {frame} within "
+                    f"{self.wait.timeout_s:g} s of wall time (the estimator stopped?)"
+                )
+                raise BusError(msg)
+            offered = self._unanswered.get(frame)
+            if offered is not None and self._reoffer is not None:
+                self._reoffer(offered)
+        for index in [i for i in self._unanswered if i <= frame]:
+            del self._unanswered[index]
         self.wait_wall_s += time.monotonic() - start

@@ -48,6 +48,8 @@ class FrameLedger:
         # Frames whose capture index differs from their index (None: outside the window).
         self._capture: dict[int, int | None] = {}
         self.last_index = -1
+        self.now_ns: int | None = None  # the flight's simulation time, published so far
+        self.first_publish_wall_s: float | None = None  # monotonic time of the first frame
         self.count = 0
 
     def expose(self, index: int, sim_time_ns: int, capture_index: int | None) -> None:
@@ -57,6 +59,8 @@ class FrameLedger:
         with self._lock:
             self._time_ns[index] = sim_time_ns
             self._index_by_time[sim_time_ns] = index
+            if self.now_ns is None or sim_time_ns > self.now_ns:
+                self.now_ns = sim_time_ns
             if capture_index != index:
                 self._capture[index] = capture_index
 
@@ -66,6 +70,8 @@ class FrameLedger:
         now = time.monotonic()
         with self._lock:
             self._wall_s[index] = now
+            if self.first_publish_wall_s is None:
+                self.first_publish_wall_s = now
             self.last_index = max(self.last_index, index)
             self.count += 1
 
@@ -74,6 +80,11 @@ class FrameLedger:
         frame taken outside the window (a camera kept on for an aid)."""
         with self._lock:
             return self._capture.get(index, index)
+
+    def exposed(self, index: int) -> bool:
+        """True once frame ``index`` was taken (its estimate may come before it is published)."""
+        with self._lock:
+            return index in self._time_ns
 
     def published(self, index: int) -> bool:
         """True once frame ``index`` went out."""
@@ -131,6 +142,7 @@ class BusPublisher(NullSink):
         self._last_status: tuple[object, ...] | None = None
         self._last_status_ns = -NS_PER_S
         self.frames_published = 0
+        self.frames_reoffered = 0
         # Lockstep: called once before the first IMU/GNSS sample goes out (after the first
         # status, which the estimator asks for before it subscribes to the frames).
         self.gate: Callable[[], None] | None = None
@@ -165,6 +177,7 @@ class BusPublisher(NullSink):
         truth."""
         k = self.options.keys
         t = sample.state.sim_time_ns
+        self.ledger.now_ns = t  # estimates of a later time are from outside the flight
         status = sample.autopilot
         key = _status_key(status)
         if key != self._last_status or t - self._last_status_ns >= NS_PER_S:
@@ -207,21 +220,32 @@ class BusPublisher(NullSink):
             )
             self._info = codec.encode_camera_info(info)
             self._info_pub.put(self._info)
-        meta = codec.FrameMeta(
-            frame=frame.index,
-            sim_time_ns=frame.sim_time_ns,
-            width_px=frame.width_px,
-            height_px=frame.height_px,
-        )
         # Recorded before the put: an estimate may come back before put() returns.
         tick = frame.sample.camera
         capture = frame.index if tick is None else tick.capture_index
         self.ledger.record(frame.index, frame.sim_time_ns, capture)
-        self._image.put(frame.jpeg, codec.encode_frame_meta(meta))
+        self._image.put(frame.jpeg, _frame_meta(frame))
         self.frames_published += 1
+
+    def reoffer_frame(self, frame: CameraFrame) -> None:
+        """Put a published frame again, as it was (lockstep: its estimator may have lost it, or
+        its answer, while the connection was down). Not counted as a new frame."""
+        self.frames_reoffered += 1
+        self._image.put(frame.jpeg, _frame_meta(frame))
 
     def close(self, result: FlightResult) -> None:
         """Nothing buffered: puts went out as they came."""
+
+
+def _frame_meta(frame: CameraFrame) -> bytes:
+    """The attachment of a frame on ``camera/image``."""
+    meta = codec.FrameMeta(
+        frame=frame.index,
+        sim_time_ns=frame.sim_time_ns,
+        width_px=frame.width_px,
+        height_px=frame.height_px,
+    )
+    return codec.encode_frame_meta(meta)
 
 
 def _status_key(status: AutopilotStatus) -> tuple[object, ...]:

@@ -8,13 +8,24 @@ swapped) without knowing zenoh.
 Defaults: peer mode, multicast scouting off, endpoints on ``tcp/127.0.0.1`` only. With
 ``config_file`` (zenoh JSON5: TLS, access control, ...) the file is the base and only the
 options given explicitly (mode, listen, connect) are applied on top of it.
+
+Peers through a router: since zenoh 1.9 a router no longer forwards between two peers attached
+to it (``routing.router.peers_failover_brokering`` is gone; the router's default gateway puts
+every peer in one peer-to-peer region, assumed fully meshed). It only tells each peer where the
+others listen (gossip), and the peers connect to one another. A peer that listens nowhere can
+be told of by no one: two such peers hear nothing of each other. So a peer that connects and
+was given no listen endpoint listens on an ephemeral TCP port of the address it reaches its
+connect endpoints from (the loopback for a loopback router): :func:`peer_listen_endpoints`.
+Clients need nothing of the sort: the router forwards for them.
 """
 
 from __future__ import annotations
 
 import contextlib
+import ipaddress
 import json
 import re
+import socket
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -82,6 +93,8 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
         listen = listen or ()
         connect = connect or ()
         mode = cfg.mode
+        if mode == "peer" and not listen and connect:
+            listen = peer_listen_endpoints(connect)
     if cfg.timestamping:
         _insert(conf, "timestamping/enabled", True)
     if mode is not None:
@@ -91,6 +104,54 @@ def zenoh_config(cfg: BusConfig) -> zenoh.Config:
     if connect is not None:
         _insert(conf, "connect/endpoints", list(connect))
     return conf
+
+
+def peer_listen_endpoints(connect: tuple[str, ...]) -> tuple[str, ...]:
+    """Ephemeral TCP endpoints a connecting peer listens on, so other peers can reach it.
+
+    One per local address the TCP connect endpoints are reached from: ``tcp/127.0.0.1:0`` for
+    a loopback router, ``tcp/<this host's address on that network>:0`` for a router on
+    another host or container (never the wildcard address). An endpoint whose host does not
+    resolve, or of another protocol, adds none.
+    """
+    out: list[str] = []
+    for endpoint in connect:
+        local = _local_address_towards(endpoint)
+        if local is None:
+            continue
+        text = f"tcp/[{local}]:0" if ":" in local else f"tcp/{local}:0"
+        if text not in out:
+            out.append(text)
+    return tuple(out)
+
+
+_TCP_ENDPOINT = re.compile(r"tcp/(?:\[(?P<v6>[^\]]+)\]|(?P<host>[^:/#?]+)):(?P<port>\d+)")
+
+
+def _local_address_towards(endpoint: str) -> str | None:
+    """The local IP address packets to ``endpoint`` leave from (no packet is sent)."""
+    m = _TCP_ENDPOINT.match(endpoint)
+    if m is None:
+        return None
+    host = m.group("v6") or m.group("host")
+    try:
+        if ipaddress.ip_address(host).is_loopback:
+            return str(host)
+    except ValueError:
+        if host == "localhost":
+            return "127.0.0.1"
+    try:
+        infos = socket.getaddrinfo(host, int(m.group("port")), type=socket.SOCK_DGRAM)
+    except (OSError, UnicodeError):
+        return None
+    for family, kind, proto, _, address in infos:
+        with socket.socket(family, kind, proto) as probe:
+            try:
+                probe.connect(address)  # UDP: only picks the route and the source address
+            except OSError:
+                continue
+            return str(probe.getsockname()[0])
+    return None
 
 
 def _insert(conf: zenoh.Config, key: str, value: Any) -> None:

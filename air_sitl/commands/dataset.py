@@ -110,6 +110,9 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
         for date in dates:
             name = scenario if len(dates) == 1 else f"{scenario}@{date}"
             out = root / name
+            if out.exists() and not out.is_dir():
+                msg = f"{out}: exists and is not a folder (remove it, or choose another --out)"
+                raise DatasetError(msg)
             if out.exists() and any(out.iterdir()) and not args.resume:
                 msg = f"{out}: folder exists and is not empty (choose another --out, or --resume)"
                 raise DatasetError(msg)
@@ -133,19 +136,15 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
 def run(args: argparse.Namespace) -> int:
     """Fly every job; exit 0 when all completed, 1 when a mission did not, 2 on errors."""
     from air_sitl.dataset.scenarios import PAPER_TABLE, ScenarioStats, format_table, stats_table
-    from air_sitl.files import write_bytes_atomic
+    from air_sitl.files import require_writable_folder, write_bytes_atomic
     from air_sitl.progress import JobsProgress
     from air_sitl.recording.batch import Outcome, run_jobs
 
     jobs = build_jobs(args)
     root = Path(args.out)
     expected = {j.name: PAPER_TABLE.get(j.setup.name.upper(), (0, 0))[0] for j in jobs}
+    require_writable_folder(root, "output folder")  # a read-only disk: before anything flies
     check_disk(jobs, expected, root, args)
-    try:
-        root.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        msg = f"{root}: cannot create the output folder: {err.strerror}"
-        raise DatasetError(msg) from None
     n = min(int_in_range("-j", args.jobs, 1, 64), len(jobs))
     display = JobsProgress([j.name for j in jobs], expected, enabled=not args.quiet)
 
@@ -184,20 +183,29 @@ def run(args: argparse.Namespace) -> int:
         for o in outcomes
         if o.error is None
     ]
+    table = ""
+    table_error = ""
     if stats:
         rows = stats_table(stats)
         text = io.StringIO()
         csv.writer(text, lineterminator="\n").writerows(rows)
-        write_bytes_atomic(root / "stats.csv", text.getvalue().encode("ascii"))
         sys.stdout.write(format_table(rows) + "\n")
+        try:
+            write_bytes_atomic(root / "stats.csv", text.getvalue().encode("ascii"))
+            table = f"; table in {root / 'stats.csv'}"
+        except OSError as err:
+            table_error = f"{root / 'stats.csv'}: cannot write the table: {err.strerror}"
     frames = sum(o.images for o in outcomes)
     sys.stdout.write(
         f"{len(stats)}/{len(outcomes)} scenarios, {frames} frames in {wall:.0f} s wall "
-        f"({frames / wall if wall > 0 else 0:.0f} frames/s); table in {root / 'stats.csv'}\n"
+        f"({frames / wall if wall > 0 else 0:.0f} frames/s){table}\n"
     )
     errors = [o for o in outcomes if o.error]
     for o in errors:
         sys.stderr.write(f"air-sitl: error: {o.name}: {o.error}\n")
+    if table_error:
+        sys.stderr.write(f"air-sitl: error: {table_error}\n")
+        return 2
     if errors:
         return 2
     return 0 if all(o.mission_completed for o in outcomes) else 1

@@ -107,6 +107,11 @@ def run(args: argparse.Namespace) -> int:
             )
     key = load_signing_key(args.signing_key) if args.signing_key else None
     setup = _setup(args, options, instance)
+    if args.out:
+        from air_sitl.files import require_writable_folder
+
+        # Refused now, not after "Capture started" was told to the ground station.
+        require_writable_folder(Path(args.out), "--out folder")
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: FrameType | None) -> None:
@@ -132,10 +137,15 @@ def run(args: argparse.Namespace) -> int:
         for s, handler in previous.items():
             signal.signal(s, handler)
     if not args.quiet:
+        kernel = (
+            f"{c.kernel_dropped} datagrams dropped by the kernel (socket buffer full)"
+            if c.kernel_drops_counted or c.kernel_dropped
+            else "kernel drops not counted (no UDP peer, or the platform does not tell)"
+        )
         print(
             f"air-sitl serve: stopped; {c.messages} messages received, {c.dropped} frames "
             f"dropped ({c.parse_errors} parse errors, {c.unknown_ids} unknown, "
-            f"{c.signature_rejected} signature rejected)",
+            f"{c.signature_rejected} signature rejected), {kernel}",
             flush=True,
         )
     return 0

@@ -185,6 +185,7 @@ class BusLocalizer:
         self.frames = 0
         self.estimated = 0
         self.last_frame = -1
+        self._last_answer: bytes | None = None  # the estimate of last_frame, as published
         self._last_t_ns: int | None = None
         self._last_fix_t_ns: int | None = None
         self.step_s = 0.0  # wall time spent in the method
@@ -348,6 +349,10 @@ class BusLocalizer:
         """Localize one frame and publish the answer (every frame gets one)."""
         if meta.frame <= self.last_frame:
             if meta.frame != 0 or self.last_frame == 0:
+                if meta.frame == self.last_frame and self._last_answer is not None:
+                    # The simulator offers the frame again (lockstep after a lost connection:
+                    # our answer may not have reached it): the same answer again.
+                    self._out.put(self._last_answer)
                 return None  # a repeat: already answered
             self._restart()  # frame 0 again after others: a new capture window
         self.frames += 1
@@ -369,20 +374,20 @@ class BusLocalizer:
             self.estimated += 1
         else:
             enu = None
-        self._out.put(
-            codec.encode_estimate(
-                frame=meta.frame,
-                sim_time_ns=meta.sim_time_ns,
-                enu_m=enu,
-                q_body_to_ned_wxyz=None if est is None else est.q_body_to_ned_wxyz,
-                cov_enu_m2=None if est is None or enu is None else est.cov_enu_m2,
-            )
+        self._last_answer = codec.encode_estimate(
+            frame=meta.frame,
+            sim_time_ns=meta.sim_time_ns,
+            enu_m=enu,
+            q_body_to_ned_wxyz=None if est is None else est.q_body_to_ned_wxyz,
+            cov_enu_m2=None if est is None or enu is None else est.cov_enu_m2,
         )
+        self._out.put(self._last_answer)
         return est
 
     def _restart(self) -> None:
         self.method.reset(self.context)
         self.last_frame = -1
+        self._last_answer = None
         self._last_t_ns = None
         self._last_fix_t_ns = None
         self._camera_kept_on = False

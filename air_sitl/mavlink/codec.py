@@ -89,6 +89,8 @@ class ParseCounters:
     unknown_ids: int = 0  # a valid frame of a message this dialect does not know
     signature_rejected: int = 0  # unsigned, MAVLink 1 or bad signature while signing is on
     replayed: int = 0  # signed with an old timestamp (counted in signature_rejected too)
+    kernel_dropped: int = 0  # datagrams the kernel dropped, its buffer full (Linux tells)
+    kernel_drops_counted: bool = False  # a UDP link could read the kernel's drop count
 
     @property
     def dropped(self) -> int:
@@ -103,6 +105,11 @@ class Parser:
         self._counters = counters
         self._signing = signing
         self._mav = self._new()
+
+    @property
+    def counters(self) -> ParseCounters:
+        """The counters this parser adds to (shared by every link of the vehicle)."""
+        return self._counters
 
     def _new(self) -> Any:
         m = mavlink2.MAVLink(None, 0, 0)

@@ -23,7 +23,7 @@ from air_sitl.state import FlightMode, GeoPoint, GpsFix, SimSample
 
 NS_PER_S = 1_000_000_000
 WALL_CAP_HZ = 200.0  # no stream goes faster than max(this, its own rate) in wall time
-SEVERITY_CRITICAL, SEVERITY_WARNING, SEVERITY_INFO = 2, 4, 6
+SEVERITY_CRITICAL, SEVERITY_ERROR, SEVERITY_WARNING, SEVERITY_INFO = 2, 3, 4, 6
 
 
 class AutopilotLike(Protocol):

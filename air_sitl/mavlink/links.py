@@ -12,9 +12,12 @@ import ipaddress
 import re
 import selectors
 import socket
+import struct
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 from air_sitl.errors import MavlinkError
 
@@ -26,6 +29,15 @@ TCP_MAX_BUFFER_BYTES = 256 * 1024  # per client; beyond this, frames to it are d
 # second of full-rate telemetry over a slow link, small enough that a client that stops
 # reading sees drops within seconds, not minutes of stale telemetry later.
 TCP_SNDBUF_BYTES = 64 * 1024
+# The kernel's receive buffer of a UDP link: room for a burst of thousands of small datagrams
+# (5,000 PARAM_SET at once take ~5 MB of kernel memory) while the I/O thread catches up. The
+# kernel caps it at net.core.rmem_max (4 MiB on most distributions, 208 kB on some).
+UDP_RCVBUF_BYTES = 8 * 1024 * 1024
+# Linux: SO_MEMINFO reads the socket's memory counters, the last of them (SK_MEMINFO_DROPS)
+# the datagrams the kernel dropped for want of buffer, at any time (SO_RXQ_OVFL tells the same
+# count, but only with the next datagram read: drops at the end of a burst would go unseen).
+SO_MEMINFO = getattr(socket, "SO_MEMINFO", 55)
+_MEMINFO = struct.Struct("=9I")  # SK_MEMINFO_VARS u32 counters; DROPS is the 9th
 _URL = re.compile(r"^(udpout|udpin|tcpin)(?::|://)(\[[0-9a-fA-F:.]+\]|[^:\[\]]*):(\d{1,5})$")
 
 
@@ -126,6 +138,23 @@ class Link:
         return str(host), int(port)
 
 
+def _size_for_bursts(sock: socket.socket) -> int | None:
+    """Ask for a receive buffer of :data:`UDP_RCVBUF_BYTES`; the kernel's drop count so far
+    (0) when it can be read (Linux, SO_MEMINFO), None when the platform does not give it."""
+    with contextlib.suppress(OSError):
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, UDP_RCVBUF_BYTES)
+    return _kernel_drop_count(sock) if sys.platform.startswith("linux") else None
+
+
+def _kernel_drop_count(sock: socket.socket) -> int | None:
+    """Datagrams the kernel dropped on ``sock`` so far (SK_MEMINFO_DROPS); None if unknown."""
+    try:
+        raw = sock.getsockopt(socket.SOL_SOCKET, SO_MEMINFO, _MEMINFO.size)
+        return int(_MEMINFO.unpack(raw)[8])
+    except (OSError, struct.error):
+        return None
+
+
 class UdpLink(Link):
     """``udpout`` (send first to HOST:PORT, answer whoever replies) or ``udpin`` (bind)."""
 
@@ -133,6 +162,8 @@ class UdpLink(Link):
         super().__init__(spec, encoder, receive, new_parser)
         self._sock = socket.socket(_family(spec.host), socket.SOCK_DGRAM)
         self._sock.setblocking(False)
+        self.kernel_drops = _size_for_bursts(self._sock)  # None: the platform does not tell
+        self._counters: Any = None  # the vehicle's ParseCounters (via the first parser)
         try:
             if spec.kind == "udpin":
                 self._sock.bind((spec.host, spec.port))
@@ -160,6 +191,10 @@ class UdpLink(Link):
                 del self.channels[quiet.address]
             ch = Channel(self, address, self._new_parser(), time.monotonic())
             self.channels[address] = ch
+            if self._counters is None:
+                self._counters = getattr(ch.parser, "counters", None)
+                if self._counters is not None and self.kernel_drops is not None:
+                    self._counters.kernel_drops_counted = True
         return ch
 
     def register(self, sel: selectors.BaseSelector) -> None:
@@ -172,13 +207,27 @@ class UdpLink(Link):
             try:
                 data, addr = self._sock.recvfrom(65536)
             except (BlockingIOError, InterruptedError):
-                return
+                break
             except OSError:  # ICMP port unreachable from an absent udpout target
                 continue
             address = (str(addr[0]), int(addr[1]))
             ch = self._channel(address)
             ch.last_seen_s = time.monotonic()
             self._receive(ch, data, True)
+        self._count_kernel_drops()
+
+    def _count_kernel_drops(self) -> None:
+        """The kernel's running count of datagrams it dropped on this socket, added to the
+        vehicle's counters as it grows (after each batch of reads, and at close)."""
+        if self.kernel_drops is None:
+            return
+        total = _kernel_drop_count(self._sock)
+        if total is None:
+            return
+        grown = total - self.kernel_drops
+        if grown > 0 and self._counters is not None:
+            self.kernel_drops = total
+            self._counters.kernel_dropped += grown
 
     def send(self, data: bytes, channel: Channel | None = None) -> None:
         """Best effort: UDP drops what the kernel cannot take."""
@@ -194,7 +243,8 @@ class UdpLink(Link):
             self._sock.sendto(data, address)
 
     def close(self) -> None:
-        """Close the socket."""
+        """Count the kernel's last drops, close the socket."""
+        self._count_kernel_drops()
         self._sock.close()
 
 

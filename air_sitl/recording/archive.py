@@ -31,7 +31,7 @@ from air_sitl.dataset.air_schema import (
 )
 from air_sitl.dataset.estimates import fill_svo_columns
 from air_sitl.dataset.manifest import read_manifest, refresh_manifest
-from air_sitl.dataset.writer import DatasetWriter, read_run_key, recover_partial
+from air_sitl.dataset.writer import ArchiveInfo, DatasetWriter, read_run_key, recover_partial
 from air_sitl.errors import DatasetError, OptionError
 from air_sitl.files import sha256_file, write_json_atomic
 from air_sitl.flightlog import NavTrajectoryWriter, TrajectoryWriter
@@ -95,13 +95,23 @@ def prepare_out_dir(path: Path) -> Path:
     return path
 
 
-def _already_complete(out: Path) -> RecordingResult | None:
+def _already_complete(out: Path, info: ArchiveInfo) -> RecordingResult | None:
+    """The result of a complete archive of the same inputs in ``out``; None when it is not
+    complete; DatasetError naming what differs when it is a complete archive of other inputs
+    (another plan, map, camera or flight options): never "nothing to do" for the wrong data."""
     manifest_path = out / MANIFEST_JSON
     if not manifest_path.exists() or (out / RECORDING_JSON).exists():
         return None
     manifest = read_manifest(out)
     if not manifest or manifest.get("complete") is not True:
         return None
+    diff = _complete_archive_differences(info, manifest)
+    if diff:
+        msg = (
+            f"{out}: --resume: the complete archive there was recorded from other inputs "
+            f"({'; '.join(diff)}); choose another --out"
+        )
+        raise DatasetError(msg)
     summary: dict[str, Any] = {}
     if (out / SUMMARY_JSON).exists():
         summary = json.loads((out / SUMMARY_JSON).read_text(encoding="utf-8"))
@@ -112,6 +122,28 @@ def _already_complete(out: Path) -> RecordingResult | None:
         resumed_from_frame=int(manifest.get("frame_count", 0)),
         already_complete=True,
     )
+
+
+# The manifest fields of a complete archive that hold the inputs deciding its bytes (its
+# recording.json with the run key is gone once complete).
+_COMPLETE_KEYS = ("plan_sha256", "map", "camera", "flight", "sensor_noise", "home")
+
+
+def _complete_archive_differences(info: ArchiveInfo, manifest: Mapping[str, Any]) -> list[str]:
+    """What differs between the inputs of this recording and a complete archive's manifest,
+    one short phrase each (the plan by scenario name, the rest by field)."""
+    out = []
+    keys = (*_COMPLETE_KEYS, *(k for k in info.run_key if k in info.manifest))  # + GNSS denial
+    for key in dict.fromkeys(keys):
+        if key not in info.manifest or key not in manifest:
+            continue  # not recorded by the archive's version: nothing to compare
+        if info.manifest[key] == manifest[key]:
+            continue
+        if key == "plan_sha256":
+            out.append(f"plan: archive {manifest.get('scenario', '?')}, this run {info.scenario}")
+        else:
+            out.append(f"{key} differs")
+    return out
 
 
 def _trim_for_resume(out: Path, run_key: Mapping[str, Any]) -> int:
@@ -134,12 +166,7 @@ def _add_estimates(archive: Path, bus: BusHookup) -> None:
     """Estimates received over the bus into a finished archive: AIR's SvoX..SvoZ from
     ``--svo-columns NAME``, and the manifest's list of files (estimates/ came after it)."""
     positions = bus.svo_positions()
-    if positions is not None:
-        if not positions:
-            print(
-                f"air-sitl: warning: --svo-columns {bus.svo_columns}: no estimate received",
-                file=sys.stderr,
-            )
+    if positions is not None:  # none received: the bus told already (estimator_watch)
         fill_svo_columns(archive, positions)
     elif bus.estimate_names():
         refresh_manifest(archive)
@@ -163,11 +190,7 @@ def record_flight(
         raise OptionError(msg)
     first_frame = 0
     resuming = request.resume and out.is_dir() and any(out.iterdir())
-    if resuming and setup.camera is not None:
-        done = _already_complete(out)
-        if done is not None:
-            return done
-    elif not resuming:
+    if not resuming:
         prepare_out_dir(out)
 
     sinks: list[Sink] = []
@@ -181,6 +204,10 @@ def record_flight(
         try:
             info = archive_info_for(setup, map_source, plan_sha256=sha256_file(setup.plan))
             if resuming:
+                done = _already_complete(out, info)
+                if done is not None:
+                    close_map(map_source)
+                    return done
                 first_frame = _trim_for_resume(out, info.run_key)
             writer = DatasetWriter(out, info, first_frame=first_frame, threaded=request.io_thread)
         except BaseException:
@@ -209,8 +236,9 @@ def record_flight(
                 frame_source=camera_source,
             )
             sinks.extend(bus_sinks)
-        trajectory = NavTrajectoryWriter if options.nav == "ekf" else TrajectoryWriter
-        sinks.append(trajectory(out / TRAJECTORY_CSV))
+        trajectory_kind = NavTrajectoryWriter if options.nav == "ekf" else TrajectoryWriter
+        trajectory = trajectory_kind(out / TRAJECTORY_CSV)
+        sinks.append(trajectory)
         if writer is not None:
             sinks.append(writer)
         flight = build_flight(setup, sinks=sinks, camera=camera_source)
@@ -230,6 +258,7 @@ def record_flight(
         max_sim_time_ns=int(options.max_sim_time_s * NS_PER_S),
         progress=progress,
     )
+    trajectory.raise_if_failed()
     summary = dict(result.summary)
     summary["plan"] = request.summary_plan if request.summary_plan is not None else str(setup.plan)
     if request.bus is not None:

@@ -10,6 +10,7 @@ import contextlib
 import dataclasses
 import math
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -57,7 +58,8 @@ class CaptureRecorder:
 
     Frames keep their flight-wide tick index in the runner; each archive renumbers them from 0.
     A window's archive is sealed once its last frame arrived (frames lag behind the samples).
-    A write error abandons that archive with a warning: the vehicle keeps flying.
+    A write error abandons that archive with a warning: the vehicle keeps flying, and
+    ``on_failure`` (serve: a STATUSTEXT of severity ERROR) tells the ground stations.
     """
 
     def __init__(self, root: Path, setup: FlightSetup) -> None:
@@ -71,6 +73,7 @@ class CaptureRecorder:
         self._window: _Window | None = None
         self._last_sample: SimSample | None = None
         self._failed = False
+        self.on_failure: Callable[[str], None] | None = None  # called with one line
 
     def _next_folder(self) -> Path:
         used = [int(p.name) for p in self.root.glob("*") if p.name.isdigit()]
@@ -174,6 +177,8 @@ class CaptureRecorder:
         self._window = None
         self._failed = True  # no new archive before this capture window ends
         print(f"air-sitl serve: warning: recording stopped: {err}", file=sys.stderr, flush=True)
+        if self.on_failure is not None:
+            self.on_failure(f"Recording stopped: {err}")
         if w is not None:
             with contextlib.suppress(Exception):
                 w.writer.close(FlightResult(mission_completed=False, sim_time_ns=0, wall_time_s=0))

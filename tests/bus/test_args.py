@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 
 import pytest
 
@@ -12,7 +13,7 @@ from air_sitl.bus.args import (
     bus_options_from_args,
     parse_wait_for,
 )
-from air_sitl.bus.session import DEFAULT_ENDPOINT, BusConfig, zenoh_config
+from air_sitl.bus.session import DEFAULT_ENDPOINT, BusConfig, peer_listen_endpoints, zenoh_config
 from air_sitl.cli import build_parser
 from air_sitl.errors import OptionError
 from air_sitl.options import add_gps_denial_arguments, gps_denied_from_args
@@ -68,9 +69,18 @@ def test_default_endpoints_are_loopback_and_scouting_is_off() -> None:
     assert sim.get_json("scouting/multicast/enabled") == "false"
     client = zenoh_config(BusConfig())
     assert DEFAULT_ENDPOINT in client.get_json("connect/endpoints")
-    assert client.get_json("listen/endpoints") == "[]"
+    # A connecting peer listens on an ephemeral loopback port: other peers behind the same
+    # router reach it there (zenoh >= 1.9 routers no longer forward between peers).
+    assert json.loads(client.get_json("listen/endpoints")) == ["tcp/127.0.0.1:0"]
+    as_client = zenoh_config(BusConfig(mode="client"))
+    assert as_client.get_json("listen/endpoints") == "[]"
     explicit = bus_config_from_args(parse("--zenoh-connect", "tcp/10.0.0.1:7447"), serves=True)
     assert explicit.listen == () and explicit.connect == ("tcp/10.0.0.1:7447",)
+    chosen = bus_config_from_args(
+        parse("--zenoh-connect", "tcp/127.0.0.1:7447", "--zenoh-listen", "tcp/127.0.0.1:7000"),
+        serves=True,
+    )
+    assert json.loads(zenoh_config(chosen).get_json("listen/endpoints")) == ["tcp/127.0.0.1:7000"]
     with pytest.raises(OptionError, match="PROTOCOL/ADDRESS"):
         bus_config_from_args(parse("--zenoh-listen", "7447"), serves=True)
     with pytest.raises(OptionError, match="no such file"):
@@ -85,3 +95,16 @@ def test_fly_takes_every_bus_option() -> None:
          "--gps-denied-after", "10", "--gps-denied-window", "1:2", "--camera", "remote"]
     )  # fmt: skip
     assert args.wait_for == "ex:2" and args.camera == "remote" and args.vehicle == "v"
+
+
+def test_a_connecting_peer_listens_where_the_others_can_reach_it() -> None:
+    assert peer_listen_endpoints(("tcp/127.0.0.1:7447", "tcp/localhost:7000")) == (
+        "tcp/127.0.0.1:0",
+    )
+    assert peer_listen_endpoints(("tcp/[::1]:7447",)) == ("tcp/[::1]:0",)
+    # Another protocol, or a host that does not resolve: nothing guessed.
+    assert peer_listen_endpoints(("udp/127.0.0.1:7447", "tcp/no-such-host.invalid:7447")) == ()
+    # A router on another host: this host's address on the way there, never 0.0.0.0.
+    for endpoint in peer_listen_endpoints(("tcp/192.0.2.77:7447",)):
+        assert endpoint.startswith("tcp/") and endpoint.endswith(":0")
+        assert "0.0.0.0" not in endpoint

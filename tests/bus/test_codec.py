@@ -95,7 +95,7 @@ def test_null_coordinates_mean_no_estimate_but_still_an_answer() -> None:
         (b"not json", "not a JSON object"),
         (b"[1, 2]", "expected a JSON object"),
         (b'{"enu_m": [1, 2, 3]}', "needs 'frame' or 'sim_time_ns'"),
-        (b'{"frame": 1, "enu_m": [1, 2]}', "bad estimate"),
+        (b'{"frame": 1, "enu_m": [1, 2]}', "'enu_m' needs 3 numbers"),
         (b'{"frame": 1, "lat_deg": 91, "lon_deg": 0, "alt_amsl_m": 0}', "out of range"),
         (b'{"frame": 1, "enu_m": [1, 2, 3], "cov_enu_m2": [1, 2]}', "9 numbers"),
     ],

@@ -140,7 +140,8 @@ def test_estimates_by_timestamp_map_to_frames_and_bad_ones_are_counted(tmp_path:
         assert wait_until(lambda: out.matched)
         out.put(codec.encode_estimate(sim_time_ns=CAMERA_PERIOD_NS, enu_m=(1.0, 2.0, 3.0)))
         out.put(b'{"enu_m": [1, 2, 3]}')
-        assert wait_until(lambda: log.has("ts", 1) and log.rejected == 1)
+        assert wait_until(lambda: log.has("ts", 1) and log.rejected_total() == 1)
+        assert log.rejected == {"no_frame_or_time": 1}
         assert "needs 'frame' or 'sim_time_ns'" in (log.first_error or "")
         assert log.positions_enu("ts") == {1: (1.0, 2.0, 3.0)}
         log.close()

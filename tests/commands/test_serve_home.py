@@ -14,7 +14,8 @@ def _serve(monkeypatch: pytest.MonkeyPatch, *argv: str) -> Any:
     seen: dict[str, Any] = {}
 
     class _Counters:
-        messages = dropped = parse_errors = unknown_ids = signature_rejected = 0
+        messages = dropped = parse_errors = unknown_ids = signature_rejected = kernel_dropped = 0
+        kernel_drops_counted = False
 
     def fake_serve(setup: Any, specs: object, **kw: Any) -> _Counters:
         seen["home"] = setup.home

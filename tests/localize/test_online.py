@@ -156,7 +156,7 @@ def test_a_repeat_is_ignored_and_frame_zero_again_restarts() -> None:
     fly(bus, 5)
     drain(loc)
     meta = codec.FrameMeta(frame=3, sim_time_ns=0, width_px=640, height_px=480)
-    assert loc.handle(meta, b"jpeg") is None  # a repeat
+    assert loc.handle(meta, b"jpeg") is None  # a repeat of an older frame: nothing sent
     assert len(bus.out.sent) == 5
     fly(bus, 2)  # a new capture window, frame 0 again
     drain(loc)
@@ -171,4 +171,6 @@ def test_a_repeat_is_ignored_and_frame_zero_again_restarts() -> None:
     drain(fresh)
     meta0 = codec.FrameMeta(frame=0, sim_time_ns=0, width_px=640, height_px=480)
     assert fresh.handle(meta0, b"jpeg") is None
-    assert fresh.frames == 1 and [m["frame"] for m in other.out.sent] == [0]
+    # Offered again (lockstep after a lost connection): the same answer again, not a new one.
+    assert fresh.frames == 1 and [m["frame"] for m in other.out.sent] == [0, 0]
+    assert other.out.sent[0] == other.out.sent[1]
