@@ -1,4 +1,4 @@
-"""Contact sheet of the procedural maps: forest and urban on two dates at 100 to 3000 m.
+"""Contact sheet of the procedural maps: forest and urban on their three dates at 100 to 3000 m.
 
 Run from the repository: ``.venv/bin/python docs/make_contact_sheet.py`` writes
 ``docs/procedural_contact_sheet.png`` (rows: map and date; columns: height above the
@@ -30,7 +30,7 @@ CENTRES = {
     "urban": GeoPoint(lat_deg=54.696871, lon_deg=25.242495, alt_amsl_m=120.0),
 }
 ALTITUDES_M = (100.0, 200.0, 300.0, 3000.0)
-ROWS = (("forest", 0), ("forest", 1), ("urban", 0), ("urban", 1))
+ROWS = tuple((kind, date) for kind in ("forest", "urban") for date in (0, 1, 2))
 CELL = (400, 300)  # width, height of one frame on the sheet
 LABEL_W, HEAD_H = 150, 34
 

@@ -18,7 +18,6 @@ if TYPE_CHECKING:  # zenoh loads when a command opens the bus, not for its --hel
     from air_sitl.bus.session import BusConfig, Mode
 
 DEFAULT_WAIT_TIMEOUT_S = 10.0
-ROS2_LISTEN = "tcp/127.0.0.1:0"  # a free port (rmw_zenoh's sessions listen on tcp/localhost:0)
 
 
 def add_connection_arguments(parser: argparse.ArgumentParser, *, serves: bool) -> None:
@@ -162,13 +161,10 @@ def bus_config_from_args(args: argparse.Namespace, *, serves: bool) -> BusConfig
 
 
 def ros2_config(config: BusConfig) -> BusConfig:
-    """The session of a ROS 2 view: timestamped (transient-local caches need it) and, when it
-    only connects (to a router), listening on a free loopback port as rmw_zenoh's sessions do:
-    routers do not forward between peers, ROS 2 nodes reach it directly (gossip tells them)."""
-    listen = config.listen
-    if listen == () and config.connect and config.config_file is None:
-        listen = (ROS2_LISTEN,)
-    return replace(config, timestamping=True, listen=listen)
+    """The session of a ROS 2 view: timestamped (transient-local caches need it). A peer that
+    only connects listens on a free port as rmw_zenoh's sessions do (the session's own rule,
+    :func:`air_sitl.bus.session.peer_listen_endpoints`), so ROS 2 nodes reach it directly."""
+    return replace(config, timestamping=True)
 
 
 def parse_wait_for(text: str, timeout_s: float) -> WaitFor:
