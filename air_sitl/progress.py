@@ -14,10 +14,11 @@ import math
 import sys
 import time
 from collections.abc import Callable, Sequence
-from types import TracebackType
 from typing import IO, Any
 
 from tqdm import tqdm
+
+from air_sitl.closeable import Closeable
 
 LINE_STEP = 0.1  # a plain line each time another tenth of the total is done ...
 LINE_EVERY_S = 30.0  # ... or after this long without one
@@ -27,7 +28,7 @@ _LINE_END = _FIGURES + "{elapsed}{postfix}"
 _LINE_NO_TOTAL = "{desc}: {n_fmt}{unit}, {rate_noinv_fmt}, {elapsed}{postfix}"
 
 
-class Progress:
+class Progress(Closeable):
     """One task's progress: ``update_to(n)`` as the count grows, ``close()`` at the end.
 
     ``total`` None: a count without an end (rate, no ETA). ``enabled`` False: silent (--quiet).
@@ -160,17 +161,6 @@ class Progress:
             self._bar.close()
         elif self.enabled:
             self._line(self.clock(), end=True)
-
-    def __enter__(self) -> Progress:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 class JobsProgress:

@@ -33,7 +33,7 @@ _FLAT_ROOFS: tuple[Color, ...] = (
     (176, 178, 170),
     (110, 112, 112),
 )
-_CARS: tuple[Color, ...] = (
+CAR_COLOURS: tuple[Color, ...] = (  # parked cars (BGR)
     (235, 235, 235),
     (30, 30, 30),
     (160, 160, 160),
@@ -162,7 +162,7 @@ def _residential(rng, b0, c0, b1, c1, grounds, buildings, trees, cars) -> None: 
             tree_r = [rng.uniform(2.0, 4.5) for _ in range(n_trees)]
             tree_c = [int(rng.integers(3)) for _ in range(n_trees)]
             car = rng.random() < 0.5
-            car_col = _CARS[int(rng.integers(len(_CARS)))]
+            car_col = CAR_COLOURS[int(rng.integers(len(CAR_COLOURS)))]
 
             def to_block(x: float, y: float, row: int = row) -> Point:
                 yy = y if row == 0 else depth - y
@@ -250,7 +250,7 @@ def _stalls(rng, u0, v0, u1, v1, cars, paint) -> None:  # type: ignore[no-untype
     """A row of parking stalls 2.6 m wide, some occupied."""
     n = max(0, int((u1 - u0) // 2.6))
     occupied = rng.random(n) < 0.4
-    colours = rng.integers(len(_CARS), size=n)
+    colours = rng.integers(len(CAR_COLOURS), size=n)
     cm = (v0 + v1) / 2
     for i in range(n):
         u = u0 + 2.6 * i
@@ -262,7 +262,7 @@ def _stalls(rng, u0, v0, u1, v1, cars, paint) -> None:  # type: ignore[no-untype
                 (u + 2.15, cm + 2.2),
                 (u + 0.45, cm + 2.2),
             )
-            cars.append((corners, _CARS[int(colours[i])]))
+            cars.append((corners, CAR_COLOURS[int(colours[i])]))
 
 
 def _park(rng, b0, c0, b1, c1, grounds, trees) -> None:  # type: ignore[no-untyped-def]

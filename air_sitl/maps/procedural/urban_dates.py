@@ -16,22 +16,13 @@ import numpy as np
 
 from air_sitl.maps.procedural.canvas import DATES, Canvas, Color, DateLook, Point, rect, shade
 from air_sitl.maps.procedural.noise import rng_for, unit_of
-from air_sitl.maps.procedural.urban_blocks import CROP_KINDS, Block, Building, box
+from air_sitl.maps.procedural.urban_blocks import CAR_COLOURS, CROP_KINDS, Block, Building, box
 
 REBUILT_PER_YEAR = 0.014  # share of blocks redeveloped per year
 CAR_OCCUPANCY = 0.72  # share of the car places taken during a survey
 _SITE_GROUND = "dirt"
 _SITE_ROOFS: tuple[Color, ...] = ((150, 156, 160), (120, 126, 130), (170, 172, 170))
-_CARS: tuple[Color, ...] = (
-    (235, 235, 235),
-    (30, 30, 30),
-    (160, 160, 160),
-    (40, 40, 170),
-    (150, 80, 30),
-    (200, 200, 205),
-    (60, 60, 60),
-    (110, 110, 112),
-)
+_CARS: tuple[Color, ...] = (*CAR_COLOURS, (110, 110, 112))  # a survey's cars: one grey more
 BARE_BRANCHES: Color = (78, 88, 98)  # leafless crowns: grey-brown twigs (BGR)
 CONIFER_INDEX = 2  # urban trees of colour index 2 are evergreen
 
