@@ -38,6 +38,9 @@ COMMANDS: dict[str, str] = {
 }
 
 
+TOP_LEVEL_OPTIONS = ("-h", "--help", "--version")
+
+
 def _load(module: str) -> ModuleType | None:
     try:
         return importlib.import_module(f"air_sitl.commands.{module}")
@@ -100,6 +103,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     only = first if first in COMMANDS and _load(COMMANDS[first]) is not None else None
     parser = build_parser(only)
     try:
+        if first is not None and first.startswith("-") and first not in TOP_LEVEL_OPTIONS:
+            # argparse would first report the missing COMMAND: name what was mistyped
+            parser.error(f"unrecognized arguments: {first}")
         args, extra = parser.parse_known_args(argv)
         if extra:  # argparse reports these on the top parser: name the command they went to
             _parser_for(parser, argv).error(f"unrecognized arguments: {' '.join(extra)}")

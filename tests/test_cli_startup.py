@@ -97,6 +97,8 @@ def test_an_unknown_option_names_the_command_and_its_help(
     ("argv", "expected"),
     [
         ([], "the following arguments are required: COMMAND (see `air-sitl --help`)"),
+        (["--bogus"], "air-sitl: error: unrecognized arguments: --bogus (see `air-sitl --help`)"),
+        (["--bogus", "fly"], "error: unrecognized arguments: --bogus (see `air-sitl --help`)"),
         (["flyy"], "argument COMMAND: invalid choice: 'flyy' (choose from 'fly', 'serve',"),
         (["fly"], "fly: the following arguments are required: PLAN (see `air-sitl fly --help`)"),
         (["fly", "p.plan", "--map-seed", "x"], "fly: argument --map-seed: invalid int value: 'x'"),
