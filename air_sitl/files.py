@@ -29,12 +29,18 @@ def write_error(path: str | os.PathLike[str], err: OSError) -> DatasetError:
     return DatasetError(f"{os.fspath(path)}: cannot write: {err.strerror or err}")
 
 
-def require_writable_folder(folder: Path, what: str) -> None:
-    """Create ``folder`` if need be and check a file can be written in it; DatasetError with
+def require_writable_folder(folder: Path, what: str, *, create: bool = True) -> None:
+    """Check a file can be written in ``folder`` (created if need be; with ``create=False`` the
+    check is made in its nearest existing parent and nothing is created); DatasetError with
     one line naming it (a read-only file system, no permission) before anything runs."""
+    probe = folder
+    if not create:
+        while not probe.exists() and probe != probe.parent:
+            probe = probe.parent
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=folder, prefix=".air-sitl-probe-"):
+        if create:
+            folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=probe, prefix=".air-sitl-probe-"):
             pass
     except OSError as err:
         msg = f"{folder}: cannot write in the {what}: {err.strerror or err}"

@@ -197,13 +197,14 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
     """Make or reuse the archives, measure every (scenario, entry), write the leaderboard."""
     stream = stream if stream is not None else sys.stderr
     config.out.mkdir(parents=True, exist_ok=True)
+    for scenario in config.scenarios:  # archives kept from before: the bench's own message
+        if (config.archives / scenario / MANIFEST_JSON).is_file():
+            check_archive_inputs(config, scenario)
     make_archives(config)
     missing = [s for s in config.scenarios if not (config.archives / s / MANIFEST_JSON).is_file()]
     if missing:
         msg = f"{config.archives}: no complete archive for {', '.join(missing)}"
         raise DatasetError(msg)
-    for scenario in config.scenarios:
-        check_archive_inputs(config, scenario)
     data = bench_spec(config)
     spec_path = config.out / BENCH_SPEC
     spec = parse_spec(data, spec_path, missions=config.missions)

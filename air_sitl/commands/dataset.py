@@ -143,7 +143,8 @@ def run(args: argparse.Namespace) -> int:
     jobs = build_jobs(args)
     root = Path(args.out)
     expected = {j.name: PAPER_TABLE.get(j.setup.name.upper(), (0, 0))[0] for j in jobs}
-    require_writable_folder(root, "output folder")  # a read-only disk: before anything flies
+    # A read-only disk, then too little room: refused before anything flies or is made.
+    require_writable_folder(root, "output folder", create=False)
     check_disk(jobs, expected, root, args)
     n = min(int_in_range("-j", args.jobs, 1, 64), len(jobs))
     display = JobsProgress([j.name for j in jobs], expected, enabled=not args.quiet)
