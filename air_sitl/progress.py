@@ -95,6 +95,8 @@ class Progress(Closeable):
         """The count is now ``n`` (``postfix``: a short note after the figures)."""
         self.n = n
         self.postfix = postfix
+        if self.total is not None and n > self.total:  # an estimate ran short (frames of a
+            self.set_total(n)  # flight): tqdm would print '?' and 0 % past its total
         if not self.enabled or self.closed:
             return
         if not self._started:  # the clock starts with the work (a job may wait for a worker)
@@ -156,6 +158,8 @@ class Progress(Closeable):
         self.closed = True
         if not self._started:
             return  # nothing was counted: nothing to say (an error before the work began)
+        if self.total is not None and self.n > self.total:
+            self.set_total(self.n)
         if self._bar is not None:
             self._bar.set_postfix_str(self.postfix, refresh=False)
             self._bar.close()

@@ -48,6 +48,21 @@ def test_piped_lines_come_at_each_tenth_then_the_end() -> None:
     assert "ETA" not in lines[-1]  # the end says how long it took
 
 
+def test_a_count_past_its_estimated_total_ends_at_100_percent() -> None:
+    """A flight's frame total is the paper's count; the flight may make a few more."""
+    out, clock = io.StringIO(), FakeClock()
+    jobs = JobsProgress(["FL-200"], {"FL-200": 100}, unit="frames", stream=out)
+    jobs.overall.clock = jobs.jobs["FL-200"].clock = clock
+    for n in (50, 100, 103):
+        clock.t += 1.0
+        jobs.update("FL-200", n)
+    jobs.done("FL-200", 103, "done")
+    jobs.close()
+    last = out.getvalue().splitlines()[-1]
+    assert last.startswith("overall: 103/103 frames (100 %)"), last
+    assert "/?" not in out.getvalue()
+
+
 def test_piped_lines_come_every_30_s_when_the_count_crawls() -> None:
     out, clock = io.StringIO(), FakeClock()
     bar = Progress("bench", 100, unit="cells", stream=out, clock=clock)
