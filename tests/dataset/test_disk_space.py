@@ -7,15 +7,14 @@ may mount one) and a patched free-space probe; ``--ignore-free-space`` flies any
 
 from __future__ import annotations
 
-import contextlib
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from cli_errors import one_line_error
 from short_plans import write_short_plan
+from tmpfs import tmpfs
 
 from air_sitl.cli import main
 from air_sitl.dataset import size
@@ -83,23 +82,8 @@ def test_ignore_free_space_flies_anyway(
     assert (root / "UC-200" / "manifest.json").is_file()
 
 
-@contextlib.contextmanager
-def _tmpfs(folder: Path, size_text: str) -> Iterator[Path]:
-    folder.mkdir()
-    mount = subprocess.run(
-        ["mount", "-t", "tmpfs", "-o", f"size={size_text}", "tmpfs", str(folder)],
-        capture_output=True, text=True, check=False,
-    )  # fmt: skip
-    if mount.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {mount.stderr.strip()}")
-    try:
-        yield folder
-    finally:
-        subprocess.run(["umount", str(folder)], check=False)
-
-
 def test_a_real_small_file_system_is_refused(missions: Path, tmp_path: Path) -> None:
-    with _tmpfs(tmp_path / "small", "1m") as small:
+    with tmpfs(tmp_path / "small", size="1m") as small:
         root = small / "air"
         run = subprocess.run(
             [sys.executable, "-m", "air_sitl", *_argv(missions, root)],
@@ -113,7 +97,7 @@ def test_a_real_small_file_system_is_refused(missions: Path, tmp_path: Path) -> 
 
 
 def test_the_free_space_probe_reads_the_nearest_existing_folder(tmp_path: Path) -> None:
-    with _tmpfs(tmp_path / "small", "1m") as small:
+    with tmpfs(tmp_path / "small", size="1m") as small:
         assert 0 < size.free_bytes(small / "not" / "yet") <= 1024 * 1024
 
 
