@@ -1,6 +1,6 @@
 """``air-sitl bench`` with archives reused: wall and CPU time of the methods x scenarios pass.
 
-    python benchmarks/bench_bench.py --archives out/bench/archives [--methods all] [-j 2]
+    python benchmarks/bench_bench.py --archives out/bench/date1/archives [--map-date 1] [--methods all] [-j 2]
 
 Links the archives (hard links: the originals stay untouched) into a fresh bench folder, so
 every (scenario, method) is measured anew, runs ``air-sitl bench`` on them and prints its wall
@@ -52,14 +52,15 @@ def decode_floor(archives: Path, names: list[str]) -> tuple[float, int]:
     return time.process_time() - t0, n
 
 
-def main(archives: Path, methods: str, jobs: int, keep: bool) -> int:
+def main(archives: Path, methods: str, jobs: int, keep: bool, map_date: int) -> int:
     work = Path(tempfile.mkdtemp(prefix="bench-bench-"))
     names = link_archives(archives, work / "archives")
     if not names:
         sys.exit(f"{archives}: no complete archive")
     floor_s, frames = decode_floor(work / "archives", names)
     cmd = [sys.executable, "-m", "air_sitl", "bench", "--scenarios", ",".join(names),
-           "--methods", methods, "--out", str(work), "-j", str(jobs), "--quiet"]  # fmt: skip
+           "--methods", methods, "--map-date", str(map_date), "--out", str(work), "-j", str(jobs),
+           "--quiet"]  # fmt: skip
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.monotonic()
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
@@ -89,5 +90,6 @@ if __name__ == "__main__":
     parser.add_argument("--methods", default="all")
     parser.add_argument("-j", "--jobs", type=int, default=2)
     parser.add_argument("--keep", action="store_true", help="keep the bench folder")
+    parser.add_argument("--map-date", type=int, default=1, help="the archives' map date")
     ns = parser.parse_args()
-    sys.exit(main(ns.archives, ns.methods, ns.jobs, ns.keep))
+    sys.exit(main(ns.archives, ns.methods, ns.jobs, ns.keep, ns.map_date))

@@ -143,7 +143,10 @@ def test_the_help_constants_of_bench_are_the_real_ones() -> None:
 
     assert tuple(METHODS) == bench.METHOD_NAMES
     assert bench.ALIGNMENTS == ALIGNMENTS
-    assert (bench.FLIGHT_DATE, bench.REFERENCE_DATE) == (config.FLIGHT_DATE, config.REFERENCE_DATE)
+    assert (bench.FLIGHT_DATES, bench.REFERENCE_DATE) == (
+        config.FLIGHT_DATES,
+        config.REFERENCE_DATE,
+    )
 
 
 def _command_parser(command: str) -> argparse.ArgumentParser:

@@ -144,6 +144,7 @@ def bench_spec(config: BenchConfig) -> dict[str, Any]:
     if config.localizers:
         spec["localizers"] = {loc.name: shlex.join(loc.argv) for loc in config.localizers}
     spec["align"] = config.align
+    spec["reference-date"] = config.reference_date
     return spec
 
 

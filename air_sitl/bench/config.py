@@ -12,10 +12,12 @@ from pathlib import Path
 from air_sitl.localize.external import ExternalLocalizer
 from air_sitl.sweep.entries import method_problem, parse_localizer, parse_methods
 
-FLIGHT_DATE = 1  # the flight imagery's map date (the default)
+FLIGHT_DATE = 1  # the flight imagery's map date when one bench flies one date
+FLIGHT_DATES = (0, 1, 2)  # what ``air-sitl bench`` flies by default: one bench per date gap
 REFERENCE_DATE = 0  # what map-matching methods match against
 __all__ = [
     "FLIGHT_DATE",
+    "FLIGHT_DATES",
     "REFERENCE_DATE",
     "BenchConfig",
     "ExternalLocalizer",

@@ -26,10 +26,10 @@ HELP = "rank localization methods over the AIR scenarios: leaderboard, box plots
 
 # What --help shows without loading the methods and the bench (numpy, OpenCV, zenoh, JSBSim);
 # tests/test_cli_startup.py keeps them equal to air_sitl.localize.METHODS, eval's ALIGNMENTS
-# and air_sitl.bench.config's FLIGHT_DATE and REFERENCE_DATE.
+# and air_sitl.bench.config's FLIGHT_DATES and REFERENCE_DATE.
 METHOD_NAMES = ("deadreckon", "vo", "mapmatch", "fused")
 ALIGNMENTS = ("none", "posyaw", "se3", "sim3")
-FLIGHT_DATE = 1
+FLIGHT_DATES = (0, 1, 2)
 REFERENCE_DATE = 0
 
 
@@ -64,9 +64,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--missions", default=None, help="folder of the scenario plans")
     parser.add_argument(
         "--map-date",
-        default=str(FLIGHT_DATE),
-        help=f"map date the flights are rendered at (default {FLIGHT_DATE}); several, such as "
-        "0,1,2: one bench per date in DIR/date<N>/ and DIR/leaderboard.md by date gap",
+        default=",".join(map(str, FLIGHT_DATES)),
+        help="map dates the flights are rendered at, comma-separated (default "
+        f"{','.join(map(str, FLIGHT_DATES))}): one bench per date in DIR/date<N>/ and "
+        "DIR/leaderboard.md with a column per date gap; one date, such as 1, benches it alone "
+        "in DIR",
     )
     parser.add_argument(
         "--reference-date",

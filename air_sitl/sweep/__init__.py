@@ -105,6 +105,7 @@ def make_tasks(spec: SweepSpec, out: Path, keep: str = "all") -> list[RunTask]:
                 localizers=spec.localizers,
                 align=spec.align,
                 keep=keep,
+                reference_date=spec.reference_date,
             )
         )
     return tasks

@@ -7,6 +7,7 @@
     localizers: {mine: "python my_loc.py --name mine"}   # optional external programs, lockstep
     align: none                              # optional: eval's alignment (none, posyaw, se3, sim3)
     archives: /shared/sweep-runs             # optional: where workers write the run folders
+    reference-date: 0                        # optional: the map date map-matching methods match
 
 Option keys are ``air-sitl fly``'s long options without the dashes; a flag is ``true`` (``false``
 or ``null`` leaves an option out); a list gives a repeatable option several times. ``plan`` paths
@@ -47,7 +48,9 @@ from air_sitl.sweep.errors import SweepError
 
 PLAN_KEYS = ("plan", "scenario")  # where a run's plan comes from (fly's positional PLAN)
 MANAGED = ("out", "resume", "quiet")  # options the sweep sets itself
-TOP_KEYS = ("base", "axes", "runs", "methods", "localizers", "align", "archives")
+TOP_KEYS = (
+    "base", "axes", "runs", "methods", "localizers", "align", "archives", "reference-date"
+)  # fmt: skip
 KEEP = ("all", "frames", "none")
 ID_HEX = 12
 SWEEP_RENDER_WORKERS = "0"  # one thread per run: a worker is one core (see executors)
@@ -78,6 +81,8 @@ class SweepSpec:
     align: str = "none"
     archives: Path | None = None  # None: OUT/runs
     axes: tuple[str, ...] = ()
+    # The map date map-matching methods match against (None: date 0, or 1 for a flight over 0).
+    reference_date: int | None = None
 
 
 class _RaisingParser(argparse.ArgumentParser):
@@ -143,6 +148,12 @@ def parse_spec(data: Mapping[str, Any], path: Path, *, missions: Path | None = N
     if archives is not None and not (isinstance(archives, str) and archives.strip()):
         msg = f"{where}: archives: expected a folder path, got {archives!r}"
         raise SweepError(msg)
+    reference = data.get("reference-date")
+    if reference is not None and (
+        isinstance(reference, bool) or not isinstance(reference, int) or not 0 <= reference <= 99
+    ):
+        msg = f"{where}: reference-date: expected a map date 0-99, got {reference!r}"
+        raise SweepError(msg)
     combos: list[tuple[dict[str, Any], dict[str, str]]] = []
     names = list(axes)
     for values in itertools.product(*(axes[name] for name in names)) if axes else ():
@@ -175,6 +186,7 @@ def parse_spec(data: Mapping[str, Any], path: Path, *, missions: Path | None = N
         align=str(align),
         archives=None if archives is None else (path.parent / archives).resolve(),
         axes=tuple(names),
+        reference_date=reference,
     )
 
 

@@ -66,6 +66,15 @@ def test_map_dates_parse_and_refuse_repeats(capsys: pytest.CaptureFixture[str]) 
     assert "--map-date 0,2,2: a date is given twice" in one_line_error(argv, capsys)
 
 
+def test_a_bench_scores_the_three_date_gaps_by_default() -> None:
+    """Without --map-date, flights over dates 0, 1 and 2 against the reference date 0."""
+    from air_sitl.cli import build_parser
+
+    args = build_parser().parse_args(["bench", "--scenarios", "UC-200", "--out", "unused"])
+    assert flight_dates(args.map_date) == (0, 1, 2)
+    assert int(args.reference_date) == 0
+
+
 @pytest.mark.integration
 def test_a_bench_over_two_dates_scores_each_gap(tmp_path: Path) -> None:
     """Real short flights over dates 0 and 2, mapmatch against date 0: a bench per date and

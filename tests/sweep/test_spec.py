@@ -83,6 +83,8 @@ BAD = [
     ({"base": {**BASE, "plan": "nowhere.plan"}}, "base.plan, run 1"),
     ({"base": BASE, "methods": ["nosuch"]}, "methods[0]: unknown method 'nosuch'"),
     ({"base": BASE, "axis": {}}, "unknown key 'axis'"),
+    ({"base": BASE, "reference-date": "0"}, "reference-date: expected a map date 0-99, got '0'"),
+    ({"base": BASE, "reference-date": -1}, "reference-date: expected a map date 0-99, got -1"),
     ({"axes": {"seed": [1]}}, "no plan"),
 ]
 
@@ -120,3 +122,15 @@ def test_archives_go_where_the_spec_says(folder: Path) -> None:
     assert task.archive_label == task.archive  # outside the sweep folder: the full path
     assert task.plan_text == (folder / "plans" / "UT-200.plan").read_bytes()
     assert task.keep == "none"
+
+
+def test_reference_date_reaches_every_run(folder: Path) -> None:
+    """``reference-date: 0``: map matchers match date 0 whatever date each run flies over
+    (without it, a run over date 0 would match date 1), and the rows say so."""
+    from air_sitl.sweep import make_tasks
+
+    axes = {"map-date": [0, 1, 2]}
+    spec = load_spec(write(folder, {"base": BASE, "axes": axes, "reference-date": 0}))
+    assert [t.reference_date for t in make_tasks(spec, folder / "out")] == [0, 0, 0]
+    plain = load_spec(write(folder, {"base": BASE, "axes": axes}))
+    assert [t.reference_date for t in make_tasks(plain, folder / "out")] == [None] * 3
