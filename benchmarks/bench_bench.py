@@ -1,6 +1,7 @@
 """``air-sitl bench`` with archives reused: wall and CPU time of the methods x scenarios pass.
 
-    python benchmarks/bench_bench.py --archives out/bench/date1/archives [--map-date 1] [--methods all] [-j 2]
+    python benchmarks/bench_bench.py --archives out/bench/date1/archives [--map-date 1]
+        [--methods all] [-j 2]
 
 Links the archives (hard links: the originals stay untouched) into a fresh bench folder, so
 every (scenario, method) is measured anew, runs ``air-sitl bench`` on them and prints its wall

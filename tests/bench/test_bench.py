@@ -45,8 +45,9 @@ def _run_bench(missions: Path, out: Path, example_options: str) -> int:
     """``air-sitl bench`` of UT-200: two methods and the example localizer as ``ex``."""
     example = f"{sys.executable} {ROOT / 'bridges' / 'example_localizer.py'} {example_options}"
     argv = [
-        "bench", "--map-date", "1", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
-        str(missions), "--localizer", f"ex={example}", "--out", str(out), "--quiet",
+        "bench", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
+        str(missions), "--map-date", "1", "--localizer", f"ex={example}", "--out", str(out),
+        "--quiet",
     ]  # fmt: skip
     return main(argv)
 
@@ -109,8 +110,8 @@ def test_bad_options_get_one_line_and_exit_2(
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    argv = ["bench", "--map-date", "1", "--scenarios", "UT-200", "--methods", "vo", "--missions", str(missions)]
-    argv += ["--out", str(tmp_path / "b"), *extra]
+    argv = ["bench", "--scenarios", "UT-200", "--methods", "vo", "--missions", str(missions)]
+    argv += ["--map-date", "1", "--out", str(tmp_path / "b"), *extra]
     assert expected in one_line_error(argv, capsys)
     assert not (tmp_path / "b").exists()  # nothing flown or written
 
@@ -119,8 +120,8 @@ def test_archives_of_another_flight_are_refused_not_reused(
     bench: Path, missions: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     argv = [
-        "bench", "--map-date", "1", "--scenarios", "UT-200", "--methods", "deadreckon", "--missions",
-        str(missions), "--out", str(bench), "--seed", "1", "--quiet",
+        "bench", "--scenarios", "UT-200", "--methods", "deadreckon", "--missions",
+        str(missions), "--map-date", "1", "--out", str(bench), "--seed", "1", "--quiet",
     ]  # fmt: skip
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
@@ -160,9 +161,9 @@ def test_wait_timeout_reaches_the_lockstep_flights(
     _linked_archives(bench, out)
     silent = f"{sys.executable} -c 'import time; time.sleep(600)'"
     argv = [
-        "bench", "--map-date", "1", "--scenarios", "UT-200", "--methods", "deadreckon", "--missions",
-        str(missions), "--localizer", f"silent={silent}", "--wait-timeout", "1.5",
-        "--out", str(out), "--quiet",
+        "bench", "--scenarios", "UT-200", "--methods", "deadreckon", "--missions",
+        str(missions), "--map-date", "1", "--localizer", f"silent={silent}",
+        "--wait-timeout", "1.5", "--out", str(out), "--quiet",
     ]  # fmt: skip
     assert main(argv) == 1  # the silent localizer's cell failed
     rows = {r["method"]: r for r in json.loads((out / "leaderboard.json").read_text())["rows"]}
@@ -179,8 +180,8 @@ def test_the_same_leaderboard_on_a_local_ray(bench: Path, missions: Path, tmp_pa
     out = tmp_path / "b"
     _linked_archives(bench, out)  # the same archive, measured on Ray
     argv = [
-        "bench", "--map-date", "1", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
-        str(missions), "--out", str(out), "--ray", "--quiet",
+        "bench", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
+        str(missions), "--map-date", "1", "--out", str(out), "--ray", "--quiet",
     ]  # fmt: skip
     assert main(argv) == 0
     on_ray = json.loads((out / "leaderboard.json").read_text())
