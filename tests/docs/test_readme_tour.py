@@ -87,6 +87,7 @@ def test_every_tour_line_runs_as_written(tmp_path: Path) -> None:
         "uc200/manifest.json", "uc200-bag/metadata.yaml", "uc200/estimates/mapmatch.csv",
         "fl200-wind/summary.json", "urban-2009.tif", "urban-2016.tif", "uc200-tif/manifest.json",
         "frame.jpg", "air/UC-200.zip", "air/FC-200.zip", "bench/leaderboard.md",
+        "bench/date2/leaderboard.md",
         "sweep/results.jsonl", "sweep/report.md",
     ]  # fmt: skip
     missing = [name for name in made if not (out / name).exists()]
