@@ -70,6 +70,10 @@ def test_every_command_parses_with_our_cli() -> None:
                     spec = parse_link(url)
                     assert f"127.0.0.1:{spec.port}:{spec.port}" in service["ports"]
                 assert (REPO / args.plan).is_file()
+                # Inside a container 127.0.0.1 is the container: the video goes to the host,
+                # where QGroundControl listens, by the name extra_hosts maps to it.
+                assert str(args.video).startswith("udp://host.docker.internal:"), name
+                assert "host.docker.internal:host-gateway" in service["extra_hosts"], name
         elif argv[0] == "ray":
             continue  # test_ray_nodes_start_a_cluster_the_sweep_can_join
         else:
