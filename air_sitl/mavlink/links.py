@@ -22,7 +22,6 @@ from typing import Any
 from air_sitl.errors import MavlinkError
 
 Address = tuple[str, int]
-DEFAULT_LINKS = ("udpout:127.0.0.1:14550", "udpout:127.0.0.1:14540")
 UDP_MAX_PEERS = 32  # udpin/udpout peers kept (the least recently heard is dropped beyond)
 TCP_MAX_BUFFER_BYTES = 256 * 1024  # per client; beyond this, frames to it are dropped
 # The kernel's send buffer of a TCP client (autotuned, it grows to megabytes): enough for a
