@@ -51,6 +51,9 @@ class _Window:
     distance_m: float = 0.0
     last_ne: tuple[float, float] | None = None
     start_ns: int = 0
+    # The sample at which capture stopped: the window's end, whenever its last frame arrives
+    # (render threads finish at their own pace; the summary must not depend on it).
+    end_sample: SimSample | None = None
 
 
 class CaptureRecorder:
@@ -125,6 +128,7 @@ class CaptureRecorder:
                     w.last_ne = (n, e)
                 else:
                     w.end_tick = self._ticks
+                    w.end_sample = sample
                     if w.next_frame >= w.end_tick - w.first_tick:
                         self._seal()
         except AirSitlError as err:
@@ -154,7 +158,7 @@ class CaptureRecorder:
         self._window = None
         if w is None:
             return
-        last = self._last_sample
+        last = w.end_sample if w.end_sample is not None else self._last_sample
         t = last.state.sim_time_ns if last is not None else 0
         completed = bool(last.autopilot.mission_completed) if last is not None else False
         w.writer.close(FlightResult(mission_completed=completed, sim_time_ns=t, wall_time_s=0.0))
