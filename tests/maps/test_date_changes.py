@@ -144,3 +144,35 @@ def test_town_conifers_stay_green_in_autumn() -> None:
     assert len(conifer) > 200 and len(broadleaf) > 400
     assert 90.0 < float(np.median(conifer)) < 160.0, float(np.median(conifer))
     assert float(np.median(broadleaf)) < 60.0, float(np.median(broadleaf))
+
+
+def test_new_paving_is_the_same_whichever_window_draws_it() -> None:
+    """A logging track and a new street: a window drawn alone shows them as the same pixels
+    cut from a window three times its size around it (the forest's survey as a whole; in
+    town the street's own pixels of the scene: the old main roads' long edge lines, drawn
+    from window edge to window edge, may differ by a grey level where their anti-aliasing
+    rounds otherwise, and the survey's compression spreads that over its blocks)."""
+    track = logging_tracks(3, -3000.0, -3000.0, 3000.0, 3000.0, 2)[0]
+    e, n = track[len(track) // 2]
+    x, y = math.floor(e / GSD) - 128, math.floor(-n / GSD) - 128
+    forest = ProceduralMap("forest", HOME, seed=3, date=2, gsd_m=GSD)
+    big = forest.render_abs(x - 256, y - 256, 768)
+    small = ProceduralMap("forest", HOME, seed=3, date=2, gsd_m=GSD).render_abs(x, y, 256)
+    assert np.array_equal(big[256:512, 256:512], small)
+    world = UrbanWorld(3)
+    checked = 0
+    for ky in BLOCKS[8:16]:
+        for kx in BLOCKS[8:16]:
+            streets = [p for p, kind in _paving(world.block(kx, ky, 2)) if kind == "newroad"]
+            if not streets:
+                continue
+            u0, v0, u1, v1 = world.block(kx, ky, 2).bounds
+            ce, cn = world.to_world([((u0 + u1) / 2, (v0 + v1) / 2)])[0]
+            x, y = math.floor(ce / GSD) - 128, math.floor(-cn / GSD) - 128
+            road = _inside(world, streets[0], x, y, 256)
+            big = UrbanWorld(3).draw(x - 256, y - 256, 768, GSD, DATES[2])[256:512, 256:512]
+            small = UrbanWorld(3).draw(x, y, 256, GSD, DATES[2])
+            assert road.sum() > 1000
+            assert np.array_equal(big[road], small[road]), (kx, ky)
+            checked += 1
+    assert checked > 0

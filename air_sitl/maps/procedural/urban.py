@@ -390,10 +390,14 @@ class UrbanWorld:
                 new = self.resurfaced_at(axis, k) <= d
                 lo, hi = (v_lo, v_hi) if axis == 0 else (u_lo, u_hi)
                 if new:
+                    # Ends on the block lattice, not the window's: its anti-aliased sides are
+                    # then the same whatever window draws them.
+                    a = math.floor(lo / PITCH_M) * PITCH_M
+                    b = math.ceil(hi / PITCH_M) * PITCH_M
                     poly = (
-                        box(pos - half, lo, pos + half, hi)
+                        box(pos - half, a, pos + half, b)
                         if axis == 0
-                        else box(lo, pos - half, hi, pos + half)
+                        else box(a, pos - half, b, pos + half)
                     )
                     cv.poly(self.to_world(poly), _ASPHALT_NEW)
                 color = (60, 180, 210) if main else (220, 222, 224)
