@@ -2,11 +2,13 @@
 
 Every tree is drawn (``crowns``): conifer and broadleaf stands of varying density and height,
 each crown lit on its sunny side, casting its shadow onto its neighbours and the ground by
-the date's sun; clearings (shrinking with the years), clear-cuts (felled at a later date),
-streams and lakes are open ground. Leaves turn with the season. Tracks, roads and farm
-buildings are vector drawings found from their world cell indices, so any tile is drawn
-alone. The built-in surface (``objects``) is the same crowns' height field. Pixels coarser
-than ``CROWN_MAX_GSD_M`` show each stand's mean look instead of its crowns.
+the date's sun; clearings (shrinking with the years), clear-cuts (felled at a later date,
+``forest_cuts``, with the logging tracks built to them), streams and lakes are open ground.
+Leaves turn with the season, each broadleaf its own autumn colour; conifers stay green.
+Tracks, roads and farm buildings are vector drawings found from their world cell indices,
+so any tile is drawn alone. The built-in surface (``objects``) is the same crowns' height
+field. Pixels coarser than ``CROWN_MAX_GSD_M`` show each stand's mean look instead of its
+crowns.
 """
 
 from __future__ import annotations
