@@ -2,11 +2,13 @@
 
 Every tree is drawn (``crowns``): conifer and broadleaf stands of varying density and height,
 each crown lit on its sunny side, casting its shadow onto its neighbours and the ground by
-the date's sun; clearings (shrinking with the years), clear-cuts (felled at a later date),
-streams and lakes are open ground. Leaves turn with the season. Tracks, roads and farm
-buildings are vector drawings found from their world cell indices, so any tile is drawn
-alone. The built-in surface (``objects``) is the same crowns' height field. Pixels coarser
-than ``CROWN_MAX_GSD_M`` show each stand's mean look instead of its crowns.
+the date's sun; clearings (shrinking with the years), clear-cuts (felled at a later date,
+``forest_cuts``, with the logging tracks built to them), streams and lakes are open ground.
+Leaves turn with the season, each broadleaf its own autumn colour; conifers stay green.
+Tracks, roads and farm buildings are vector drawings found from their world cell indices,
+so any tile is drawn alone. The built-in surface (``objects``) is the same crowns' height
+field. Pixels coarser than ``CROWN_MAX_GSD_M`` show each stand's mean look instead of its
+crowns.
 """
 
 from __future__ import annotations
@@ -18,8 +20,14 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from air_sitl.maps.procedural.canvas import Canvas, Color, DateLook, Point, rect, shade
+from air_sitl.maps.procedural.canvas import Canvas, Color, DateLook, rect, shade
 from air_sitl.maps.procedural.crowns import CELL_M, cell_window, crowns, stand_fields
+from air_sitl.maps.procedural.forest_cuts import (
+    TRACK_CELL_M,
+    cut_mask,
+    logging_tracks,
+    track_node,
+)
 from air_sitl.maps.procedural.noise import (
     FloatImage,
     fractal_noise,
@@ -30,9 +38,11 @@ from air_sitl.maps.procedural.noise import (
     white_noise,
 )
 
-_CONIFER = {"summer": (52, 84, 50), "autumn": (50, 80, 50), "spring": (56, 86, 54)}
+_CONIFER = {"summer": (52, 84, 50), "autumn": (74, 94, 38), "spring": (56, 86, 54)}
 _DECIDUOUS = {"summer": (44, 104, 70), "autumn": (46, 104, 104), "spring": (70, 122, 110)}
 _DECIDUOUS_ALT = {"summer": (56, 118, 86), "autumn": (40, 96, 146), "spring": (84, 132, 120)}
+# Autumn broadleaves, each tree its own: still green, yellow, orange, brown (BGR).
+_AUTUMN_LEAVES = ((52, 108, 66), (48, 150, 170), (38, 100, 168), (50, 82, 112))
 _BARE: Color = (78, 96, 118)  # leafless broadleaf crowns: grey-brown branches
 _LITTER: Color = (50, 78, 108)  # last year's leaves on the forest floor
 _REGROWTH: Color = (64, 120, 104)  # young growth on clear-cuts a few years old
@@ -43,12 +53,11 @@ _UNDERSTORY: Color = (30, 50, 36)
 _MEADOW = {"summer": (70, 138, 112), "autumn": (84, 136, 150), "spring": (86, 124, 128)}
 _SOIL: Color = (90, 112, 132)
 _TRACK: Color = (110, 140, 160)
+_NEW_TRACK: Color = (138, 156, 168)  # fresh gravel of a logging track built to a clear-cut
 _ROAD: Color = (92, 92, 94)
 _WATER: Color = (62, 58, 36)
 _ROOFS: tuple[Color, ...] = ((60, 70, 150), (110, 110, 116), (70, 84, 112), (150, 160, 170))
-TRACK_CELL_M = 380.0
 ROAD_PITCH_M = 1700.0
-CUT_CELL_M = 170.0
 FIRST_YEAR = 2009  # the first survey
 CROWN_MAX_GSD_M = 10.0  # coarser pixels draw each stand's mean instead of its crowns
 SHADOW_REACH_M = 12.0  # crowns this far toward the sun may shade a pixel
@@ -97,6 +106,8 @@ class ForestWorld:
         dec_alt = np.array(_DECIDUOUS_ALT[season], dtype=np.float32)
         tint = g.tint[:, :, None]
         broadleaf = dec * (1.0 - tint) + dec_alt * tint
+        if season == "autumn":
+            broadleaf = _autumn_broadleaf(g.tint, bool(pad))
         con = np.array(_CONIFER[season], dtype=np.float32) * (0.9 + 0.2 * tint)
         cf = g.conifer[:, :, None]
         crown_col = con * cf + broadleaf * (1.0 - cf)
@@ -179,8 +190,8 @@ class ForestWorld:
         stream = np.clip((STREAM_HALF - np.abs(stream_px)) * 80.0 * stream_on, 0.0, 1.0)
         lake = self._lake(x0, y0, size, gsd_m)
         water: FloatImage = np.maximum(stream, lake).astype(np.float32)
-        cut_mask = self._cuts(x0, y0, size, gsd_m, d)
-        cut = np.zeros((size, size), np.float32) if cut_mask is None else cut_mask
+        felled = cut_mask(self.seed, x0, y0, size, gsd_m, d)
+        cut = np.zeros((size, size), np.float32) if felled is None else felled
         # Tracks, roads and yards: whatever those drawings touch on a black canvas.
         cv = Canvas(x0, y0, size, gsd_m, (0, 0, 0))
         self._tracks(cv, d)
@@ -273,42 +284,6 @@ class ForestWorld:
         dist = np.hypot(e[None, :], n[:, None])
         return np.clip((dist - DRY_RADIUS_M) / 500.0, 0.0, 1.0).astype(np.float32)
 
-    def _cuts(
-        self, x0: int, y0: int, size: int, gsd_m: float, d: int
-    ) -> npt.NDArray[np.float32] | None:
-        """Mask of cells clear-cut at or before date ``d``: 1 where cut at ``d``, about 0.6
-        where cut at an earlier date (young growth again)."""
-        if d == 0:
-            return None
-        e0, e1 = x0 * gsd_m, (x0 + size) * gsd_m
-        n0, n1 = -(y0 + size) * gsd_m, -y0 * gsd_m
-        mask = np.zeros((size, size), dtype=np.uint8)
-        cv = Canvas(x0, y0, size, gsd_m, (0, 0, 0))
-        cv.shadow = mask
-        for i in range(math.floor(e0 / CUT_CELL_M), math.floor(e1 / CUT_CELL_M) + 1):
-            for j in range(math.floor(n0 / CUT_CELL_M), math.floor(n1 / CUT_CELL_M) + 1):
-                rng = rng_for(self.seed, 51, i, j)
-                u = rng.random()
-                at = 1 if u < 0.05 else 2 if u < 0.10 else 9
-                if at > d:
-                    continue
-                value = 255 if at == d else 160  # 160: cut a survey ago, growing again
-                w, h = rng.uniform(40, 80), rng.uniform(30, 70)
-                cx = (i + 0.5) * CUT_CELL_M + rng.uniform(-30, 30)
-                cy = (j + 0.5) * CUT_CELL_M + rng.uniform(-30, 30)
-                a = rng.uniform(0, math.pi)
-                cv.poly(rect(cx, cy, w, h, math.cos(a), math.sin(a)), (value,), "shadow")
-        if not mask.any():
-            return None
-        return mask.astype(np.float32) * np.float32(1.0 / 255.0)
-
-    def _node(self, i: int, j: int) -> Point:
-        rng = rng_for(self.seed, 61, i, j)
-        return (
-            (i + rng.uniform(0.2, 0.8)) * TRACK_CELL_M,
-            (j + rng.uniform(0.2, 0.8)) * TRACK_CELL_M,
-        )
-
     def _tracks(self, cv: Canvas, d: int) -> None:
         """Dirt tracks joining jittered nodes of a coarse grid (some links missing)."""
         i0 = math.floor(cv.e_min / TRACK_CELL_M) - 1
@@ -317,14 +292,14 @@ class ForestWorld:
         j1 = math.floor(cv.n_max / TRACK_CELL_M) + 1
         for i in range(i0, i1 + 1):
             for j in range(j0, j1 + 1):
-                a = self._node(i, j)
+                a = track_node(self.seed, i, j)
                 rng = rng_for(self.seed, 62, i, j)
                 links = (rng.random() < 0.55, rng.random() < 0.45)
                 wig = rng.uniform(-40, 40, size=2)
                 for (di, dj), on, w in zip(((1, 0), (0, 1)), links, wig, strict=True):
                     if not on:
                         continue
-                    b = self._node(i + di, j + dj)
+                    b = track_node(self.seed, i + di, j + dj)
                     if not cv.overlaps(
                         min(a[0], b[0]), min(a[1], b[1]), max(a[0], b[0]), max(a[1], b[1]), 50.0
                     ):
@@ -340,6 +315,9 @@ class ForestWorld:
                         )
                     cv.line(pts, shade(_TRACK, 0.85), 4.2)
                     cv.line(pts, _TRACK, 3.0)
+        for pts in logging_tracks(self.seed, cv.e_min, cv.n_min, cv.e_max, cv.n_max, d):
+            cv.line(pts, shade(_NEW_TRACK, 0.85), 4.5)
+            cv.line(pts, _NEW_TRACK, 3.4)
 
     def _roads(self, cv: Canvas, date: DateLook) -> None:
         """Paved roads on a coarse grid, with farmsteads (roofs and shadows) beside them."""
@@ -426,6 +404,18 @@ def _sample(  # type: ignore[no-untyped-def]
     from square (x0, y0): pixels (step = gsd) or tree cells (step = CELL_M)."""
     result: FloatImage = noise(key, x0 + 0.5, y0 + 0.5, n, feature_m / step_m, *octaves)
     return result
+
+
+def _autumn_broadleaf(tint: FloatImage, crowns_drawn: bool) -> npt.NDArray[np.float32]:
+    """Autumn colours of broadleaf crowns: each tree (its tint) still green, yellow, orange or
+    brown; where crowns are below a pixel, their mean."""
+    leaves = np.array(_AUTUMN_LEAVES, dtype=np.float32)
+    if not crowns_drawn:
+        return np.broadcast_to(leaves.mean(axis=0), (*tint.shape, 3)).astype(np.float32)
+    # The tint's fractional digits pick the colour, the tint itself still shades the crown.
+    which = np.minimum((np.mod(tint * 7.0, 1.0) * len(leaves)).astype(np.int64), len(leaves) - 1)
+    tinted: npt.NDArray[np.float32] = leaves[which] * (0.9 + 0.2 * tint)[:, :, None]
+    return tinted
 
 
 def _low_sun(date: DateLook) -> float:

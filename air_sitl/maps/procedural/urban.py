@@ -34,14 +34,25 @@ from air_sitl.maps.procedural.noise import (
     white_noise,
 )
 from air_sitl.maps.procedural.survey import lean_per_m
-from air_sitl.maps.procedural.urban_blocks import Block, Building, box, fill_block
+from air_sitl.maps.procedural.urban_blocks import (
+    Block,
+    Building,
+    box,
+    fill_block,
+    grown,
+    ridge_band,
+)
 from air_sitl.maps.procedural.urban_dates import (
     CONIFER_INDEX,
+    MARKING_M,
+    autumn_crown,
     bare_crown,
     construction_site,
     crop_index,
     is_fields,
+    new_paving,
     parked_car,
+    paved_at,
     rebuilt_at,
 )
 
@@ -51,6 +62,7 @@ GRAIN_DN = 9.0  # per-pixel grain (uniform amplitude, grey levels) at 0.6 m
 FIELDS_BELOW = -0.35  # districts below this (a 1.5 km noise) turn to farm fields
 _ASPHALT: Color = (86, 85, 84)
 _ASPHALT_NEW: Color = (52, 51, 50)
+_LOT_NEW: Color = (70, 70, 72)  # a new parking lot's fresh asphalt
 _SIDEWALK: Color = (158, 166, 172)
 _DRIVEWAY: Color = (140, 146, 150)
 _DIRT: Color = (92, 118, 142)
@@ -86,7 +98,8 @@ _CROPS = {
 _LAWN = {"summer": (64, 116, 92), "autumn": (80, 126, 134), "spring": (78, 108, 114)}
 _TREE = {
     "summer": ((34, 74, 44), (40, 86, 58), (30, 64, 38)),
-    "autumn": ((40, 92, 164), (48, 140, 176), (40, 96, 96)),
+    # Autumn: each broadleaf its own colour (``autumn_crown``); the evergreens stay green.
+    "autumn": ((40, 92, 164), (48, 140, 176), (72, 92, 40)),
     "spring": ((78, 92, 104), (70, 84, 92), (60, 104, 84)),
 }
 
@@ -120,7 +133,15 @@ class UrbanWorld:
     @functools.lru_cache(maxsize=4096)  # noqa: B019 - one world per map, bounded cache
     def block(self, kx: int, ky: int, d: int = 0) -> Block:
         """The content of block (kx, ky) at date index ``d``: as first built, or after its
-        redevelopment (a construction site the survey it is caught in, half the time)."""
+        redevelopment (a construction site the survey it is caught in, half the time); with
+        the new street or parking lot it has been given by then."""
+        built = self._built_block(kx, ky, d)
+        if d < paved_at(self.seed, kx, ky):
+            return built
+        return new_paving(self.seed, kx, ky, built)
+
+    def _built_block(self, kx: int, ky: int, d: int) -> Block:
+        """Block (kx, ky) at date index ``d`` as first built or redeveloped."""
         base = self._first_block(kx, ky)
         at = rebuilt_at(self.seed, kx, ky)
         if d < at or is_fields(base):
@@ -206,6 +227,8 @@ class UrbanWorld:
                     "dirt": _DIRT,
                     "path": (150, 162, 170),
                     "verge": _VERGE,
+                    "newroad": _ASPHALT_NEW,
+                    "newlot": _LOT_NEW,
                 }[kind]
                 cv.poly(self.to_world(poly), col)
                 if kind in ("lawn", "verge"):
@@ -214,12 +237,16 @@ class UrbanWorld:
                 if b.born > d:
                     # A construction site the date before it is finished.
                     if b.born == d + 1:
-                        cv.poly(self.to_world(_grow(b.corners, 2.0)), _DIRT)
+                        cv.poly(self.to_world(grown(b.corners, 2.0)), _DIRT)
                     continue
                 if b.gone <= d:
                     cv.poly(self.to_world(b.corners), _DIRT if b.gone == d else lawn)
-            paint = [self.to_world(line) for line, _w in blk.paint]
+            paint = [self.to_world(line) for line, w in blk.paint if w < MARKING_M]
             cv.segments([(w[0], w[1]) for w in paint], (225, 228, 230), 0.15)
+            for line, width in blk.paint:  # new streets' markings, wider than stall lines
+                if width >= MARKING_M:
+                    w = self.to_world(line)
+                    cv.segments([(w[0], w[1])], (220, 222, 224), width)
             if gsd_m <= 1.5:  # cars vanish into the lot's grey on coarse levels
                 for poly, _col in blk.cars:
                     car = parked_car(self.seed, date, poly)
@@ -268,6 +295,8 @@ class UrbanWorld:
                         bare_crown(cv, self.seed, (e, n), rr)
                         continue
                     col = tree_cols[ci % len(tree_cols)]
+                    if date.season == "autumn" and ci != CONIFER_INDEX:
+                        col = autumn_crown(self.seed, c)
                     cv.circle((e, n), rr, shade(col, 0.8))
                     cv.circle((e + sun_e * rr * 0.25, n + sun_n * rr * 0.25), rr * 0.7, col)
                     cv.circle((e, n), rr, (255,), "veg")
@@ -321,9 +350,9 @@ class UrbanWorld:
                         # The ridge band (the middle half across the ridge), 1.5 m higher.
                         p = b.corners
                         if b.ridge_along_x:  # ridge from mid(p0, p3) to mid(p1, p2)
-                            band = _ridge_band(p[0], p[3], p[1], p[2])
+                            band = ridge_band(p[0], p[3], p[1], p[2])
                         else:  # ridge from mid(p0, p1) to mid(p3, p2)
-                            band = _ridge_band(p[0], p[1], p[3], p[2])
+                            band = ridge_band(p[0], p[1], p[3], p[2])
                         polys.append((b.height_m + 1.5, 1, cv.px(self.to_world(band))))
         # One order for both kinds (by height, crowns before roofs at equal heights).
         order = sorted(
@@ -361,10 +390,14 @@ class UrbanWorld:
                 new = self.resurfaced_at(axis, k) <= d
                 lo, hi = (v_lo, v_hi) if axis == 0 else (u_lo, u_hi)
                 if new:
+                    # Ends on the block lattice, not the window's: its anti-aliased sides are
+                    # then the same whatever window draws them.
+                    a = math.floor(lo / PITCH_M) * PITCH_M
+                    b = math.ceil(hi / PITCH_M) * PITCH_M
                     poly = (
-                        box(pos - half, lo, pos + half, hi)
+                        box(pos - half, a, pos + half, b)
                         if axis == 0
-                        else box(lo, pos - half, hi, pos + half)
+                        else box(a, pos - half, b, pos + half)
                     )
                     cv.poly(self.to_world(poly), _ASPHALT_NEW)
                 color = (60, 180, 210) if main else (220, 222, 224)
@@ -395,30 +428,10 @@ class UrbanWorld:
                 cv.segments(segs, color, width)
 
 
-def _ridge_band(a0: Point, a1: Point, b0: Point, b1: Point) -> list[Point]:
-    """The quarter to three-quarter band across edges a0-a1 and b0-b1 (ridge: their middles)."""
-
-    def at(p: Point, q: Point, t: float) -> Point:
-        return (p[0] + (q[0] - p[0]) * t, p[1] + (q[1] - p[1]) * t)
-
-    return [at(a0, a1, 0.25), at(b0, b1, 0.25), at(b0, b1, 0.75), at(a0, a1, 0.75)]
-
-
 def _box_overlaps(
     b: tuple[float, float, float, float], u0: float, v0: float, u1: float, v1: float
 ) -> bool:
     return not (b[2] < u0 or b[0] > u1 or b[3] < v0 or b[1] > v1)
-
-
-def _grow(pts: tuple[Point, ...], m: float) -> list[Point]:
-    cu = sum(p[0] for p in pts) / len(pts)
-    cv_ = sum(p[1] for p in pts) / len(pts)
-    out = []
-    for u, v in pts:
-        du, dv = u - cu, v - cv_
-        n = math.hypot(du, dv) or 1.0
-        out.append((u + du / n * m, v + dv / n * m))
-    return out
 
 
 def _hull(pts: list[Point]) -> list[Point]:
@@ -481,7 +494,7 @@ def _roof(
         cv.line(to_world([r0, r1]), shade(b.roof, 1.3), 0.35)
     else:
         cv.poly(world, shade(b.roof, 0.78))
-        cv.poly(to_world(_grow(b.corners, -0.7)), b.roof)
+        cv.poly(to_world(grown(b.corners, -0.7)), b.roof)
 
 
 ALL_DATES = DATES

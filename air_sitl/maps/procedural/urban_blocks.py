@@ -7,6 +7,7 @@ random choice comes from the block's own generator, never from the date.
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -104,7 +105,7 @@ def fill_block(
         _park(rng, b0, c0, b1, c1, grounds, trees)
     else:
         grounds.append((tuple(box(b0, c0, b1, c1)), "parking"))
-        _parking(rng, b0, c0, b1, c1, cars, paint, trees)
+        parking_rows(rng, b0, c0, b1, c1, cars, paint, trees)
     return Block(
         grounds=tuple(grounds),
         buildings=tuple(buildings),
@@ -113,6 +114,28 @@ def fill_block(
         paint=tuple(paint),
         bounds=(u0, v0, u1, v1),
     )
+
+
+def ridge_band(a0: Point, a1: Point, b0: Point, b1: Point) -> list[Point]:
+    """The quarter to three-quarter band across edges a0-a1 and b0-b1 (ridge: their middles)."""
+
+    def at(p: Point, q: Point, t: float) -> Point:
+        return (p[0] + (q[0] - p[0]) * t, p[1] + (q[1] - p[1]) * t)
+
+    return [at(a0, a1, 0.25), at(b0, b1, 0.25), at(b0, b1, 0.75), at(a0, a1, 0.75)]
+
+
+def grown(pts: tuple[Point, ...], m: float) -> list[Point]:
+    """A polygon moved outward by ``m`` metres along the rays from its centre (inward if
+    negative): the ground a building site takes, a roof inside its parapet."""
+    cu = sum(p[0] for p in pts) / len(pts)
+    cv_ = sum(p[1] for p in pts) / len(pts)
+    out = []
+    for u, v in pts:
+        du, dv = u - cu, v - cv_
+        n = math.hypot(du, dv) or 1.0
+        out.append((u + du / n * m, v + dv / n * m))
+    return out
 
 
 def box(u0: float, v0: float, u1: float, v1: float) -> list[Point]:
@@ -292,8 +315,8 @@ def _park(rng, b0, c0, b1, c1, grounds, trees) -> None:  # type: ignore[no-untyp
             )
 
 
-def _parking(rng, b0, c0, b1, c1, cars, paint, trees) -> None:  # type: ignore[no-untyped-def]
-    """Rows of stalls with aisles between."""
+def parking_rows(rng, b0, c0, b1, c1, cars, paint, trees) -> None:  # type: ignore[no-untyped-def]
+    """Rows of stalls with aisles between (a parking lot's stalls, cars and edge trees)."""
     v = c0 + 1.0
     while v + 11.0 <= c1:
         _stalls(rng, b0 + 1.0, v, b1 - 1.0, v + 5.0, cars, paint)
