@@ -1,7 +1,7 @@
 """The leaderboard: method x scenario figures from the eval reports, as JSON and markdown.
 
-Figures per cell (SPEC section 5 names): median and rmse horizontal error, recall@25 m,
-availability, drift % and the turn/straight RPE ratio. A method's summary row is the median
+Figures per cell (SPEC section 5 names): median, p95 and rmse horizontal error, recall@5 m and
+@25 m, availability, drift % and the turn/straight RPE ratio. A method's summary row is the median
 over the scenarios it was measured on; a failed or missing cell is ``null`` / "-" (never 0).
 """
 
@@ -18,7 +18,10 @@ from air_sitl.sweep.measurements import EntryResult
 # (leaderboard key, path into the SPEC report, markdown title, format, better)
 FIGURES: tuple[tuple[str, tuple[str, ...], str, str, str], ...] = (
     ("median_m", ("horizontal_error_m", "median"), "median horizontal error (m)", ".1f", "low"),
+    ("p95_m", ("horizontal_error_m", "p95"), "p95 horizontal error (m)", ".1f", "low"),
     ("rmse_m", ("horizontal_error_m", "rmse"), "horizontal RMSE (m)", ".1f", "low"),
+    # 5 m: what separates localizers that all stay within AIR's 25 m across the date gaps
+    ("recall_5m", ("recall", "5m"), "recall@5 m (share of all frames)", ".3f", "high"),
     ("recall_25m", ("recall", "25m"), "recall@25 m (share of all frames)", ".3f", "high"),
     ("availability", ("availability",), "availability", ".3f", "high"),
     ("drift_pct", ("drift_pct",), "final drift (% of distance)", ".2f", "low"),
@@ -151,7 +154,7 @@ def build(
     )
 
 
-GAP_FIGURES = ("median_m", "recall_25m", "availability")
+GAP_FIGURES = ("median_m", "p95_m", "recall_5m", "recall_25m", "availability")
 
 
 def gaps_markdown(boards: Sequence[Leaderboard]) -> str:

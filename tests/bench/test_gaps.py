@@ -19,8 +19,8 @@ from air_sitl.sweep.measurements import EntryResult
 
 def _result(scenario: str, entry: str, median: float, recall: float) -> EntryResult:
     report = {
-        "horizontal_error_m": {"median": median, "rmse": median},
-        "recall": {"25m": recall},
+        "horizontal_error_m": {"median": median, "rmse": median, "p95": 2 * median},
+        "recall": {"5m": recall / 2, "25m": recall},
         "availability": 1.0,
     }
     return EntryResult(scenario=scenario, entry=entry, report=report)
@@ -45,6 +45,8 @@ def test_gaps_summary_and_one_section_per_gap() -> None:
     assert "| method | 0 -> 0 | 0 -> 1 | 0 -> 2 |" in md
     assert "| mapmatch | 3.0 | 13.0 | 23.0 |" in md  # the median over the two scenarios
     assert "| mapmatch | 1.000 | 0.750 | 0.500 |" in md  # recall@25 m
+    assert "| mapmatch | 0.500 | 0.375 | 0.250 |" in md  # recall@5 m: finer than 25 m
+    assert "| mapmatch | 6.0 | 26.0 | 46.0 |" in md  # p95
     for d in (0, 1, 2):
         assert f"# reference date 0 -> flight date {d}" in md
     assert md.count("### median horizontal error (m)") == 3
