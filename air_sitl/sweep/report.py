@@ -42,6 +42,7 @@ class Metric:
 EVAL_METRICS = (
     Metric("median horizontal error m", ("horizontal_error_m", "median")),
     Metric("p95 horizontal error m", ("horizontal_error_m", "p95")),
+    Metric("recall at 5 m", ("recall", "5m"), "{:.2f}", fraction=True),
     Metric("recall at 25 m", ("recall", "25m"), "{:.2f}", fraction=True),
     Metric("availability", ("availability",), "{:.2f}", fraction=True),
     Metric("final drift % of distance", ("drift_pct",), "{:.1f}"),

@@ -14,7 +14,7 @@ from air_sitl.sweep.results import RESULTS
 def _report(horizontal: float, recall: float) -> dict[str, object]:
     return {
         "horizontal_error_m": {"median": horizontal, "p95": 2.0 * horizontal},
-        "recall": {"25m": recall},
+        "recall": {"5m": recall / 2, "25m": recall},
         "availability": 1.0,
         "drift_pct": 0.1 * horizontal,
     }
@@ -53,10 +53,12 @@ def test_a_metric_the_same_in_every_run_is_named_not_drawn(tmp_path: Path) -> No
         assert main(["sweep", "report", str(folder), "--quiet"]) == 0
     flat_md = (flat / "report.md").read_text()
     varied_md = (varied / "report.md").read_text()
-    assert "The same in every run: recall at 25 m 1.00, availability 1.00" in flat_md
+    same = "The same in every run: recall at 5 m 0.50, recall at 25 m 1.00, availability 1.00"
+    assert same in flat_md
     assert "The same in every run: availability 1.00" in varied_md
     # The tables keep every column either way.
-    assert "| 0 | mapmatch | 2 | 0 | 2.00 (1.50-2.50) | 4.00 | 1.00 | 1.00 | 0.2 |" in flat_md
+    row = "| 0 | mapmatch | 2 | 0 | 2.00 (1.50-2.50) | 4.00 | 0.50 | 1.00 | 1.00 | 0.2 |"
+    assert row in flat_md
     # One row of panels fewer for the one more constant metric.
     flat_h = _png_height((flat / "report.png").read_bytes())
     varied_h = _png_height((varied / "report.png").read_bytes())
