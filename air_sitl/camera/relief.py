@@ -31,10 +31,11 @@ lock-step a cell at a time (state in arrays), the patches solved in a pass of th
 the walk stepping along the major axis or without branches, one flat cell index.
 
 Cost (``bench_camera.py --relief-only --frames 100``, one render thread, 640 x 480, load
-average 6-7.4 on this 2-core machine; CPU time of the process, per core): at 200 / 300 /
-3000 m, urban 12.0 / 12.2 / 12.0 ms a frame (83 / 82 / 83 frames/s; 11-12x the flat
-render of the same frames, 0.9-1.1 ms), forest 16.6 / 19.4 / 14.4 ms (60 / 52 / 69
-frames/s), urban over a 1.2 m GeoTIFF DSM 12.0 / 12.6 / 11.3 ms (84 / 80 / 89 frames/s).
+average 6.2-7.8 on this 2-core machine, two runs; CPU time of the process, per core): at
+200 / 300 / 3000 m, urban 11.3 / 12.1 / 10.7 ms a frame (88 / 83 / 94 frames/s; 11-13x
+the flat render of the same frames, 0.9-1.0 ms), forest 16.1 / 19.3 / 14.5 ms (62 / 52 /
+69 frames/s), urban over a 1.2 m GeoTIFF DSM 11.4 / 12.0 / 10.8 ms (88 / 83 / 92
+frames/s); wall clock within 2 % of these in those runs.
 Of a forest frame at 300 m about 17.5 ms are the rays (``relief_march.hit_maps``; before
 this layout 23.5 ms: 2 the rays and blocks, 9.5 the walks up to the first cell a ray may
 meet, 9.5 the patches and the walks after a miss), 2 ms the remap and the noise. The bench
