@@ -3,35 +3,43 @@
 The surface is the bilinear interpolation of the surface model's posts on the map's level-L
 pixel grid (the level the frame takes its colours from). Each pixel's ray walks the cells
 it crosses from the top of the height range down, and the first cell whose bilinear patch
-it meets gives the hit by solving a quadratic (``relief_march.first_hit``): so tall things
+it meets gives the hit by solving a quadratic (``relief_march.walk_rays``): so tall things
 lean away from the nadir and hide what is behind them, crowns keep their outline, and no
 ground shows through at their edges. A wall shows the map's colour at its foot, stretched.
 
-Speed: blocks of 8 x 8 pixels first descend together: at one altitude a block's rays lie
+Speed: blocks of 16 x 16 pixels first descend together: at one altitude a block's rays lie
 inside the quadrilateral of its corner rays, so the block comes down, a tile's height at a
 time, while every 8 x 8-cell tile under the box of those corners is lower (a max-height
 tile grid per window). Then each ray walks alone from there, passing every cell whose
 highest post is below it where it leaves the cell (a grid walk without divisions), and
-solves only the patches it may meet: over the forest about 6 cells and 1.5 patches a ray,
-over the town about 3 and 1.1. A window's posts, cell tops and tile tops are read once and
-kept by the thread for the next frames (a frame's search may read two windows). Rays that
-leave the window before reaching the lowest height (views toward the horizon, where the
-window is clipped) are marched by fine steps instead (a one-pixel step and bisection).
-Then a remap from the map window (in strips, each from a copy of the map pixels it samples
-where the mosaic is large). The loops are compiled (``relief_march``, numba, imported and
-compiled or loaded from its cache by :func:`warm` when a renderer over relief is built,
-before the clock runs). Tried and slower here: a second max-height grid of 4-cell tiles
-skipped per ray, 4 x 4-pixel blocks, two rays walked in one loop, the walk stepping along
-the major axis: the cost is the latency of each ray's chain of dependent steps, not the
-number of cells.
+solves only the patches it may meet: over the forest about 5 cells and 1.5 patches a ray,
+over the town about 2-3 and 1.1. The cost is the latency of each ray's chain of dependent
+steps, and a mispredicted branch at the end of one walk stalls the next until its start is
+computed; so a block's rays and their walks' starts are computed first, in loops the
+compiler turns into vector code, and the walks then start from numbers in the core's
+cache; cell indices are unsigned (no test for negative indices). A window's posts, cell
+tops and tile tops are read once and kept by the thread for the next frames (a frame's
+search may read two windows). Rays that leave the window before reaching the lowest height
+(views toward the horizon, where the window is clipped) are marched by fine steps instead
+(a one-pixel step and bisection). Then a remap from the map window (in strips, each from a
+copy of the map pixels it samples where the mosaic is large). The loops are compiled
+(``relief_march``, numba, imported and compiled or loaded from its cache by :func:`warm`
+when a renderer over relief is built, before the clock runs). Tried and slower here: a
+second max-height grid of 4-cell tiles skipped per ray, 4 x 4-pixel blocks (or 4 x 4
+sub-blocks descending further inside a block), two rays walked in one loop, rays walked in
+lock-step a cell at a time (state in arrays), the patches solved in a pass of their own,
+the walk stepping along the major axis or without branches, one flat cell index.
 
-Cost (``bench_camera.py --relief-only --frames 100``, one core, 640 x 480, load average
-5.5-6 on this 2-core machine): at 200 / 300 / 3000 m, urban 16.8 / 17.1 / 15.4 ms a frame
-(59 / 59 / 65 frames/s; 18.6 / 17.8 / 16.3x the flat render of the same frames, 0.9-1.0
-ms), forest 22.7 / 26.3 / 19.8 ms (44 / 38 / 51 frames/s: under the 50 aimed at below
-3000 m), urban over a 1.2 m GeoTIFF DSM 16.7 / 17.7 / 16.3 ms (60 / 57 / 62 frames/s). Of
-a forest frame at 300 m about 5 ms are the rays and their blocks, 8 ms the walks up to the
-first cell they may meet, 11 ms the patches solved and the walks after a miss.
+Cost (``bench_camera.py --relief-only --frames 100``, one render thread, 640 x 480, load
+average 6.2-7.8 on this 2-core machine, two runs; CPU time of the process, per core): at
+200 / 300 / 3000 m, urban 11.3 / 12.1 / 10.7 ms a frame (88 / 83 / 94 frames/s; 11-13x
+the flat render of the same frames, 0.9-1.0 ms), forest 16.1 / 19.3 / 14.5 ms (62 / 52 /
+69 frames/s), urban over a 1.2 m GeoTIFF DSM 11.4 / 12.0 / 10.8 ms (88 / 83 / 92
+frames/s); wall clock within 2 % of these in those runs.
+Of a forest frame at 300 m about 17.5 ms are the rays (``relief_march.hit_maps``; before
+this layout 23.5 ms: 2 the rays and blocks, 9.5 the walks up to the first cell a ray may
+meet, 9.5 the patches and the walks after a miss), 2 ms the remap and the noise. The bench
+also prints wall-clock figures, which the machine's other load stretches.
 
 Until issue 24 an adaptive grid (rays on a 16-pixel grid, refined at parallax edges and
 interpolated elsewhere) was used: cheaper, but 9-14 % of the forest's pixels (15-22 % in

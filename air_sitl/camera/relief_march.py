@@ -23,14 +23,16 @@ from air_sitl.compiled import compiled, compiled_inline
 
 F32 = npt.NDArray[np.float32]
 F64 = npt.NDArray[np.float64]
+I64 = npt.NDArray[np.int64]
 _TILE_BITS = 3
 TILE = 1 << _TILE_BITS  # cells per side of a max-height tile
-BLOCK = 8  # image pixels per side of a block whose rays skip the empty space above together
+BLOCK = 16  # image pixels per side of a block whose rays skip the empty space above together
 MAX_FINE = 4096  # fine steps over a march's altitude range, at most (rays leaving the window)
 REFINE = 4  # bisection steps after a fine march, before the secant
 _MIN_DOWN = 1e-6
 _BIG = 1e30
 _TINY = 1e-12  # level pixels per metre: the slope a walk takes for a zero one
+_MINUS_ONE = np.uint64(0xFFFF_FFFF_FFFF_FFFF)  # a step back, as an unsigned cell index
 
 
 @compiled
@@ -157,126 +159,150 @@ def march_ray(
 
 
 @compiled_inline
-def _patch_root(
-    values: F32, i: int, j: int, x: float, y: float, z: float, ax: float, ay: float,
+def _patch_hit(
+    values: F32, i: np.uint64, j: np.uint64, x: float, y: float, z: float, ax: float, ay: float,
     span: float,
-) -> float:  # fmt: skip
-    """Descent (>= 0, at most ``span``) from altitude z at level pixel (x, y) in cell (i, j)
-    to the first point where the ray is not above the cell's bilinear patch; -1 if it stays
-    above over the cell.
+) -> tuple[bool, float]:  # fmt: skip
+    """(whether the ray meets cell (i, j)'s bilinear patch within a descent of ``span`` from
+    altitude z at level pixel (x, y), the descent (0 .. span) to the first point where it is
+    not above the patch).
 
     Along the ray, g(t) = z - t - height is a quadratic in the descent t (the patch is
     bilinear, the ray straight): ga + gb t + gc t^2 with ga = g(0). It has a root in
     [0, span] where it is not above at the end, or where it is convex and dips below
     between; only then is the root solved (a square root and a division, in the form that
-    does not cancel).
+    does not cancel). The flag is decided before the root, so the walk's branch on it
+    does not wait for the square root and the division.
     """
+    one = np.uint64(1)
     h00 = float(values[j, i])
-    hx = float(values[j, i + 1]) - h00
-    hy = float(values[j + 1, i]) - h00
-    hxy = float(values[j + 1, i + 1]) - h00 - hx - hy
-    u, v = x - i, y - j
+    hx = float(values[j, i + one]) - h00
+    hy = float(values[j + one, i]) - h00
+    hxy = float(values[j + one, i + one]) - h00 - hx - hy
+    u, v = x - float(i), y - float(j)
     ga = z - (h00 + hx * u + hy * v + hxy * u * v)
     if ga <= 0.0:
-        return 0.0
+        return True, 0.0
     gb = -1.0 - hx * ax - hy * ay - hxy * (u * ay + v * ax)
     gc = -hxy * ax * ay
     if ga + span * (gb + span * gc) > 0.0 and (
         gc <= 0.0 or gb >= 0.0 or -gb >= 2.0 * gc * span or 4.0 * ga * gc > gb * gb
     ):
-        return -1.0  # above at both ends and nowhere below between
+        return False, 0.0  # above at both ends and nowhere below between
     root = math.sqrt(max(gb * gb - 4.0 * gc * ga, 0.0))
     # The first root on the way down: with gb < 0 the smaller positive one; else g is
     # concave (gc < 0) and it is the only positive one.
     t = 2.0 * ga / (root - gb) if gb < 0.0 else (-gb - root) / (2.0 * gc)
-    return min(max(t, 0.0), span)
+    return True, min(max(t, 0.0), span)
 
 
 @compiled_inline
-def _stays_inside(
-    w: int, h: int, px0: float, py0: float, ax: float, ay: float, z_top: float, z_bot: float
-) -> bool:
-    """Whether the ray stays over a w x h window of posts between z_top and z_bot."""
-    xa, ya = px0 - z_top * ax, py0 - z_top * ay
-    xb, yb = px0 - z_bot * ax, py0 - z_bot * ay
-    hi_x, hi_y = w - 1.0, h - 1.0
-    return (
-        0.0 <= xa <= hi_x and 0.0 <= ya <= hi_y and 0.0 <= xb <= hi_x and 0.0 <= yb <= hi_y
-        and w >= 2 and h >= 2
-    )  # fmt: skip
+def walk_rays(
+    values: F32, cmax: F32, tmax: F32, ax: F64, ay: F64, n: int, ox: float, oy: float,
+    cam_z: float, z_top: float, z_bot: float, z_out: F64, scratch: F64, cells: I64,
+) -> None:  # fmt: skip
+    """The altitude of the first surface point of rays 0 .. n-1 within [z_bot, z_top] into
+    ``z_out`` (z_bot where a ray meets none); ray k at altitude z is at level pixel
+    (ox + (cam_z - z) ax[k], oy + (cam_z - z) ay[k]). ``scratch`` (6, n or more) and
+    ``cells`` (3, n or more) hold the walks' starts; then ``cells[2]`` is 1 where the ray
+    met the surface, 0 where not.
 
-
-@compiled_inline
-def _walk(
-    values: F32, cmax: F32, px0: float, py0: float, ax: float, ay: float, z_top: float,
-    z_bot: float,
-) -> tuple[float, bool]:  # fmt: skip
-    """:func:`first_hit` of a ray that stays over the window (the walk itself, kept apart
-    from the fine march so the per-pixel loop holds no call)."""
-    h, w = values.shape
-    xa, ya = px0 - z_top * ax, py0 - z_top * ay
-    span = z_top - z_bot
-    if span < 0.0:
-        return z_top, False
-    ci, cj = w - 2, h - 2  # the last cell in each direction
-    i, j = min(int(xa), ci), min(int(ya), cj)
-    sx, sy = max(abs(ax), _TINY), max(abs(ay), _TINY)
-    scale = sx * sy
-    inv_scale = 1.0 / scale
-    if ax >= 0.0:
-        step_i, next_x = 1, (i + 1 - xa) * sy
-    else:
-        step_i, next_x = -1, (xa - i) * sy
-    if ay >= 0.0:
-        step_j, next_y = 1, (j + 1 - ya) * sx
-    else:
-        step_j, next_y = -1, (ya - j) * sx
-    end = span * scale
-    here = 0.0  # the descent at the cell's entry, times scale
-    while True:
-        out = min(next_x, next_y, end)  # ... at its exit
-        if out >= (z_top - cmax[j, i]) * scale:  # not above the cell's top at the exit
-            t = here * inv_scale
-            root = _patch_root(values, i, j, xa + ax * t, ya + ay * t, z_top - t, ax, ay,
-                               (out - here) * inv_scale)  # fmt: skip
-            if root >= 0.0:
-                return z_top - t - root, True
-        if out >= end:
-            return z_bot, False
-        here = out
-        if next_x < next_y:
-            i += step_i
-            next_x += sy
-        else:
-            j += step_j
-            next_y += sx
-        if i < 0 or i > ci or j < 0 or j > cj:
-            return z_bot, False  # (only by rounding at the window's edge)
-
-
-@compiled_inline
-def first_hit(
-    values: F32, cmax: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
-    z_top: float, z_bot: float,
-) -> tuple[float, bool]:  # fmt: skip
-    """(altitude of the first point of the ray on the surface within [z_bot, z_top], found).
-
-    Exact: the ray walks the cells it crosses in order (a grid walk over the level-pixel
+    Exact: each ray walks the cells it crosses in order (a grid walk over the level-pixel
     grid), passes every cell whose highest post is below the ray where it leaves the cell,
-    and solves the quadratic of the cells it may meet (:func:`_patch_root`). A ray already
+    and solves the quadratic of the cells it may meet (:func:`_patch_hit`). A ray already
     under the surface at z_top hits there. A ray that leaves the window between z_top and
     z_bot is marched by fine steps (:func:`march_ray`).
+
+    In two passes: first every ray's start (where it enters its first cell, its steps),
+    in a loop without branches the compiler turns into vector code; then the walks, each
+    starting from numbers already in the core's cache: a walk is a chain of dependent
+    steps, and a mispredicted branch at its end stalls the next walk until its start is
+    computed, so the less a walk has to compute before its first step, the faster.
 
     The walk divides nothing: descents t are kept multiplied by |ax| |ay| (the next
     boundary across x is at t |ax| |ay| = (distance in x) |ay|), so the comparisons of a
     step are products; a zero slope is taken as 1e-12 level pixels per metre.
     """
     h, w = values.shape
-    if _stays_inside(w, h, px0, py0, ax, ay, z_top, z_bot):
-        z, found = _walk(values, cmax, px0, py0, ax, ay, z_top, z_bot)
-    else:
-        z, found = march_ray(values, tmax, px0, py0, ax, ay, z_top, z_bot)
-    return z, found
+    ci, cj = w - 2, h - 2  # the last cell in each direction
+    last_i, last_j = np.uint64(max(ci, 0)), np.uint64(max(cj, 0))
+    span = z_top - z_bot
+    hi_x, hi_y = w - 1.0, h - 1.0
+    for k in range(n):  # the starts (vector code: no branches, only selects)
+        a, b = ax[k], ay[k]
+        px0, py0 = ox + cam_z * a, oy + cam_z * b
+        xa, ya = px0 - z_top * a, py0 - z_top * b
+        xb, yb = px0 - z_bot * a, py0 - z_bot * b
+        inside = (
+            (xa >= 0.0) & (xa <= hi_x) & (ya >= 0.0) & (ya <= hi_y)
+            & (xb >= 0.0) & (xb <= hi_x) & (yb >= 0.0) & (yb <= hi_y)
+        )  # fmt: skip
+        i = min(int(min(max(xa, 0.0), hi_x)), ci)
+        j = min(int(min(max(ya, 0.0), hi_y)), cj)
+        sx, sy = max(abs(a), _TINY), max(abs(b), _TINY)
+        scale = sx * sy
+        scratch[0, k] = (i + 1 - xa) * sy if a >= 0.0 else (xa - i) * sy  # next x boundary
+        scratch[1, k] = (j + 1 - ya) * sx if b >= 0.0 else (ya - j) * sx  # next y boundary
+        scratch[2, k] = scale
+        scratch[3, k] = 1.0 / scale
+        scratch[4, k] = xa
+        scratch[5, k] = ya
+        cells[0, k], cells[1, k], cells[2, k] = i, j, inside
+    for k in range(n):  # the walks
+        a, b = ax[k], ay[k]
+        if cells[2, k] == 0 or w < 2 or h < 2:
+            z, found = march_ray(values, tmax, ox + cam_z * a, oy + cam_z * b, a, b, z_top,
+                                 z_bot)  # fmt: skip
+            z_out[k], cells[2, k] = z, found
+            continue
+        z_out[k], cells[2, k] = z_bot, 0
+        if span < 0.0:
+            z_out[k] = z_top
+            continue
+        next_x, next_y = scratch[0, k], scratch[1, k]
+        scale, inv_scale = scratch[2, k], scratch[3, k]
+        # Cell indices unsigned: a step back from 0 wraps past the last cell (one test for
+        # both ends), and indexing needs no test for negative indices (about 8 % faster).
+        xa, ya = scratch[4, k], scratch[5, k]
+        i, j = np.uint64(cells[0, k]), np.uint64(cells[1, k])
+        sx, sy = max(abs(a), _TINY), max(abs(b), _TINY)
+        step_i = np.uint64(1) if a >= 0.0 else _MINUS_ONE
+        step_j = np.uint64(1) if b >= 0.0 else _MINUS_ONE
+        end = span * scale
+        here = 0.0  # the descent at the cell's entry, times scale
+        while True:
+            out = min(next_x, next_y, end)  # ... at its exit
+            if out >= (z_top - cmax[j, i]) * scale:  # not above the cell's top at the exit
+                t = here * inv_scale
+                hit, root = _patch_hit(values, i, j, xa + a * t, ya + b * t, z_top - t, a, b,
+                                       (out - here) * inv_scale)  # fmt: skip
+                if hit:
+                    z_out[k], cells[2, k] = z_top - t - root, 1
+                    break
+            if out >= end:
+                break
+            here = out
+            if next_x < next_y:
+                i += step_i
+                next_x += sy
+            else:
+                j += step_j
+                next_y += sx
+            if i > last_i or j > last_j:
+                break  # (only by rounding at the window's edge)
+
+
+@compiled
+def first_hit(
+    values: F32, cmax: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
+    z_top: float, z_bot: float,
+) -> tuple[float, bool]:  # fmt: skip
+    """(altitude of the first point of the ray on the surface within [z_bot, z_top], found)
+    of one ray, at level pixel (px0 - z ax, py0 - z ay) at altitude z (:func:`walk_rays`)."""
+    z, cells = np.empty(1), np.empty((3, 1), dtype=np.int64)
+    walk_rays(values, cmax, tmax, np.full(1, ax), np.full(1, ay), 1, px0, py0, 0.0, z_top,
+              z_bot, z, np.empty((6, 1)), cells)  # fmt: skip
+    return z[0], cells[2, 0] != 0
 
 
 @compiled_inline
@@ -284,11 +310,9 @@ def _ray(r: F64, jac: F64, s: float, u: float, v: float) -> tuple[float, float]:
     """Level pixels travelled per metre of descent by the ray of image point (u, v) (zero
     for a ray that never descends)."""
     dd = r[6] * u + r[7] * v + r[8]
-    if dd <= _MIN_DOWN:
-        return 0.0, 0.0
     dn = r[0] * u + r[1] * v + r[2]
     de = r[3] * u + r[4] * v + r[5]
-    inv = 1.0 / (s * dd)
+    inv = 1.0 / (s * dd) if dd > _MIN_DOWN else 0.0  # a select: loops of rays vectorise
     return (jac[0] * dn + jac[1] * de) * inv, (jac[2] * dn + jac[3] * de) * inv
 
 
@@ -351,29 +375,35 @@ def hit_maps(
     """Every pixel's first surface point into ``maps`` ((height, width, 2) window level
     pixels) and the (x min, y min, x max, y max) of each strip of ``rows`` image rows into
     ``bounds``. Blocks of BLOCK x BLOCK pixels start their rays together below the empty
-    space above them (:func:`_block_top`); each ray then finds its own first hit."""
+    space above them (:func:`_block_top`); each ray then finds its own first hit
+    (:func:`walk_rays`)."""
     for k in range(bounds.shape[0]):
         bounds[k, 0] = bounds[k, 1] = np.float32(np.inf)
         bounds[k, 2] = bounds[k, 3] = np.float32(-np.inf)
     z_top = min(h_max, cam_z)
-    h, w = values.shape
+    n = BLOCK * BLOCK
+    ax, ay, z = np.empty(n), np.empty(n), np.empty(n)
+    scratch, cells = np.empty((6, n)), np.empty((3, n), dtype=np.int64)
     for v0 in range(0, height, BLOCK):
         v1 = min(v0 + BLOCK, height) - 1
         for u0 in range(0, width, BLOCK):
             u1 = min(u0 + BLOCK, width) - 1
+            bw = u1 - u0 + 1
             top = _block_top(tmax, r, jac, s, ox, oy, cam_z, u0, v0, u1, v1, z_top, h_min)
+            for py in range(v0, v1 + 1):  # the block's rays (vector code)
+                for px in range(u0, u1 + 1):
+                    q = (py - v0) * bw + px - u0
+                    ax[q], ay[q] = _ray(r, jac, s, float(px), float(py))
+            walk_rays(values, cmax, tmax, ax, ay, (v1 - v0 + 1) * bw, ox, oy, cam_z, top,
+                      h_min, z, scratch, cells)  # fmt: skip
             for py in range(v0, v1 + 1):
                 k = py // rows
                 x_lo, y_lo = bounds[k, 0], bounds[k, 1]
                 x_hi, y_hi = bounds[k, 2], bounds[k, 3]
                 for px in range(u0, u1 + 1):
-                    ax, ay = _ray(r, jac, s, float(px), float(py))
-                    px0, py0 = ox + cam_z * ax, oy + cam_z * ay
-                    if _stays_inside(w, h, px0, py0, ax, ay, top, h_min):
-                        z, _ = _walk(values, cmax, px0, py0, ax, ay, top, h_min)
-                    else:
-                        z, _ = march_ray(values, tmax, px0, py0, ax, ay, top, h_min)
-                    x, y = np.float32(px0 - z * ax), np.float32(py0 - z * ay)
+                    q = (py - v0) * bw + px - u0
+                    px0, py0 = ox + cam_z * ax[q], oy + cam_z * ay[q]
+                    x, y = np.float32(px0 - z[q] * ax[q]), np.float32(py0 - z[q] * ay[q])
                     maps[py, px, 0], maps[py, px, 1] = x, y
                     x_lo, y_lo = min(x_lo, x), min(y_lo, y)
                     x_hi, y_hi = max(x_hi, x), max(y_hi, y)

@@ -190,10 +190,24 @@ class RemapPaths:
         assert isinstance(window, relief.HeightWindow)
         return window
 
+    def _relief_frame(
+        self, state: VehicleState, g: FrameGeometry
+    ) -> tuple[Mat9, Jac4, float, float, relief.HeightWindow]:
+        """relief_setup and relief_window of a frame, kept by the thread for the same state
+        and geometry: the frame's centre (``relief_centre``) and its pixels need the same,
+        and working them out costs about 0.3 ms."""
+        key = (g.level, g.sees_horizon, g.height_m)
+        last = getattr(self._local, "frame", None)
+        if last is not None and last[0] is state and last[1] == key:
+            return last[2]  # type: ignore[no-any-return]
+        r, jac, cx, cy = self.relief_setup(state, g.level)
+        out = (r, jac, cx, cy, self.relief_window(state, g, r, jac, cx, cy))
+        self._local.frame = (state, key, out)
+        return out
+
     def relief_centre(self, state: VehicleState, g: FrameGeometry) -> FrameGeometry:
         """The geometry with the image-centre ray's first surface point as the centre."""
-        r, jac, cx, cy = self.relief_setup(state, g.level)
-        window = self.relief_window(state, g, r, jac, cx, cy)
+        r, jac, cx, cy, window = self._relief_frame(state, g)
         cam = self.camera
         rays = relief.ray_slopes(
             r, jac, 0, np.array([cam.cx_px], np.float32), np.array([cam.cy_px], np.float32)
@@ -216,8 +230,7 @@ class RemapPaths:
     ) -> Image:
         """Pixels over relief: ray-marched ground points, one remap from the map window."""
         cam = self.camera
-        r, jac, cx, cy = self.relief_setup(state, g.level)
-        window = self.relief_window(state, g, r, jac, cx, cy)
+        r, jac, cx, cy, window = self._relief_frame(state, g)
         rows = self._owner._strip_rows
         maps, bounds = relief.ground_maps(
             window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px,

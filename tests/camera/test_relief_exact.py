@@ -79,3 +79,42 @@ def test_every_pixel_shows_the_first_surface_its_ray_meets(
     share, level = off_share(renderer, alt_m)
     assert level == (3 if alt_m > 1000 else 0)  # the levels the figures are about
     assert share <= MAX_OFF_SHARE, f"{100 * share:.2f} % of the pixels off by > {OFF_PX} px"
+
+
+def test_the_edge_columns_of_a_100_m_forest_frame_show_the_first_surface_their_rays_meet() -> None:
+    """At 100 m over the forest (the contact sheet's frame) the image edges show long
+    streaks: the walls of the forest's edge, the map's colour at their foot stretched (the
+    surface between a ground post and a crown post is a steep bilinear slope). They are
+    the first surface the rays meet: each edge column agrees with the reference march over
+    heights read 512 level pixels beyond the renderer's window on every side (a ray that
+    left the renderer's window and fell back to anything else would not), and the columns
+    are not copies of their neighbours."""
+    m = open_map("forest", HOME, seed=0)
+    renderer = Renderer(m, CameraModel(noise_sigma=0.0), surface=open_surface("builtin", m))
+    state = pose_state(HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m + 100.0, alt_agl_m=100.0)
+    paths = renderer._remap
+    assert paths is not None and renderer.surface is not None
+    g = renderer.geometry(state, warn=False)
+    r, jac, cx, cy = paths.relief_setup(state, g.level)
+    window = paths.relief_window(state, g, r, jac, cx, cy)
+    cam = renderer.camera
+    maps = relief.ground_maps(
+        window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px
+    )[0]
+    wh, ww = window.values.shape
+    big = relief.read_window(renderer.surface, g.level, window.x0 - 512, window.y0 - 512,
+                             window.x0 + ww + 511, window.y0 + wh + 511)  # fmt: skip
+    assert big.h_max > window.h_max  # heights the renderer's window does not hold
+    edges = [0, 1, 2, 3, cam.width_px - 4, cam.width_px - 3, cam.width_px - 2, cam.width_px - 1]
+    v, u = np.mgrid[0 : cam.height_px, 0 : len(edges)]
+    u = np.asarray(edges)[u]
+    want_x, want_y = reference_hits(
+        big, r, jac, g.level, cx, cy, state.alt_amsl_m, u.ravel().astype(np.float64),
+        v.ravel().astype(np.float64),
+    )  # fmt: skip
+    shift = np.array([window.x0 - big.x0, window.y0 - big.y0], dtype=np.float64)
+    got = maps[v.ravel(), u.ravel()].astype(np.float64) + shift  # in the big window
+    off = np.hypot(got[:, 0] - want_x, got[:, 1] - want_y) > OFF_PX
+    assert off.mean() <= MAX_OFF_SHARE, f"{100 * off.mean():.2f} % of the edge pixels off"
+    for a, b in ((0, 1), (cam.width_px - 1, cam.width_px - 2)):  # no column smeared
+        assert np.abs(maps[:, a] - maps[:, b]).max(axis=1).min() > 1e-3
