@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -42,21 +43,28 @@ def _dsm(path: Path, m: MapSource) -> GeoTiffDem:
     return GeoTiffDem(tif, m)
 
 
-def off_share(renderer: Renderer, alt_m: float) -> tuple[float, int]:
-    """(share of the window's pixels off, the frame's level) for one banked frame."""
-    state = pose_state(
-        HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m + alt_m, alt_agl_m=alt_m,
-        roll_rad=math.radians(5.0), pitch_rad=math.radians(2.0), yaw_rad=0.3,
-    )  # fmt: skip
+def renderer_maps(renderer: Renderer, state: Any) -> tuple[Any, ...]:
+    """The renderer's relief window, ray set-up and ground maps for one frame:
+    ``(window, r, jac, geometry, cx, cy, maps)``."""
     paths = renderer._remap
     assert paths is not None
-    g = renderer.geometry(state)
+    g = renderer.geometry(state, warn=False)
     r, jac, cx, cy = paths.relief_setup(state, g.level)
     window = paths.relief_window(state, g, r, jac, cx, cy)
     cam = renderer.camera
     maps = relief.ground_maps(
         window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px
     )[0]
+    return window, r, jac, g, cx, cy, maps
+
+
+def off_share(renderer: Renderer, alt_m: float) -> tuple[float, int]:
+    """(share of the window's pixels off, the frame's level) for one banked frame."""
+    state = pose_state(
+        HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m + alt_m, alt_agl_m=alt_m,
+        roll_rad=math.radians(5.0), pitch_rad=math.radians(2.0), yaw_rad=0.3,
+    )  # fmt: skip
+    window, r, jac, g, cx, cy, maps = renderer_maps(renderer, state)
     got = maps[WINDOW].reshape(-1, 2).astype(np.float64)
     v, u = np.mgrid[WINDOW]
     want_x, want_y = reference_hits(
@@ -92,15 +100,9 @@ def test_the_edge_columns_of_a_100_m_forest_frame_show_the_first_surface_their_r
     m = open_map("forest", HOME, seed=0)
     renderer = Renderer(m, CameraModel(noise_sigma=0.0), surface=open_surface("builtin", m))
     state = pose_state(HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m + 100.0, alt_agl_m=100.0)
-    paths = renderer._remap
-    assert paths is not None and renderer.surface is not None
-    g = renderer.geometry(state, warn=False)
-    r, jac, cx, cy = paths.relief_setup(state, g.level)
-    window = paths.relief_window(state, g, r, jac, cx, cy)
+    assert renderer.surface is not None
+    window, r, jac, g, cx, cy, maps = renderer_maps(renderer, state)
     cam = renderer.camera
-    maps = relief.ground_maps(
-        window, r, jac, g.level, cx, cy, state.alt_amsl_m, cam.width_px, cam.height_px
-    )[0]
     wh, ww = window.values.shape
     big = relief.read_window(renderer.surface, g.level, window.x0 - 512, window.y0 - 512,
                              window.x0 + ww + 511, window.y0 + wh + 511)  # fmt: skip
