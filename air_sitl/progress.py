@@ -33,6 +33,7 @@ class Progress(Closeable):
 
     ``total`` None: a count without an end (rate, no ETA). ``enabled`` False: silent (--quiet).
     ``tty`` None: a bar when ``stream`` is a terminal, else lines. ``clock``: for tests.
+    ``initial``: what was done before this run (a resumed task): counted, not in the rate.
     """
 
     def __init__(
@@ -47,6 +48,7 @@ class Progress(Closeable):
         position: int | None = None,
         unit_scale: bool = False,
         clock: Callable[[], float] = time.monotonic,
+        initial: float = 0,
     ) -> None:
         self.label = label
         self.total = total if total is None or total > 0 else None
@@ -56,7 +58,8 @@ class Progress(Closeable):
         self.tty = _isatty(self.stream) if tty is None else tty
         self.unit_scale = unit_scale
         self.clock = clock
-        self.n = 0.0
+        self.initial = initial
+        self.n: float = initial
         self.postfix = ""
         self.closed = False
         self._started = False
@@ -68,6 +71,7 @@ class Progress(Closeable):
     def _start_bar(self) -> None:
         self._bar = tqdm(
             total=self.total,
+            initial=self.initial,
             desc=self.label,
             unit=f" {self.unit}",
             unit_scale=self.unit_scale,
@@ -134,6 +138,7 @@ class Progress(Closeable):
             unit_scale=self.unit_scale,
             bar_format=line if self.total else _LINE_NO_TOTAL,
             postfix=self.postfix or None,
+            initial=self.initial,
         )
 
     def _line(self, now: float, *, end: bool = False) -> None:
@@ -184,10 +189,14 @@ class JobsProgress:
         stream: IO[str] | None = None,
         enabled: bool = True,
         tty: bool | None = None,
+        already: dict[str, int] | None = None,
     ) -> None:
         self.stream = sys.stderr if stream is None else stream
         tty = _isatty(self.stream) if tty is None else tty
-        self.frames = dict.fromkeys(names, 0)
+        # Frames of jobs complete before this run (a resumed dataset): counted in the
+        # overall figure from the start, never in its rate.
+        already = already or {}
+        self.frames = {n: already.get(n, 0) for n in names}
         self.finished = 0
         total = sum(expected.get(n, 0) for n in names)
         # Aligned bars on a terminal; lines start with the name.
@@ -200,6 +209,7 @@ class JobsProgress:
             enabled=enabled,
             tty=tty,
             position=0,
+            initial=sum(self.frames.values()),
         )
         self.jobs = {
             name: Progress(

@@ -57,7 +57,9 @@ class BenchProgress:
 
     def __init__(self, total: int, stream: IO[str], quiet: bool, done: int = 0) -> None:
         self.total, self.done = total, done
-        self.bar = Progress("bench", total, unit="cells", stream=stream, enabled=not quiet)
+        self.bar = Progress(  # cells measured before (a resumed bench) are not in the rate
+            "bench", total, unit="cells", stream=stream, enabled=not quiet, initial=done
+        )
         self.bar.update_to(done)
 
     def update(self, result: EntryResult) -> None:

@@ -145,9 +145,11 @@ def run(args: argparse.Namespace) -> int:
     expected = {j.name: PAPER_TABLE.get(j.setup.name.upper(), (0, 0))[0] for j in jobs}
     # A read-only disk, then too little room: refused before anything flies or is made.
     require_writable_folder(root, "output folder", create=False)
-    check_disk(jobs, expected, root, args)
+    already = check_disk(jobs, expected, root, args)
     n = min(int_in_range("-j", args.jobs, 1, 64), len(jobs))
-    display = JobsProgress([j.name for j in jobs], expected, enabled=not args.quiet)
+    display = JobsProgress(
+        [j.name for j in jobs], expected, enabled=not args.quiet, already=already
+    )
 
     def on_progress(name: str, frames: int, sim_s: float) -> None:
         display.update(name, frames, f"sim {sim_s:.0f} s")
@@ -214,17 +216,28 @@ def run(args: argparse.Namespace) -> int:
 
 def check_disk(
     jobs: list[Job], expected: dict[str, int], root: Path, args: argparse.Namespace
-) -> None:
+) -> dict[str, int]:
     """Say how much the recordings will write; DatasetError when ROOT's file system has less
     free space (unless ``--ignore-free-space``). Estimated from the paper's frame counts and the
-    JPEG quality (:mod:`air_sitl.dataset.size`); a resumed folder counts only what is missing."""
-    from air_sitl.dataset.size import frames_on_disk, free_bytes, human_bytes, recording_bytes
+    JPEG quality (:mod:`air_sitl.dataset.size`); a resumed folder counts only what is missing,
+    a complete one nothing. Returns the frames of the complete ones (``--resume``)."""
+    from air_sitl.dataset.size import (
+        complete_frames,
+        frames_on_disk,
+        free_bytes,
+        human_bytes,
+        recording_bytes,
+    )
 
     total = 0
     frames = 0
     unknown = []
+    complete = {}
     for job in jobs:
         camera = job.setup.camera
+        if args.resume and (done := complete_frames(job.out)) is not None:
+            complete[job.name] = done
+            continue
         if not expected.get(job.name) or camera is None:
             unknown.append(job.name)
             continue
@@ -236,10 +249,11 @@ def check_disk(
     free = free_bytes(root)
     quality = jobs[0].setup.camera.jpeg_quality if jobs and jobs[0].setup.camera else None
     note = f" (and {', '.join(unknown)} of unknown size)" if unknown else ""
+    kept = f" ({len(complete)} complete already)" if complete else ""
     if not args.quiet:
         print(
-            f"dataset: {len(jobs)} recording{'' if len(jobs) == 1 else 's'}, about {frames} "
-            f"frames: about {human_bytes(total)} "
+            f"dataset: {len(jobs)} recording{'' if len(jobs) == 1 else 's'}{kept}, about "
+            f"{frames} frames to write: about {human_bytes(total)} "
             f"into {root} at JPEG quality {quality}{note}; {human_bytes(free)} free there",
             file=sys.stderr,
             flush=True,
@@ -250,3 +264,4 @@ def check_disk(
             f"{human_bytes(free)} free (--ignore-free-space to fly anyway)"
         )
         raise DatasetError(msg)
+    return complete

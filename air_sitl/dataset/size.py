@@ -76,6 +76,14 @@ def frames_on_disk(folder: Path) -> int:
         return 0
 
 
+def complete_frames(folder: Path) -> int | None:
+    """Frames of a recording folder that is complete (its manifest written last), else None:
+    what ``--resume`` skips."""
+    from air_sitl.dataset.air_schema import MANIFEST_JSON
+
+    return frames_on_disk(folder) if (folder / MANIFEST_JSON).is_file() else None
+
+
 def human_bytes(n: float) -> str:
     """``10.8 GB``, ``512 MB``, ``3.1 kB`` (decimal units, as disk makers and ``df -H``)."""
     for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):

@@ -117,7 +117,9 @@ class _Progress:
 
     def __init__(self, total: int, done: int, stream: IO[str] | None, axes: Sequence[str]):
         self.total, self.done, self.stream, self.axes = total, done, stream, axes
-        self.bar = Progress("sweep", total, unit="runs", stream=stream, enabled=stream is not None)
+        self.bar = Progress(  # runs done before (a resumed sweep) are not in the rate
+            "sweep", total, unit="runs", stream=stream, enabled=stream is not None, initial=done
+        )
         self.bar.update_to(done)
 
     def update(self, row: dict[str, Any], what: str) -> None:

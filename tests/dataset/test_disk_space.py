@@ -64,7 +64,8 @@ def test_a_full_file_system_is_refused_in_one_line_before_anything_flies(
     capsys.readouterr()
     assert main(_argv(missions, root)) == 2
     err = capsys.readouterr().err.splitlines()
-    assert err[0].startswith(f"dataset: 1 recording, about 3422 frames: about {NEED} into ")
+    first = f"dataset: 1 recording, about 3422 frames to write: about {NEED} into "
+    assert err[0].startswith(first)
     assert err[1] == (
         f"air-sitl: error: {root}: the recordings need about {NEED}, the file system has 1.0 MB "
         "free (--ignore-free-space to fly anyway)"
