@@ -157,10 +157,15 @@ def test_the_compose_services_by_hand() -> None:
     address = lan_address()
     port = free_port()
     mav = free_port()
+    # The video goes to the host's QGroundControl (host.docker.internal in the container):
+    # here a socket of this test's, so that sending never errs.
+    viewer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    viewer.bind(("127.0.0.1", 0))
     swap = {
         "tcp/0.0.0.0:7447": f"tcp/{address}:{port}",
         "tcp/router:7447": f"tcp/{address}:{port}",
         "tcpin:0.0.0.0:5760": f"tcpin:127.0.0.1:{mav}",
+        "udp://host.docker.internal:5600": f"udp://127.0.0.1:{viewer.getsockname()[1]}",
         "1": "0",  # --speed 1 -> 0: as fast as the machine goes
     }
     hub_cmd = compose_command("router", swap)
@@ -202,6 +207,7 @@ def test_the_compose_services_by_hand() -> None:
         # The simulator first: the localizer then has no backlog of frames to finish.
         order = [procs[i] for i in (1, 2, 0) if i < len(procs)]
         stopped = [(str(proc.args), *stop(proc)) for proc in order]
+        viewer.close()
     assert reached, ("no estimate reached the observer", stopped)
     frames = [json.loads(m.payload)["frame"] for m in heard[:5]]
     assert frames == sorted(frames)
