@@ -1,8 +1,9 @@
 """``results.jsonl``: one JSON line per finished run, appended by the driver alone.
 
-A row is ``{"id", "options", "summary", "eval", "error", "wall_s", "host", "archive"}``. Each
-line goes out with one ``os.write`` of the whole line and an fsync, so a killed sweep leaves
-whole lines and at most one torn last line, which :func:`open_results` trims before appending.
+A row is ``{"id", "options", "summary", "eval", "error", "wall_s", "host", "archive",
+"reference_date"}``. Each line goes out with one ``os.write`` of the whole line and an fsync,
+so a killed sweep leaves whole lines and at most one torn last line, which
+:func:`open_results` trims before appending.
 A run with a row is done: a re-run skips it (resume). When an id appears twice (a failed run
 tried again with ``--retry-failed``), the last row counts.
 """
@@ -19,7 +20,9 @@ from air_sitl.files import write_all
 from air_sitl.sweep.errors import SweepError
 
 RESULTS = "results.jsonl"
-ROW_KEYS = ("id", "options", "summary", "eval", "error", "wall_s", "host", "archive")
+ROW_KEYS = (
+    "id", "options", "summary", "eval", "error", "wall_s", "host", "archive", "reference_date"
+)  # fmt: skip
 VOLATILE_KEYS = ("wall_s", "host")  # what differs between two runs of the same SPEC
 
 

@@ -36,6 +36,7 @@ def spec(tmp_path_factory: pytest.TempPathFactory) -> Path:
         "axes": {"map-date": [0, 1], "wind": ["0@0", "5@270"], "seed": [1, 2]},
         "runs": [{"map": "nowhere/urban.tif", "seed": 3}],
         "methods": ["deadreckon"],
+        "reference-date": 0,
     }
     path = root / "sweep.yaml"
     path.write_text(yaml.safe_dump(content, sort_keys=False), encoding="utf-8")
@@ -92,6 +93,7 @@ def test_every_run_has_a_row_and_the_failing_one_its_reason(pool2: Path) -> None
         assert report["archive"] == f"runs/{row['id']}" == row["archive"]
         assert (pool2 / "runs" / row["id"] / "estimates" / "deadreckon.csv").is_file()
         assert row["wall_s"] > 0 and row["host"]
+        assert row["reference_date"] == 0  # what the report names as each run's gap
 
 
 def test_the_same_rows_on_one_worker_and_two(pool1: Path, pool2: Path) -> None:
