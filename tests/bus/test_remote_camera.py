@@ -60,6 +60,9 @@ def test_remote_frames_are_byte_identical_in_order_and_wait_for_a_late_bridge() 
             for k in range(12)
         ]
         remote.submit(samples[0], 0)  # nobody serves yet: asked again until the bridge is up
+        # The bridge comes up once the first ask went unanswered (on a loaded machine the ask
+        # could still be in flight when the bridge declares itself, and be answered).
+        assert wait_until(lambda: remote.retries >= 1)
         server = CameraBridgeServer(bridge, KEYS, factory)
         frames = []
         for k in range(1, 12):
