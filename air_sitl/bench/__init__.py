@@ -161,7 +161,6 @@ def _tasks(config: BenchConfig, spec: SweepSpec) -> list[RunTask]:
             archive_label=f"{config.archives.name}/{scenario_of[task.id]}",
             reuse=True,
             measurements=str(config.reports.resolve()),
-            reference_date=config.reference_date,
         )
         for task in tasks
     ]

@@ -136,6 +136,8 @@ def test_a_bench_is_a_sweep_with_its_spec_and_rows(bench: Path) -> None:
     assert spec["methods"] == ["deadreckon", "vo"] and list(spec["localizers"]) == ["ex"]
     (row,) = read_rows(bench / RESULTS)
     assert row["error"] is None and row["archive"] == "archives/UT-200"
+    # The methods matched the reference map the SPEC names (bench.yaml, then the run's task).
+    assert spec["reference-date"] == 0 and row["reference_date"] == 0
     assert list(row["eval"]) == ["deadreckon", "vo", "ex"]
     for name, report in row["eval"].items():
         saved = json.loads((bench / "reports" / "UT-200" / f"{name}.json").read_text())
