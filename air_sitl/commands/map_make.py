@@ -59,10 +59,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "fetch",
         help="mosaic real imagery or elevation from a STAC API or static catalog, one COG per date",
         description="find STAC items over a box and dates, read only the needed windows of "
-        "their COG assets, write DIR/<collection>_<YYYY-MM-DD>.tif (elevation: DIR/dem.tif) "
-        "and DIR/fetch.json; again into the same DIR skips what is done. Public collections: "
+        "their COG assets, write one COG per acquisition date, DIR/<collection>_<YYYY-MM-DD>.tif "
+        "(dated: TIFFTAG_DATETIME and ACQUISITION_DATE; elevation: DIR/dem.tif) and "
+        "DIR/fetch.json; an interrupted fetch resumes where it stopped. Public collections: "
         "--stac https://planetarycomputer.microsoft.com/api/stac/v1 with --collection naip, "
-        "3dep-seamless or cop-dem-glo-30 (needs pystac-client and signed asset URLs)",
+        "3dep-seamless or cop-dem-glo-30 (asset URLs signed with its SAS tokens)",
     )
     # Western longitudes start with '-': let them through as values (-90.2,38.6,...).
     fetch._negative_number_matcher = re.compile(r"^-\d[\d.,-]*$")
@@ -73,8 +74,35 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     fetch.add_argument(
         "--stac", required=True, metavar="URL_OR_PATH", help="STAC API URL or catalog.json"
     )
-    fetch.add_argument("--datetime", default=None, metavar="START/END", help="ISO dates or ..")
+    fetch.add_argument(
+        "--datetime",
+        default=None,
+        metavar="START/END",
+        help="ISO dates or .. (e.g. 2010-01-01/2022-12-31: one COG per acquisition date)",
+    )
     fetch.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    fetch.add_argument(
+        "--header",
+        action="append",
+        default=[],
+        metavar="'NAME: VALUE'",
+        help="an HTTP header sent with every request of the fetch (search, token, assets); "
+        "repeatable",
+    )
+    fetch.add_argument(
+        "--token",
+        default=None,
+        metavar="TOKEN",
+        help="same as --header 'Authorization: Bearer TOKEN'",
+    )
+    fetch.add_argument(
+        "--sas-endpoint",
+        default=None,
+        metavar="URL",
+        help="a SAS token endpoint (Planetary Computer's: GET URL/<collection> -> "
+        "{'msft:expiry', 'token'}) that signs the asset URLs; default: Planetary Computer's "
+        "for its own STAC API, none for others; 'none': unsigned",
+    )
 
 
 def _parse_origin(text: str | None) -> tuple[float, float]:
@@ -96,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     """Generate the map window block by block and write it as a COG (or fetch one)."""
     if args.map_command == "fetch":
         return _fetch(args)
-    from air_sitl.maps.geotiff import write_geotiff
+    from air_sitl.maps.geotiff import date_tags, write_geotiff
     from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
     from air_sitl.progress import Progress
 
@@ -152,6 +180,7 @@ def run(args: argparse.Namespace) -> int:
             crs=pmap.georef.crs,
             transform=transform,
             lossless=args.lossless,
+            tags=date_tags(pmap.date.label, f"{pmap.date.solar_time}:00"),
         )
     finally:
         bar.close()
@@ -165,15 +194,25 @@ def run(args: argparse.Namespace) -> int:
 
 def _fetch(args: argparse.Namespace) -> int:
     """``map fetch``: STAC items over a box to one COG per date."""
-    from air_sitl.maps.stac import fetch, parse_bbox, parse_datetime
+    from air_sitl.maps.stac import Source, fetch, parse_bbox, parse_datetime
+    from air_sitl.maps.stac_http import Http, default_sas_endpoint, parse_header
 
+    headers = [parse_header(str(h)) for h in args.header]
+    if args.token:
+        headers.append(("Authorization", f"Bearer {args.token}"))
+    sas = args.sas_endpoint or default_sas_endpoint(str(args.stac))
+    source = Source(
+        str(args.stac), Http(tuple(headers)), None if sas in (None, "none") else str(sas)
+    )
     record = fetch(
-        str(args.stac),
+        source,
         str(args.collection),
         parse_bbox(str(args.bbox)),
         parse_datetime(args.datetime),
         Path(args.out),
     )
     for name, ids in sorted(record["outputs"].items()):
-        print(f"{Path(args.out) / name}: {len(ids)} item(s)", file=sys.stdout)
+        when = record["acquired"].get(name)
+        dated = f", acquired {when}" if when else ""
+        print(f"{Path(args.out) / name}: {len(ids)} item(s){dated}", file=sys.stdout)
     return 0

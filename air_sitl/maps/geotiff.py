@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import threading
 import warnings
 from collections.abc import Callable
@@ -48,6 +49,33 @@ from air_sitl.maps.surface import TiledSurface
 from air_sitl.maps.utm import latlon2utm
 
 _METRES_PER_DEGREE = 111_319.49
+ACQUISITION_DATE = "ACQUISITION_DATE"  # GDAL metadata item: YYYY-MM-DD of the imagery
+
+
+def date_tags(date: str, time_hms: str = "00:00:00") -> dict[str, str]:
+    """The tags that date a GeoTIFF: TIFFTAG_DATETIME (``YYYY:MM:DD HH:MM:SS``, TIFF's form)
+    and ``ACQUISITION_DATE=YYYY-MM-DD``."""
+    return {"TIFFTAG_DATETIME": f"{date.replace('-', ':')} {time_hms}", ACQUISITION_DATE: date}
+
+
+def _date_of(tags: dict[str, str]) -> str | None:
+    """ACQUISITION_DATE, else the date of TIFFTAG_DATETIME, as YYYY-MM-DD (None: undated)."""
+    found = re.fullmatch(r"\d{4}-\d{2}-\d{2}", tags.get(ACQUISITION_DATE, "").strip())
+    if found:
+        return found.group(0)
+    stamp = re.match(r"(\d{4})[:-](\d{2})[:-](\d{2})", tags.get("TIFFTAG_DATETIME", "").strip())
+    return "-".join(stamp.groups()) if stamp else None
+
+
+def read_acquisition_date(path: Path) -> str | None:
+    """The acquisition date a GeoTIFF carries (None: no date tag, or not a readable TIFF)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NotGeoreferencedWarning)
+            with rasterio.open(path) as src:
+                return _date_of(src.tags())
+    except RasterioError:
+        return None
 
 
 def _open_georeferenced(path: Path, option: str) -> Any:
@@ -129,6 +157,10 @@ class GeoTiffMap(TiledMap, _GeoTiffFile):
             round(math.log2(f)): i for i, f in enumerate(src.overviews(1)) if f & (f - 1) == 0
         }
         self._crs_text = crs_text
+        self.acquisition_date = _date_of(src.tags())  # YYYY-MM-DD, None when undated
+        self.date_index: int | None = None  # its place among the map's dates (maps.open sets it)
+        self.dates: tuple[str | None, ...] = (self.acquisition_date,)  # every date of the map
+        self.spec: str | None = None  # the --map value it was opened from
         # Nodata value, alpha band or mask: such pixels get alpha 0 (as off the map).
         self._masked = any(flags != [MaskFlags.all_valid] for flags in src.mask_flag_enums)
 
@@ -181,10 +213,15 @@ class GeoTiffMap(TiledMap, _GeoTiffFile):
         return self._read(ovr, tx * TILE_PX, ty * TILE_PX)
 
     def describe(self) -> dict[str, Any]:
-        """Provenance: file name, SHA-256 (computed once), CRS and size."""
+        """Provenance: file name, SHA-256 (computed once), CRS, size and dates: ``date`` its
+        acquisition date (YYYY-MM-DD, null when undated), ``date_index`` its place among the
+        map's ``dates`` (every file's, in order) and ``spec`` the --map value."""
         size_px = [self.georef.width_px, self.georef.height_px]
         provenance = self._provenance("geotiff", self._crs_text)
-        return {**provenance, "size_px": size_px, "gsd_m": self.georef.gsd_m}
+        dates: dict[str, Any] = {"date": self.acquisition_date, "date_index": self.date_index}
+        if self.spec is not None:
+            dates |= {"dates": list(self.dates), "spec": self.spec}
+        return {**provenance, "size_px": size_px, "gsd_m": self.georef.gsd_m, **dates}
 
     def close(self) -> None:
         """Close the file and its overview handles."""
@@ -205,12 +242,14 @@ def write_geotiff(
     transform: tuple[float, float, float, float, float, float],
     jpeg_quality: int = 90,
     lossless: bool = False,
+    tags: dict[str, str] | None = None,
 ) -> None:
     """Write a Cloud-Optimized GeoTIFF (tiled, JPEG q90 or DEFLATE, overviews) from blocks.
 
     ``tiles`` is a callable ``(x0, y0, w, h) -> (h, w, 3) BGR uint8`` giving level-0 pixels;
     the file is assembled block by block in a temporary tiled GeoTIFF (bounded memory), then
-    copied by GDAL's COG driver, which builds the overviews.
+    copied by GDAL's COG driver, which builds the overviews. ``tags``: metadata items (the
+    date: :func:`date_tags`). ``path`` appears whole or not at all.
     """
     tmp = path.with_name(path.name + ".tmp.tif")
     t0, t1, t2, t3, t4, t5 = transform
@@ -241,15 +280,15 @@ def write_geotiff(
                     bgr = tiles(x0, y0, w, h)
                     rgb = np.ascontiguousarray(bgr[:, :, 2::-1].transpose(2, 0, 1))
                     dst.write(rgb, window=Window(x0, y0, w, h))
+            dst.update_tags(**(tags or {}))
         compression = (
             {"COMPRESS": "DEFLATE", "PREDICTOR": "2"}
             if lossless
             else {"COMPRESS": "JPEG", "QUALITY": str(jpeg_quality)}
         )
-        rio_copy(
+        cog_copy(
             tmp,
             path,
-            driver="COG",
             **compression,
             BLOCKSIZE="512",
             OVERVIEW_RESAMPLING="AVERAGE",
@@ -260,6 +299,17 @@ def write_geotiff(
         raise map_error(str(path), f"cannot write the GeoTIFF ({err})") from None
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def cog_copy(src: Path, out: Path, **options: str) -> None:
+    """``src`` copied as a COG to ``out`` through a temporary file renamed at the end (an
+    interrupted copy leaves no half-written ``out``)."""
+    part = out.with_name(out.name + ".part")
+    try:
+        rio_copy(src, part, driver="COG", **options)
+        os.replace(part, out)
+    finally:
+        part.unlink(missing_ok=True)
 
 
 class GeoTiffDem(TiledSurface, _GeoTiffFile):
@@ -390,73 +440,3 @@ def _fill_from_neighbours(
     out: npt.NDArray[np.float32] = lut[labels]
     out[valid] = values[valid]
     return out
-
-
-def mosaic_cog(hrefs: list[str], bbox_wgs84: tuple[float, float, float, float], out: Path) -> None:
-    """One COG over a WGS84 box from several rasters, on the first one's pixel grid.
-
-    Sources sharing that grid (CRS, pixel size, aligned origin) are copied by window, pixels
-    untouched; others are reprojected onto it (bilinear). Later sources fill only what the
-    earlier ones left empty (nodata or outside them).
-    """
-    from rasterio.warp import Resampling, reproject, transform_bounds  # only for mosaics
-
-    try:
-        srcs = [rasterio.open(h) for h in hrefs]
-    except RasterioError as err:
-        raise map_error(hrefs[0], f"cannot open the asset ({err})") from None
-    try:
-        ref = srcs[0]
-        t = ref.transform
-        left, bottom, right, top = transform_bounds("EPSG:4326", ref.crs, *bbox_wgs84)
-        col0, col1 = math.floor((left - t.c) / t.a), math.ceil((right - t.c) / t.a)
-        row0, row1 = math.floor((top - t.f) / t.e), math.ceil((bottom - t.f) / t.e)
-        width, height = col1 - col0, row1 - row0
-        out_t = Affine(t.a, 0.0, t.c + col0 * t.a, 0.0, t.e, t.f + row0 * t.e)
-        nodata = ref.nodata
-        data = np.zeros((ref.count, height, width), dtype=ref.dtypes[0])
-        filled = np.zeros((height, width), dtype=bool)
-        for src in srcs:
-            st = src.transform
-            cx = (out_t.c - st.c) / st.a
-            cy = (out_t.f - st.f) / st.e
-            aligned = (
-                src.crs == ref.crs
-                and (st.a, st.e) == (t.a, t.e)
-                and abs(cx - round(cx)) < 1e-6
-                and abs(cy - round(cy)) < 1e-6
-            )
-            if aligned:
-                block = src.read(
-                    window=Window(round(cx), round(cy), width, height), boundless=True, masked=True
-                )
-                valid = ~np.ma.getmaskarray(block).any(axis=0)
-                values = block.filled(0)
-            else:
-                values = np.zeros_like(data)
-                for b in range(src.count):
-                    reproject(
-                        rasterio.band(src, b + 1), values[b], dst_transform=out_t,
-                        dst_crs=ref.crs, resampling=Resampling.bilinear, dst_nodata=0,
-                    )  # fmt: skip
-                valid = (values != 0).any(axis=0)
-            take = valid & ~filled
-            data[:, take] = values[:, take]
-            filled |= take
-        tmp = out.with_name(out.name + ".tmp.tif")
-        profile = {
-            "driver": "GTiff", "width": width, "height": height, "count": ref.count,
-            "dtype": ref.dtypes[0], "crs": ref.crs, "transform": out_t, "nodata": nodata,
-            "tiled": True, "blockxsize": 256, "blockysize": 256,
-        }  # fmt: skip
-        try:
-            with rasterio.open(tmp, "w", **profile) as dst:
-                dst.write(data)
-            rio_copy(tmp, out, driver="COG", COMPRESS="DEFLATE", BLOCKSIZE="256")
-        finally:
-            tmp.unlink(missing_ok=True)
-    except RasterioError as err:
-        raise map_error(str(out), f"cannot write the mosaic ({err})") from None
-    finally:
-        for s in srcs:
-            s.close()

@@ -1,14 +1,18 @@
-"""Open a map from a ``--map`` value: ``urban``, ``forest`` or GeoTIFF path(s) as dates.
+"""Open a map from a ``--map`` value: ``urban``, ``forest``, GeoTIFF path(s) or a folder as dates.
 
 GeoTIFF dates: ``--map a.tif,b.tif,c.tif`` lists the files of one area (date 0, 1, 2) and
-``--map-date N`` picks one (default 0); ``--map-date other.tif`` names a date file directly.
-Every date file must share the first file's CRS and contain home. Procedural maps take
-``--map-date`` as an index (0, 1, 2), a season or an ISO label (see ``maps.procedural.DATES``).
+``--map DIR`` takes every dated GeoTIFF of a folder (its TIFFTAG_DATETIME or ACQUISITION_DATE,
+as ``map fetch`` and ``map make`` write them) in date order. ``--map-date`` picks one: its
+index (default 0), its acquisition date (``2016-07-01``, or a year when one file has it) or a
+file's path. Every date file must share the first file's CRS and contain home. Procedural maps
+take ``--map-date`` as an index (0, 1, 2), a season or an ISO label (``maps.procedural.DATES``).
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from air_sitl.errors import MapError
 from air_sitl.maps.base import MapSource
@@ -16,6 +20,9 @@ from air_sitl.maps.procedural import KINDS, ProceduralMap
 from air_sitl.maps.procedural.surface import ProceduralSurface
 from air_sitl.maps.surface import SurfaceModel
 from air_sitl.state import GeoPoint
+
+if TYPE_CHECKING:
+    from air_sitl.maps.geotiff import GeoTiffMap
 
 _TIFF_SUFFIXES = (".tif", ".tiff", ".gtiff")
 
@@ -37,31 +44,84 @@ def open_map(
     text = spec.strip()
     if text in KINDS:
         return ProceduralMap(text, home, seed=seed, date=date)
+    files = date_files(text)
+    dates = _dates_of(files)
+    index = _choose_date(files, dates, date)
+    chosen = files[index] if isinstance(index, int) else index
+    tif = _open_geotiff(Path(chosen), home, reference=Path(files[0]))
+    tif.date_index = index if isinstance(index, int) else None
+    tif.dates = tuple(dates)
+    tif.spec = text
+    return tif
+
+
+def date_files(spec: str) -> list[str]:
+    """The GeoTIFF files of a ``--map`` value, date 0 first (a folder: its dated GeoTIFFs in
+    date order)."""
+    text = spec.strip()
+    if text and Path(text).is_dir():
+        return _dated_folder(Path(text))
     files = [p.strip() for p in text.split(",") if p.strip()]
     if not files or not all(_looks_like_path(f) for f in files):
-        msg = f"--map: {spec!r} is neither a procedural map ({', '.join(KINDS)}) nor a GeoTIFF path"
+        msg = (
+            f"--map: {spec!r} is neither a procedural map ({', '.join(KINDS)}), a GeoTIFF path "
+            "nor a folder of dated GeoTIFFs"
+        )
         raise MapError(msg)
-    chosen = _choose_date(files, date)
-    return _open_geotiff(Path(chosen), home, reference=Path(files[0]))
+    return files
 
 
-def _choose_date(files: list[str], date: str | int | None) -> str:
+def _dated_folder(folder: Path) -> list[str]:
+    from air_sitl.maps.geotiff import read_acquisition_date  # rasterio: see _open_geotiff
+
+    found = []
+    for path in sorted(folder.iterdir()):
+        if path.name.startswith(".") or not path.name.lower().endswith(_TIFF_SUFFIXES):
+            continue
+        when = read_acquisition_date(path)
+        if when is not None:
+            found.append((when, path.name, str(path)))
+    if not found:
+        msg = (
+            f"--map {folder}: no dated GeoTIFF in the folder (a date is a TIFFTAG_DATETIME or "
+            "ACQUISITION_DATE tag, as map fetch and map make write)"
+        )
+        raise MapError(msg)
+    return [path for _, _, path in sorted(found)]
+
+
+def _dates_of(files: list[str]) -> list[str | None]:
+    from air_sitl.maps.geotiff import read_acquisition_date  # rasterio: see _open_geotiff
+
+    return [read_acquisition_date(Path(f)) for f in files]
+
+
+def _choose_date(files: list[str], dates: list[str | None], date: str | int | None) -> int | str:
+    """The index of the date file ``date`` names, or the path it names outside the list."""
     if date is None:
-        return files[0]
+        return 0
     text = str(date).strip()
-    if text.isdigit():
+    if text.isdigit() and len(text) < 4:
         index = int(text)
         if index >= len(files):
             msg = f"--map-date {index}: the map has {len(files)} date file(s) (0..{len(files) - 1})"
             raise MapError(msg)
-        return files[index]
+        return index
+    if re.fullmatch(r"\d{4}(-\d{2}-\d{2})?", text):
+        hits = [i for i, d in enumerate(dates) if d is not None and d.startswith(text)]
+        if len(hits) == 1:
+            return hits[0]
+        known = ", ".join(f"{i}={d}" for i, d in enumerate(dates) if d) or "none dated"
+        many = f"{len(hits)} files have it" if hits else "no file has it"
+        msg = f"--map-date {text}: {many} (dates of the map: {known})"
+        raise MapError(msg)
     if _looks_like_path(text):
-        return text
-    msg = f"--map-date {text!r}: expected a date index (0, 1, ...) or a GeoTIFF path"
+        return files.index(text) if text in files else text
+    msg = f"--map-date {text!r}: expected a date index (0, 1, ...), a date (YYYY-MM-DD) or a path"
     raise MapError(msg)
 
 
-def _open_geotiff(path: Path, home: GeoPoint, *, reference: Path) -> MapSource:
+def _open_geotiff(path: Path, home: GeoPoint, *, reference: Path) -> GeoTiffMap:
     # Here, not at the top: rasterio (GDAL) takes about half a second to import, and only
     # GeoTIFF maps need it (procedural maps and every other command start without it).
     from air_sitl.maps.geotiff import GeoTiffMap

@@ -36,6 +36,7 @@ from air_sitl.errors import DatasetError, OptionError
 from air_sitl.files import sha256_file, write_json_atomic
 from air_sitl.flightlog import NavTrajectoryWriter, TrajectoryWriter
 from air_sitl.maps.choose import close_map
+from air_sitl.maps.dates import date_fields
 from air_sitl.mission.items import Mission
 from air_sitl.recording.inputs import GPS_DENIAL_JSON, archive_info_for, gps_denial_record
 from air_sitl.runner import Flight
@@ -273,6 +274,8 @@ def record_flight(
             )
             raise DatasetError(msg)
         summary["frames_written"] = writer.next_index
+        if isinstance(map_info := info.manifest.get("map"), dict):
+            summary["map"] = date_fields(map_info)  # the imagery's date, among the map's
         if first_frame:
             summary["resumed_from_frame"] = first_frame
         if nodata is not None and (record := nodata.record()) is not None:
