@@ -31,6 +31,7 @@ from air_sitl.bench.leaderboard import Leaderboard, build, gaps_json, gaps_markd
 from air_sitl.dataset.air_schema import MANIFEST_JSON
 from air_sitl.errors import DatasetError
 from air_sitl.files import write_bytes_atomic, write_json_atomic
+from air_sitl.maps.dates import date_fields
 from air_sitl.progress import Progress
 from air_sitl.sweep import Executor, PoolExecutor, RayExecutor, make_tasks, run_tasks
 from air_sitl.sweep.measurements import EntryResult, archive_id, load_errors, read
@@ -86,6 +87,8 @@ def make_archives(config: BenchConfig) -> None:
         "-j", str(config.jobs),
         "--resume",
     ]  # fmt: skip
+    if config.map is not None:
+        cmd += ["--map", config.map]
     if config.quiet:
         cmd.append("--quiet")
     # Its progress lines pass through as they come (a minute of flying is not silent); the
@@ -138,7 +141,12 @@ def bench_spec(config: BenchConfig) -> dict[str, Any]:
         spec["base"] = {"wait-timeout": config.wait_timeout_s}
     spec |= {
         "runs": [
-            {"scenario": s, "map-date": config.flight_date, "seed": config.seed}
+            {
+                "scenario": s,
+                **({"map": config.map} if config.map is not None else {}),
+                "map-date": config.flight_date,
+                "seed": config.seed,
+            }
             for s in config.scenarios
         ],
         "methods": list(config.methods),
@@ -230,7 +238,7 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
         raise KeyboardInterrupt
     results = [_measured(config, *cell) for cell in cells]
     dates = (config.reference_date, config.flight_date)
-    board = build(config.entries, config.scenarios, results, dates)
+    board = build(config.entries, config.scenarios, results, dates, _map_dates(config))
     write_json_atomic(config.out / "leaderboard.json", board.to_json())
     write_bytes_atomic(config.out / "leaderboard.md", board.to_markdown().encode("utf-8"))
     errors = {
@@ -243,6 +251,13 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
 
         error_boxes(errors, config.entries, config.scenarios, config.out / "error_boxes.png")
     return board
+
+
+def _map_dates(config: BenchConfig) -> tuple[str | None, ...]:
+    """The acquisition dates of the flights' map, as the first archive's manifest names them."""
+    manifest = json.loads((config.archives / config.scenarios[0] / MANIFEST_JSON).read_text())
+    info = manifest.get("map")
+    return tuple(date_fields(info)["dates"]) if isinstance(info, dict) else ()
 
 
 def run_gaps(

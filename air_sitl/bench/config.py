@@ -38,6 +38,7 @@ class BenchConfig:
     jobs: int = 1
     ray: str | None = None  # run on Ray: '' a local Ray, else the cluster's address
     missions: Path
+    map: str | None = None  # every scenario's map (None: urban / forest by the plan name)
     flight_date: int = FLIGHT_DATE
     reference_date: int = REFERENCE_DATE
     align: str = "none"

@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from air_sitl.maps.dates import date_name, gap_name
 from air_sitl.sweep.measurements import EntryResult
 
 # (leaderboard key, path into the SPEC report, markdown title, format, better)
@@ -63,6 +64,7 @@ class Leaderboard:
     cells: dict[tuple[str, str], EntryResult]
     reference_date: int | None = None  # the map date map-based methods match against
     flight_date: int | None = None  # the map date the flights' camera saw
+    map_dates: tuple[str | None, ...] = ()  # the acquisition date of each map date index
 
     def figure(self, entry: str, scenario: str, key: str) -> float | None:
         result = self.cells.get((entry, scenario))
@@ -94,14 +96,15 @@ class Leaderboard:
             "scenarios": list(self.scenarios),
             "reference_date": self.reference_date,
             "flight_date": self.flight_date,
+            "map_dates": list(self.map_dates),
             "rows": rows,
             "summary": summary,
         }
 
     @property
     def gap(self) -> str:
-        """``reference date 0 -> flight date 2``."""
-        return f"reference date {self.reference_date} -> flight date {self.flight_date}"
+        """``reference date 0 (2009-06-20) -> flight date 2 (2016-04-22)``."""
+        return gap_name(self.reference_date, self.flight_date, self.map_dates)
 
     def to_markdown(self) -> str:
         lines = ["# Leaderboard", ""]
@@ -141,8 +144,10 @@ def build(
     scenarios: Sequence[str],
     results: Sequence[EntryResult],
     dates: tuple[int, int] | None = None,
+    map_dates: tuple[str | None, ...] = (),
 ) -> Leaderboard:
-    """Arrange results (any order) into the leaderboard; ``dates``: (reference, flight)."""
+    """Arrange results (any order) into the leaderboard; ``dates``: (reference, flight)
+    indices, ``map_dates`` the acquisition date of each index."""
     cells = {(r.entry, r.scenario): r for r in results}
     ref, flight = dates if dates is not None else (None, None)
     return Leaderboard(
@@ -151,6 +156,7 @@ def build(
         cells=cells,
         reference_date=ref,
         flight_date=flight,
+        map_dates=map_dates,
     )
 
 
@@ -169,7 +175,7 @@ def gaps_markdown(boards: Sequence[Leaderboard]) -> str:
         if key not in GAP_FIGURES:
             continue
         lines += ["", f"## {title} ({'lower' if better == 'low' else 'higher'} is better)", ""]
-        heads = [f"{b.reference_date} -> {b.flight_date}" for b in boards]
+        heads = [_gap_head(b) for b in boards]
         lines.append("| method | " + " | ".join(heads) + " |")
         lines.append("|---" * (len(boards) + 1) + "|")
         for entry in boards[0].entries:
@@ -180,6 +186,13 @@ def gaps_markdown(boards: Sequence[Leaderboard]) -> str:
         lines += ["", f"# {board.gap}", ""]
         lines += [("#" + ln if ln.startswith("## ") else ln) for ln in body[2:]]
     return "\n".join(lines).rstrip("\n") + "\n"
+
+
+def _gap_head(board: Leaderboard) -> str:
+    """A gap's column: ``2009-06-20 -> 2016-04-22`` where the dates are known, else ``0 -> 2``."""
+    ends = (board.reference_date, board.flight_date)
+    named = [date_name(d, board.map_dates).partition(" (")[2].rstrip(")") for d in ends]
+    return " -> ".join(named) if all(named) else " -> ".join(str(d) for d in ends)
 
 
 def gaps_json(boards: Sequence[Leaderboard]) -> dict[str, Any]:

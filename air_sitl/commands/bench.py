@@ -63,6 +63,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_executor_arguments(parser, note="; the bench folder at the same path on every node")
     parser.add_argument("--missions", default=None, help="folder of the scenario plans")
     parser.add_argument(
+        "--map",
+        default=None,
+        metavar="MAP",
+        help="map every scenario flies over (dataset's --map): a folder of dated GeoTIFFs "
+        "(map fetch's), dates a.tif,b.tif or a procedural map; --map-date and "
+        "--reference-date are then indices of its dates (default: by the plan name)",
+    )
+    parser.add_argument(
         "--map-date",
         default=",".join(map(str, FLIGHT_DATES)),
         help="map dates the flights are rendered at, comma-separated (default "
@@ -104,6 +112,7 @@ def config_from_args(args: argparse.Namespace) -> BenchConfig:
         jobs=int_in_range("-j", args.jobs, 1, 64),
         ray=args.ray,
         missions=folder,
+        map=args.map,
         flight_date=flight_dates(args.map_date)[0],
         reference_date=int_in_range("--reference-date", args.reference_date, 0, 99),
         align=args.align,

@@ -42,6 +42,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--missions", default=None, metavar="DIR", help="folder of the plans")
     parser.add_argument("--map-urban", default=None, metavar="PATH", help="GeoTIFF for U*")
     parser.add_argument("--map-forest", default=None, metavar="PATH", help="GeoTIFF for F*")
+    parser.add_argument(
+        "--map",
+        default=None,
+        metavar="MAP",
+        help="map of every other scenario: a GeoTIFF, dates a.tif,b.tif, a folder of dated "
+        "GeoTIFFs (map fetch's) or a procedural map (default: by the plan name)",
+    )
     parser.add_argument("--map-seed", type=int, default=0, metavar="N")
     parser.add_argument(
         "--dem",
@@ -95,7 +102,7 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
     workers = max(1, min(4, os.cpu_count() or 2))
     jobs: list[Job] = []
     for scenario in names:
-        spec = None
+        spec = getattr(args, "map", None)
         if scenario.upper().startswith("U") and args.map_urban:
             spec = args.map_urban
         elif scenario.upper().startswith("F") and args.map_forest:

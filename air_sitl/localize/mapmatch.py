@@ -15,8 +15,9 @@ holds. ``every=k`` matches every k-th frame only (propagating between).
 
 Reference: ``reference_map`` (``urban``, ``forest`` or GeoTIFF path(s), as ``--map``) at
 ``reference_date`` (default 0) from the driver's context; without one, the flight's own
-procedural map (manifest ``map``) at date 0, or date 1 when the flight itself is at date 0:
-always another date than the imagery unless asked otherwise.
+map (manifest ``map``: a procedural one, or the GeoTIFF dates its ``spec`` names) at date 0,
+or date 1 when the flight itself is at date 0: always another date than the imagery unless
+asked otherwise.
 """
 
 from __future__ import annotations
@@ -54,6 +55,8 @@ def open_reference(context: LocalizerContext) -> MapSource:
     assert isinstance(info, dict)
     spec = context.reference_map
     seed = int(info.get("seed", 0) or 0)
+    if spec is None and info.get("source") == "geotiff" and info.get("spec"):
+        spec = str(info["spec"])  # the flight's GeoTIFF dates (a list or a folder)
     if spec is None:
         kind = info.get("kind") or context.map_name
         if info.get("source", "procedural") != "procedural" or kind not in ("urban", "forest"):

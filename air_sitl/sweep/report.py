@@ -20,6 +20,7 @@ import numpy as np
 
 from air_sitl.files import write_bytes_atomic
 from air_sitl.localize.mapmatch import reference_date_for
+from air_sitl.maps.dates import gap_name
 from air_sitl.sweep.errors import SweepError
 from air_sitl.sweep.results import RESULTS, latest_rows
 
@@ -183,14 +184,17 @@ def date_gaps(rows: Sequence[dict[str, Any]]) -> str:
     """Which map dates the runs compared: map-based methods (``mapmatch``, ``fused``) match a
     reference map of one date while the flight's camera saw another."""
     gaps: dict[tuple[int, int], int] = {}
+    named: dict[tuple[int, int], str] = {}
     for row in rows:
-        flight = int((row.get("options") or {}).get("map-date", 0))
+        # The date the run flew (summary.json's ``map``), else the option as given
+        block = (row.get("summary") or {}).get("map") or {}
+        given = str((row.get("options") or {}).get("map-date", 0))
+        index = block.get("date_index")
+        flight = int(index) if isinstance(index, int) else int(given) if given.isdigit() else 0
         ref = reference_date_for(flight, row.get("reference_date"))
         gaps[(ref, flight)] = gaps.get((ref, flight), 0) + 1
-    text = ", ".join(
-        f"reference date {ref} -> flight date {flight} ({n} runs)"
-        for (ref, flight), n in sorted(gaps.items())
-    )
+        named.setdefault((ref, flight), gap_name(ref, flight, block.get("dates") or ()))
+    text = ", ".join(f"{named[gap]} ({n} runs)" for gap, n in sorted(gaps.items()))
     return f"Map dates (map-based methods): {text}."
 
 

@@ -101,7 +101,9 @@ def test_a_bench_over_two_dates_scores_each_gap(tmp_path: Path) -> None:
         assert manifest["map"]["date_index"] == d
         assert (out / f"date{d}" / "leaderboard.md").is_file()
     md = (out / "leaderboard.md").read_text()
-    assert "| method | 0 -> 0 | 0 -> 2 |" in md
-    assert "# reference date 0 -> flight date 2" in md
+    # The gaps by their surveys' dates (the procedural map's DATES)
+    assert "| method | 2009-06-20 -> 2009-06-20 | 2009-06-20 -> 2016-04-22 |" in md
+    assert "# reference date 0 (2009-06-20) -> flight date 2 (2016-04-22)" in md
+    assert data["gaps"][1]["map_dates"] == ["2009-06-20", "2012-10-08", "2016-04-22"]
     medians = [g["summary"]["mapmatch"]["median_m"] for g in data["gaps"]]
     assert all(m is not None for m in medians)
