@@ -24,7 +24,8 @@ def add_map_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="MAP",
         help="urban, forest (procedural) or a GeoTIFF path; several GeoTIFFs of one area as "
-        "dates: a.tif,b.tif. Default: urban for plans named U*, forest for F*, else urban",
+        "dates: a.tif,b.tif, or a folder of dated GeoTIFFs (map fetch's) in date order. "
+        "Default: urban for plans named U*, forest for F*, else urban",
     )
     group.add_argument(
         "--map-seed", type=int, default=0, metavar="N", help="seed of a procedural map (default 0)"
@@ -34,7 +35,8 @@ def add_map_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="D",
         help="date of the map: 0, 1, 2 (procedural: 2009-06-20 summer, 2012-10-08 autumn, "
-        "2016-04-22 spring) or the index / path of a GeoTIFF date file (default 0)",
+        "2016-04-22 spring) or a GeoTIFF date file's index, acquisition date (YYYY-MM-DD "
+        "or a year) or path (default 0)",
     )
     group.add_argument(
         "--dem",
