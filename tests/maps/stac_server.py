@@ -40,6 +40,7 @@ class StacState:
     revoke_after_assets: int | None = None  # tokens stop working after N asset requests
     refuse_assets: bool = False  # every token is refused by the blob store
     broken: set[str] = field(default_factory=set)  # blob paths answered 503
+    require: str | None = None  # an Authorization header every request must carry (else 401)
     valid: set[str] = field(default_factory=set)
     hits: collections.Counter[str] = field(default_factory=collections.Counter)
     assets_served: int = 0
@@ -91,9 +92,19 @@ class _Handler(BaseHTTPRequestHandler):
             )
         self._json({"type": "FeatureCollection", "features": page, "links": links})
 
+    def _unauthorized(self) -> bool:
+        """401 for a request without the required Authorization header (True: answered)."""
+        need = self.state.require
+        if need is None or self.headers.get("Authorization") == need:
+            return False
+        self._json({"detail": "Unauthorized"}, 401)
+        return True
+
     def do_POST(self) -> None:
         path = urllib.parse.urlparse(self.path).path
         self.state.hits[path] += 1
+        if self._unauthorized():
+            return
         body = json.loads(self.rfile.read(int(self.headers.get("Content-Length", 0))))
         if path == "/api/stac/v1/search":
             self._search(body)
@@ -101,13 +112,16 @@ class _Handler(BaseHTTPRequestHandler):
             self._json({"detail": "not found"}, 404)
 
     def do_HEAD(self) -> None:
-        self._blob(head=True)
+        if not self._unauthorized():
+            self._blob(head=True)
 
     def do_GET(self) -> None:
         url = urllib.parse.urlparse(self.path)
         st = self.state
         with st.lock:
             st.hits[url.path] += 1
+        if self._unauthorized():
+            return
         if url.path.startswith("/blob/"):
             self._blob(head=False)
         elif url.path.startswith("/api/sas/v1/token/"):

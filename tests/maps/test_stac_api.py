@@ -19,6 +19,7 @@ from rasterio.warp import transform as warp_transform
 from air_sitl.cli import _parser_for, build_parser, main
 from air_sitl.errors import MapError
 from air_sitl.maps import open_map
+from air_sitl.maps.stac_http import default_sas_endpoint
 from air_sitl.state import GeoPoint
 from tests.maps.stac_server import StacServer, StacState
 from tests.short_plans import write_short_plan
@@ -135,6 +136,29 @@ def test_unsigned_asset_urls_are_refused_in_one_line(
     assert len(lines) == 1 and "2010-a.tif (item 2010-a): HTTP 403, refused" in lines[0]
     assert "sig=" not in lines[0]
     assert _tifs(out) == [] and not (out / ".fetch-parts").exists()
+
+
+def test_an_api_wanting_credentials_gets_them_on_every_request(
+    server: StacServer, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    server.state.require = "Bearer s3cret"
+    out = tmp_path / "naip"
+    assert main(_args(server, out)) == 2
+    lines = _error_lines(capsys.readouterr().err)
+    assert (
+        len(lines) == 1 and "HTTP 401 Unauthorized (refused: check --token / --header)" in lines[0]
+    )
+    assert main(_args(server, out, "--token", "s3cret")) == 0  # search, token and assets
+    assert len(_tifs(out)) == 3
+    again = tmp_path / "again"
+    assert main(_args(server, again, "--header", "Authorization: Bearer s3cret")) == 0
+    assert len(_tifs(again)) == 3
+
+
+def test_planetary_computer_is_signed_by_default() -> None:
+    pc = "https://planetarycomputer.microsoft.com/api/stac/v1"
+    assert default_sas_endpoint(pc) == "https://planetarycomputer.microsoft.com/api/sas/v1/token"
+    assert default_sas_endpoint("https://earth-search.aws.element84.com/v1") is None
 
 
 def test_a_short_lived_token_is_asked_again_before_use(server: StacServer, tmp_path: Path) -> None:
