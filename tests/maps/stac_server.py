@@ -15,15 +15,23 @@ them, or fail an asset (``broken``) as an interrupted download would.
 from __future__ import annotations
 
 import collections
+import contextlib
 import json
 import re
 import threading
 import urllib.parse
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, datetime, timedelta
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
+
+import numpy as np
+import rasterio
+from rasterio.shutil import copy as rio_copy
+from rasterio.transform import Affine
+from rasterio.warp import transform as warp_transform
 
 PAGE_SIZE = 2  # items per search page: a search of several dates pages
 
@@ -215,3 +223,67 @@ class StacServer:
         self.httpd.shutdown()
         self.httpd.server_close()
         self.thread.join()
+
+
+# The fixture: six tiles (two per acquisition) on one UTM grid, behind the server.
+CRS = "EPSG:32615"
+E0, N0 = 730000.0, 4285000.0
+GSD = 2.0
+SIZE = 256  # px per tile: 512 m
+ACQUISITIONS = (("2010-06-14", 10), ("2014-07-02", 60), ("2018-08-20", 110))
+BBOX_M = (E0 + 50, N0 - 500, E0 + 1000, N0 - 10)  # across both tiles of each date
+
+
+def _wgs84(xs: list[float], ys: list[float]) -> list[float]:
+    lons, lats = warp_transform(CRS, "EPSG:4326", xs, ys)
+    return [min(lons), min(lats), max(lons), max(lats)]
+
+
+def _cog(path: Path, x0: float, value: int) -> None:
+    data = np.zeros((3, SIZE, SIZE), dtype=np.uint8)
+    data[:] = value
+    data[0] = (value + np.arange(SIZE)[None, :]) % 256  # a ramp: a misplaced copy shows
+    tmp = path.with_suffix(".src.tif")
+    with rasterio.open(
+        tmp, "w", driver="GTiff", width=SIZE, height=SIZE, count=3, dtype="uint8", crs=CRS,
+        transform=Affine(GSD, 0.0, x0, 0.0, -GSD, N0),
+    ) as dst:  # fmt: skip
+        dst.write(data)
+    rio_copy(tmp, path, driver="COG", COMPRESS="DEFLATE")
+    tmp.unlink()
+
+
+@contextlib.contextmanager
+def serve_tiles(tmp_path: Path) -> Iterator[StacServer]:
+    """The server of the tests, its blobs in ``tmp_path/blobs`` (tests' ``server`` fixture)."""
+    blobs = tmp_path / "blobs"
+    blobs.mkdir()
+    items, files = [], {}
+    for date, value in ACQUISITIONS:
+        for tile, dx, dv in (("a", 0.0, 0), ("b", SIZE * GSD, 100)):
+            iid = f"{date[:4]}-{tile}"
+            _cog(blobs / f"{iid}.tif", E0 + dx, value + dv)
+            x0 = E0 + dx
+            files[f"/blob/naip/{iid}.tif"] = blobs / f"{iid}.tif"
+            items.append({
+                "type": "Feature", "stac_version": "1.0.0", "id": iid, "collection": "naip",
+                "bbox": _wgs84([x0, x0 + SIZE * GSD], [N0 - SIZE * GSD, N0]), "geometry": None,
+                "properties": {"datetime": f"{date}T17:05:00Z"}, "links": [],
+                "assets": {"image": {"href": "", "type": "image/tiff; application=geotiff"}},
+            })  # fmt: skip
+    state = StacState(items=items, files=files, extent=_wgs84([E0, E0 + 1024], [N0 - 512, N0]))
+    with StacServer(state) as srv:
+        for it in items:
+            it["assets"]["image"]["href"] = f"{srv.base}/blob/naip/{it['id']}.tif"
+        yield srv
+
+
+def fetch_args(
+    srv: StacServer, out: Path, *extra: str, dates: str = "2010-01-01/2022-12-31"
+) -> list[str]:
+    w, s, e, n = _wgs84([BBOX_M[0], BBOX_M[2]], [BBOX_M[1], BBOX_M[3]])
+    return [
+        "map", "fetch", "--bbox", f"{w},{s},{e},{n}", "--collection", "naip",
+        "--stac", f"{srv.base}/api/stac/v1", "--sas-endpoint", f"{srv.base}/api/sas/v1/token",
+        "--datetime", dates, "--out", str(out), *extra,
+    ]  # fmt: skip

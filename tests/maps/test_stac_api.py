@@ -6,14 +6,11 @@ resuming an interrupted download, and the one-line errors."""
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 import rasterio
-from rasterio.shutil import copy as rio_copy
-from rasterio.transform import Affine
 from rasterio.warp import transform as warp_transform
 
 from air_sitl.cli import _parser_for, build_parser, main
@@ -21,69 +18,17 @@ from air_sitl.errors import MapError
 from air_sitl.maps import open_map
 from air_sitl.maps.stac_http import default_sas_endpoint
 from air_sitl.state import GeoPoint
-from tests.maps.stac_server import StacServer, StacState
+from tests.maps.stac_server import (
+    ACQUISITIONS,
+    CRS,
+    E0,
+    GSD,
+    N0,
+    SIZE,
+    StacServer,
+    fetch_args,
+)
 from tests.short_plans import write_short_plan
-
-CRS = "EPSG:32615"
-E0, N0 = 730000.0, 4285000.0
-GSD = 2.0
-SIZE = 256  # px per tile: 512 m
-ACQUISITIONS = (("2010-06-14", 10), ("2014-07-02", 60), ("2018-08-20", 110))
-BBOX_M = (E0 + 50, N0 - 500, E0 + 1000, N0 - 10)  # across both tiles of each date
-
-
-def _wgs84(xs: list[float], ys: list[float]) -> list[float]:
-    lons, lats = warp_transform(CRS, "EPSG:4326", xs, ys)
-    return [min(lons), min(lats), max(lons), max(lats)]
-
-
-def _cog(path: Path, x0: float, value: int) -> None:
-    data = np.zeros((3, SIZE, SIZE), dtype=np.uint8)
-    data[:] = value
-    data[0] = (value + np.arange(SIZE)[None, :]) % 256  # a ramp: a misplaced copy shows
-    tmp = path.with_suffix(".src.tif")
-    with rasterio.open(
-        tmp, "w", driver="GTiff", width=SIZE, height=SIZE, count=3, dtype="uint8", crs=CRS,
-        transform=Affine(GSD, 0.0, x0, 0.0, -GSD, N0),
-    ) as dst:  # fmt: skip
-        dst.write(data)
-    rio_copy(tmp, path, driver="COG", COMPRESS="DEFLATE")
-    tmp.unlink()
-
-
-@pytest.fixture
-def server(tmp_path: Path) -> Iterator[StacServer]:
-    blobs = tmp_path / "blobs"
-    blobs.mkdir()
-    items, files = [], {}
-    for date, value in ACQUISITIONS:
-        for tile, dx, dv in (("a", 0.0, 0), ("b", SIZE * GSD, 100)):
-            iid = f"{date[:4]}-{tile}"
-            _cog(blobs / f"{iid}.tif", E0 + dx, value + dv)
-            x0 = E0 + dx
-            files[f"/blob/naip/{iid}.tif"] = blobs / f"{iid}.tif"
-            items.append({
-                "type": "Feature", "stac_version": "1.0.0", "id": iid, "collection": "naip",
-                "bbox": _wgs84([x0, x0 + SIZE * GSD], [N0 - SIZE * GSD, N0]), "geometry": None,
-                "properties": {"datetime": f"{date}T17:05:00Z"}, "links": [],
-                "assets": {"image": {"href": "", "type": "image/tiff; application=geotiff"}},
-            })  # fmt: skip
-    state = StacState(items=items, files=files, extent=_wgs84([E0, E0 + 1024], [N0 - 512, N0]))
-    with StacServer(state) as srv:
-        for it in items:
-            it["assets"]["image"]["href"] = f"{srv.base}/blob/naip/{it['id']}.tif"
-        yield srv
-
-
-def _args(
-    srv: StacServer, out: Path, *extra: str, dates: str = "2010-01-01/2022-12-31"
-) -> list[str]:
-    w, s, e, n = _wgs84([BBOX_M[0], BBOX_M[2]], [BBOX_M[1], BBOX_M[3]])
-    return [
-        "map", "fetch", "--bbox", f"{w},{s},{e},{n}", "--collection", "naip",
-        "--stac", f"{srv.base}/api/stac/v1", "--sas-endpoint", f"{srv.base}/api/sas/v1/token",
-        "--datetime", dates, "--out", str(out), *extra,
-    ]  # fmt: skip
 
 
 def _resume() -> list[str]:
@@ -104,7 +49,7 @@ def test_signed_fetch_writes_one_dated_cog_per_acquisition(
     server: StacServer, tmp_path: Path
 ) -> None:
     out = tmp_path / "naip"
-    assert main(_args(server, out)) == 0
+    assert main(fetch_args(server, out)) == 0
     assert sorted(p.name for p in out.iterdir()) == [
         "fetch.json",
         *(f"naip_{d}.tif" for d, _ in ACQUISITIONS),
@@ -131,7 +76,7 @@ def test_unsigned_asset_urls_are_refused_in_one_line(
     server: StacServer, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "naip"
-    assert main(_args(server, out, "--sas-endpoint", "none")) == 2
+    assert main(fetch_args(server, out, "--sas-endpoint", "none")) == 2
     lines = _error_lines(capsys.readouterr().err)
     assert len(lines) == 1 and "2010-a.tif (item 2010-a): HTTP 403, refused" in lines[0]
     assert "sig=" not in lines[0]
@@ -143,15 +88,15 @@ def test_an_api_wanting_credentials_gets_them_on_every_request(
 ) -> None:
     server.state.require = "Bearer s3cret"
     out = tmp_path / "naip"
-    assert main(_args(server, out)) == 2
+    assert main(fetch_args(server, out)) == 2
     lines = _error_lines(capsys.readouterr().err)
     assert (
         len(lines) == 1 and "HTTP 401 Unauthorized (refused: check --token / --header)" in lines[0]
     )
-    assert main(_args(server, out, "--token", "s3cret")) == 0  # search, token and assets
+    assert main(fetch_args(server, out, "--token", "s3cret")) == 0  # search, token and assets
     assert len(_tifs(out)) == 3
     again = tmp_path / "again"
-    assert main(_args(server, again, "--header", "Authorization: Bearer s3cret")) == 0
+    assert main(fetch_args(server, again, "--header", "Authorization: Bearer s3cret")) == 0
     assert len(_tifs(again)) == 3
 
 
@@ -163,13 +108,13 @@ def test_planetary_computer_is_signed_by_default() -> None:
 
 def test_a_short_lived_token_is_asked_again_before_use(server: StacServer, tmp_path: Path) -> None:
     server.state.token_ttl_s = 30.0  # under the minute kept in hand: renewed for each asset
-    assert main(_args(server, tmp_path / "naip")) == 0
+    assert main(fetch_args(server, tmp_path / "naip")) == 0
     assert server.state.hits["/api/sas/v1/token/naip"] == 6
 
 
 def test_a_token_refused_early_is_renewed_once(server: StacServer, tmp_path: Path) -> None:
     server.state.revoke_after_assets = 1  # the token stops working in the first asset's read
-    assert main(_args(server, tmp_path / "naip")) == 0
+    assert main(fetch_args(server, tmp_path / "naip")) == 0
     assert server.state.issued == 2
     assert len(_tifs(tmp_path / "naip")) == 3
 
@@ -178,7 +123,7 @@ def test_a_token_refused_again_after_renewal_is_reported(
     server: StacServer, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     server.state.refuse_assets = True
-    assert main(_args(server, tmp_path / "naip")) == 2
+    assert main(fetch_args(server, tmp_path / "naip")) == 2
     lines = _error_lines(capsys.readouterr().err)
     assert len(lines) == 1
     assert f"refused also with a token renewed from {server.base}/api/sas/v1/token/naip" in lines[0]
@@ -205,7 +150,7 @@ def test_bad_input_is_one_line_and_writes_nothing(
 ) -> None:
     server.state.refuse_tokens = bool(change.get("refuse_tokens"))
     out = tmp_path / "naip"
-    args = _args(server, out, dates=str(change.get("dates", "2010-01-01/2022-12-31")))
+    args = fetch_args(server, out, dates=str(change.get("dates", "2010-01-01/2022-12-31")))
     for key in ("collection", "bbox"):
         if key in change:
             args[args.index(f"--{key}") + 1] = str(change[key])
@@ -226,7 +171,7 @@ def test_an_interrupted_download_resumes_where_it_stopped(
     monkeypatch.setenv("GDAL_HTTP_MAX_RETRY", "0")
     server.state.broken = {"/blob/naip/2014-b.tif"}
     out = tmp_path / "naip"
-    assert main(_args(server, out)) == 2
+    assert main(fetch_args(server, out)) == 2
     lines = _error_lines(capsys.readouterr().err)
     assert len(lines) == 1 and "2014-b.tif (item 2014-b): the download stopped" in lines[0]
     assert "--resume continues where it stopped" in lines[0]
@@ -235,7 +180,7 @@ def test_an_interrupted_download_resumes_where_it_stopped(
     first = (out / "naip_2010-06-14.tif").read_bytes()
     server.state.broken.clear()
     server.state.hits.clear()
-    assert main(_args(server, out, *_resume())) == 0
+    assert main(fetch_args(server, out, *_resume())) == 0
     hits = server.state.hits
     assert [hits[f"/blob/naip/{i}.tif"] for i in ("2010-a", "2010-b", "2014-a")] == [0, 0, 0]
     assert hits["/blob/naip/2014-b.tif"] > 0 and hits["/blob/naip/2018-a.tif"] > 0
@@ -247,7 +192,7 @@ def test_map_dir_flies_by_date_and_the_manifest_names_it(
     server: StacServer, tmp_path: Path
 ) -> None:
     maps = tmp_path / "naip"
-    assert main(_args(server, maps)) == 0
+    assert main(fetch_args(server, maps)) == 0
     (maps / "undated.tif").write_bytes(b"not a tiff")  # skipped: no date
     lon, lat = warp_transform(CRS, "EPSG:4326", [E0 + 500], [N0 - 470])
     home = GeoPoint(lat_deg=lat[0], lon_deg=lon[0], alt_amsl_m=100.0)
