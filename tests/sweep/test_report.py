@@ -112,3 +112,19 @@ def test_the_report_names_reference_and_flight_dates(tmp_path: Path) -> None:
     assert main(["sweep", "report", str(folder), "--quiet"]) == 0
     md = (folder / "report.md").read_text()
     assert "reference date 2 -> flight date 0 (2 runs), reference date 2 -> flight date 1" in md
+
+
+def test_the_report_names_the_dates_the_runs_flew(tmp_path: Path) -> None:
+    """Runs whose summary.json names their map's dates (a GeoTIFF folder's acquisitions, by
+    --map-date given as a date) are grouped by index and named by date."""
+    folder = _sweep(tmp_path / "real", [1.0, 0.8, 0.9, 0.7])
+    dates = ["2010-06-14", "2014-07-02", "2018-08-20"]
+    rows = [json.loads(line) for line in (folder / RESULTS).read_text().splitlines()]
+    for row in rows:
+        row["options"]["map-date"] = "2018-08-20"
+        row["summary"] = {**(row.get("summary") or {}), "map": {"date_index": 2, "dates": dates}}
+        row["reference_date"] = 0
+    (folder / RESULTS).write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert main(["sweep", "report", str(folder), "--quiet"]) == 0
+    md = (folder / "report.md").read_text()
+    assert "reference date 0 (2010-06-14) -> flight date 2 (2018-08-20) (4 runs)" in md
