@@ -14,6 +14,7 @@ stopped: dates written and parts read are not fetched again.
 
 from __future__ import annotations
 
+import re
 import shutil
 import sys
 import urllib.parse
@@ -318,6 +319,7 @@ class _Fetch:
             return f"{asset}: HTTP {status}, refused{hint}"
         done = len(self.record["outputs"])
         why = f"HTTP {status}" if status else (detail.strip().splitlines() or ["no answer"])[-1]
+        why = re.sub(r"(https?://[^\s'\"?]+)\?[^\s'\"]*", r"\1", why)  # never the token
         return (
             f"{asset}: the download stopped ({why}); {done} file(s) written to "
             f"{self.out_dir}: the same command with --resume continues where it stopped"
