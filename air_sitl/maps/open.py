@@ -76,8 +76,9 @@ def _dated_folder(folder: Path) -> list[str]:
 
     found = []
     for path in sorted(folder.iterdir()):
-        if path.name.startswith(".") or not path.name.lower().endswith(_TIFF_SUFFIXES):
-            continue
+        name = path.name.lower()
+        if name.startswith(".") or ".tmp." in name or not name.endswith(_TIFF_SUFFIXES):
+            continue  # hidden, or a writer's temporary file left by a kill
         when = read_acquisition_date(path)
         if when is not None:
             found.append((when, path.name, str(path)))
