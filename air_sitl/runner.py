@@ -29,7 +29,7 @@ from air_sitl.nav.params import NavParams
 from air_sitl.options import DEFAULT_AIRCRAFT, FlightOptions
 from air_sitl.sensors import SensorNoise, SensorSuite
 from air_sitl.sinks import FlightResult, FrameSource, Sink
-from air_sitl.state import CameraTick, GeoPoint, SimSample, VehicleState
+from air_sitl.state import CameraTick, GeoPoint, SimSample, VehicleState, sim_sample
 
 InboxItem = Callable[["Flight"], None]
 ProgressFn = Callable[[SimSample, "Flight"], None]
@@ -88,15 +88,15 @@ class Flight:
         if self.battery is not None:
             battery = self.battery.step(state.sim_time_ns, command.throttle)
         tick = self._camera_tick(state.sim_time_ns, status.capturing)
-        sample = SimSample(
-            state=state,
-            autopilot=status,
-            imu=imu,
-            gps=gps,
-            nav=nav.estimate if nav is not None else None,
-            actuators=command,
-            battery=battery,
-            camera=tick,
+        sample = sim_sample(  # positional, in SimSample's field order (a 200 Hz path)
+            state,
+            status,
+            imu,
+            gps,
+            nav.estimate if nav is not None else None,
+            command,
+            battery,
+            tick,
         )
         self.stats.add(sample)
         for sink in self.sinks:
