@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from air_sitl.state import BatteryState
+from air_sitl.state import BatteryState, battery_state
 
 NS_PER_S = 1_000_000_000
 MOTOR_MAX_POWER_W = 600.0  # shaft power at full throttle (a 2-3 kg fixed wing)
@@ -96,7 +96,8 @@ class Battery:
         spec = self._spec()
         dt_s = 0.0 if self._last_ns is None else (sim_time_ns - self._last_ns) / NS_PER_S
         self._last_ns = sim_time_ns
-        used = min(1.0, self.consumed_mah / spec.capacity_mah)
+        used = self.consumed_mah / spec.capacity_mah
+        used = used if used < 1.0 else 1.0  # min(1.0, used), as the builtin
         cell_v = spec.v_charged_cell - (spec.v_charged_cell - spec.v_empty_cell) * used
         v_oc = spec.cells * cell_v
         power_w = electrical_power_w(throttle)
@@ -105,13 +106,13 @@ class Battery:
         if dt_s > 0:
             self.consumed_mah += current_a * dt_s / 3.6  # A s -> mAh
             self.consumed_wh += power_w * dt_s / 3600.0
-        remaining = max(0.0, 1.0 - self.consumed_mah / spec.capacity_mah)
-        return BatteryState(
-            voltage_v=voltage_v,
-            current_a=current_a,
-            consumed_mah=self.consumed_mah,
-            consumed_wh=self.consumed_wh,
-            remaining=remaining,
+        remaining = 1.0 - self.consumed_mah / spec.capacity_mah
+        return battery_state(  # positional, in BatteryState's field order (a 200 Hz path)
+            voltage_v,
+            current_a,
+            self.consumed_mah,
+            self.consumed_wh,
+            remaining if remaining > 0.0 else 0.0,  # max(0.0, remaining), as the builtin
         )
 
 

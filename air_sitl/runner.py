@@ -29,7 +29,7 @@ from air_sitl.nav.params import NavParams
 from air_sitl.options import DEFAULT_AIRCRAFT, FlightOptions
 from air_sitl.sensors import SensorNoise, SensorSuite
 from air_sitl.sinks import FlightResult, FrameSource, Sink
-from air_sitl.state import CameraTick, GeoPoint, SimSample, VehicleState
+from air_sitl.state import CameraTick, GeoPoint, SimSample, VehicleState, sim_sample
 
 InboxItem = Callable[["Flight"], None]
 ProgressFn = Callable[[SimSample, "Flight"], None]
@@ -84,46 +84,47 @@ class Flight:
         else:
             command, status = self.autopilot.update(nav.update(state, imu, gps))
             nav.observe(state, status)
+        t_ns = state.sim_time_ns
         battery = None
         if self.battery is not None:
-            battery = self.battery.step(state.sim_time_ns, command.throttle)
-        tick = self._camera_tick(state.sim_time_ns, status.capturing)
-        sample = SimSample(
-            state=state,
-            autopilot=status,
-            imu=imu,
-            gps=gps,
-            nav=nav.estimate if nav is not None else None,
-            actuators=command,
-            battery=battery,
-            camera=tick,
+            battery = self.battery.step(t_ns, command.throttle)
+        tick = None if t_ns % CAMERA_PERIOD_NS else self._camera_tick(status.capturing)
+        sample = sim_sample(  # positional, in SimSample's field order (a 200 Hz path)
+            state,
+            status,
+            imu,
+            gps,
+            nav.estimate if nav is not None else None,
+            command,
+            battery,
+            tick,
         )
         self.stats.add(sample)
         for sink in self.sinks:
             sink.on_sample(sample)
+        camera = self.camera
         if tick is not None:
             resumed = tick.capture_index is not None and (
                 tick.capture_index < self.first_frame_to_render
             )
-            if self.camera is not None and not resumed:
-                self.camera.submit(sample, tick.index)
+            if camera is not None and not resumed:
+                camera.submit(sample, tick.index)
                 self.counters.frames_submitted += 1
             if nav is not None:
                 nav.frames_submitted = self.counters.camera_ticks
-        if self.camera is not None:
-            self._deliver(self.camera.ready())
+        if camera is not None:
+            self._deliver(camera.ready())
         self.last_sample = sample
         self.state = self.fdm.step(command)
         self.clock.tick()
         self.counters.steps += 1
         return sample
 
-    def _camera_tick(self, t_ns: int, capturing: bool) -> CameraTick | None:
-        """The camera exposure at ``t_ns``, if any: every 50 Hz tick inside the capture window,
-        or of the whole flight when the camera stays on (:attr:`keep_camera_on`). The one home
-        of the frame indices every sink sees (``SimSample.camera``)."""
-        if t_ns % CAMERA_PERIOD_NS:
-            return None
+    def _camera_tick(self, capturing: bool) -> CameraTick | None:
+        """The camera exposure at a 50 Hz tick (the caller's test), if any: every tick inside
+        the capture window, or of the whole flight when the camera stays on
+        (:attr:`keep_camera_on`). The one home of the frame indices every sink sees
+        (``SimSample.camera``)."""
         c = self.counters
         capture_index: int | None = None
         if capturing:

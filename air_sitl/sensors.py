@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from air_sitl.clock import NS_PER_S
-from air_sitl.frames import ned2geodetic, quat_multiply, quat_normalize
-from air_sitl.state import GeoPoint, GpsFix, ImuSample, VehicleState
+from air_sitl.frames import ned2geodetic
+from air_sitl.state import GeoPoint, GpsFix, ImuSample, VehicleState, imu_sample
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -124,26 +124,34 @@ class SensorSuite:
         gyro = (p + gb[0] + z[3] * gs, q + gb[1] + z[4] * gs, r + gb[2] + z[5] * gs)
         accel = (fx + ab[0] + z[6] * acs, fy + ab[1] + z[7] * acs, fz + ab[2] + z[8] * acs)
         # AHRS: truth rotated by a small error (bounded random-walk drift + white jitter).
+        # A 200 Hz path: clamps, frames.quat_multiply and frames.quat_normalize written out,
+        # operation for operation (min/max as the builtins choose).
         lim = n.ahrs_drift_limit_rad
+        neg = -lim
         d = self._ahrs_drift
         ds = self._drift_scale
-        d[0] = max(-lim, min(lim, d[0] + z[9] * ds))
-        d[1] = max(-lim, min(lim, d[1] + z[10] * ds))
-        d[2] = max(-lim, min(lim, d[2] + z[11] * ds))
+        v = d[0] + z[9] * ds
+        v = v if v < lim else lim
+        d[0] = v if v > neg else neg
+        v = d[1] + z[10] * ds
+        v = v if v < lim else lim
+        d[1] = v if v > neg else neg
+        v = d[2] + z[11] * ds
+        v = v if v < lim else lim
+        d[2] = v if v > neg else neg
         js = n.ahrs_noise_rad
-        half = 0.5
-        err = (
-            1.0,
-            (d[0] + z[12] * js) * half,
-            (d[1] + z[13] * js) * half,
-            (d[2] + z[14] * js) * half,
-        )
-        q_ahrs = quat_normalize(quat_multiply(state.q_body_to_ned_wxyz, err))
-        imu = ImuSample(
-            sim_time_ns=state.sim_time_ns,
-            gyro_frd_rad_s=gyro,
-            accel_frd_m_s2=accel,
-            q_ahrs_body_to_ned_wxyz=q_ahrs,
+        ex = (d[0] + z[12] * js) * 0.5
+        ey = (d[1] + z[13] * js) * 0.5
+        ez = (d[2] + z[14] * js) * 0.5
+        aw, ax, ay, az = state.q_body_to_ned_wxyz
+        qw = aw - ax * ex - ay * ey - az * ez  # the error's scalar part is 1
+        qx = aw * ex + ax + ay * ez - az * ey
+        qy = aw * ey - ax * ez + ay + az * ex
+        qz = aw * ez + ax * ey - ay * ex + az
+        norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+        k = 1.0 / norm if qw >= 0 else -1.0 / norm
+        imu = imu_sample(  # positional, in ImuSample's field order
+            state.sim_time_ns, gyro, accel, (qw * k, qx * k, qy * k, qz * k)
         )
         gps = None
         if state.sim_time_ns % self.gps_period_ns == 0:

@@ -1,39 +1,94 @@
-"""Speed of the flight core: flight model + autopilot + sensors (+ the onboard EKF), against bare
-JSBSim.
+"""Speed of the flight step: ``fly --no-camera`` per 5 ms step against bare JSBSim, same run.
 
-Usage: python benchmarks/bench_flight.py [SCENARIO] [--seconds 600] [--repeat 3]
-[--dem builtin|FILE]
+Usage: python benchmarks/bench_flight.py [SCENARIO] [--repeat 2] [--dem builtin|FILE]
+[--paired-seconds 0]
 
-Flies SCENARIO (default FR-300) with --air-start and no camera for --seconds of simulated time
-and prints simulated seconds per wall second, beside the floor measured in the same run: the
-bare flight model stepping the same number of times with a fixed command. The flight runs
-on the truth (--nav truth) and on the onboard filter (--nav ekf, the default of the commands),
---repeat times each, alternated, the best of each kept: the difference per step is what the
-filter costs. As whole flights are at the mercy of whatever else the machine does for seconds
-at a time, the two flights are then also stepped side by side in chunks of 500 steps
-(alternating which goes first) and the median of the chunk-pair differences is printed: the
-figure a busy machine moves least. ``--dem`` adds
-a truth flight over that relief (ground and surface sampled at every step, home on the
-ground): its difference is what the relief costs the flight.
+Prints three figures, each beside the floor measured in this run and the ratio to it:
+
+- the floor: JSBSim's own ``FGFDMExec.run()`` of the same aircraft in the air (trimmed at the
+  plan's air start), CPU per frame, best of 5 blocks;
+- ``fly PLAN --no-camera`` (the onboard EKF, the command's default) flown to the end of the
+  plan (SCENARIO, default FR-300: about 12 simulated minutes) as a user runs it, CPU per 5 ms
+  step with its start-up left out: (CPU of the whole flight - CPU of a 2 s flight) / (steps
+  of the whole flight - steps of the 2 s flight);
+- the same with ``--nav truth``;
+- the start-up: the CPU of that 2 s ``fly --no-camera`` (interpreter, imports, plan, JSBSim
+  load and trim, files), against ``python -c pass``.
+
+Whole flights run in child processes (their CPU from ``getrusage``), ``--repeat`` times each,
+alternated, the best kept: the machine is shared and a slow spell only ever adds time.
+``--dem`` adds a truth flight over that relief, ``--paired-seconds S`` the filter's own cost
+from a truth and an EKF flight stepped side by side in alternating chunks for S simulated
+seconds (the figure a busy machine moves least).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import resource
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
 
 from air_sitl.builder import FlightSetup, build_flight, load_setup
-from air_sitl.clock import NS_PER_S
-from air_sitl.options import FlightOptions, MapChoice
-from air_sitl.state import ActuatorCommand
+from air_sitl.clock import NS_PER_S, PHYSICS_STEP_NS
+from air_sitl.fdm.jsbsim_model import JSBSimModel
+from air_sitl.options import FlightOptions
+from air_sitl.runner import assemble_flight
 
 REPO = Path(__file__).resolve().parent.parent
+CHUNK = 500  # physics steps a flight runs before the other takes its turn (--paired-seconds)
+FLOOR_STEPS = 20_000
 
 
-CHUNK = 500  # physics steps a flight runs before the other takes its turn
+def children_cpu_s() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def fly_cpu(plan: Path, *extra: str) -> tuple[float, int]:
+    """CPU seconds of one ``fly --no-camera`` process and the physics steps it flew."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "out"
+        c0 = children_cpu_s()
+        run = subprocess.run(
+            [sys.executable, "-m", "air_sitl", "fly", str(plan), "--no-camera", "--quiet",
+             "--out", str(out), *extra],
+            capture_output=True, text=True, check=False, cwd=REPO,
+        )  # fmt: skip
+        cpu = children_cpu_s() - c0
+        if run.returncode not in (0, 1):
+            raise SystemExit(f"fly {plan.name} {' '.join(extra)} failed: {run.stderr.strip()}")
+        summary = json.loads((out / "summary.json").read_text())
+    steps = round(summary["sim_time_s"] * NS_PER_S / PHYSICS_STEP_NS) + 1
+    return cpu, steps
+
+
+def python_pass_cpu() -> float:
+    c0 = children_cpu_s()
+    subprocess.run([sys.executable, "-c", "pass"], check=True)
+    return children_cpu_s() - c0
+
+
+def bare_frame_s(setup: FlightSetup) -> float:
+    """CPU seconds of one bare ``FGFDMExec.run()`` of the aircraft trimmed at the air start."""
+    air = replace(setup, options=replace(setup.options, air_start=True, nav="truth"))
+    flight, _, _ = assemble_flight(air.mission, air.options, home=air.home)
+    assert isinstance(flight.fdm, JSBSimModel)
+    run = flight.fdm._fdm.run  # the floor: JSBSim's own frame, no property reads, no Python state
+    best = float("inf")
+    for _ in range(5):
+        c0 = time.process_time()
+        for _ in range(FLOOR_STEPS):
+            run()
+        best = min(best, time.process_time() - c0)
+    return best / FLOOR_STEPS
 
 
 def paired_cost(setup: FlightSetup, steps: int) -> tuple[float, float, float, int]:
@@ -63,66 +118,57 @@ def paired_cost(setup: FlightSetup, steps: int) -> tuple[float, float, float, in
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenario", nargs="?", default="FR-300")
-    parser.add_argument("--seconds", type=float, default=600.0)
+    parser.add_argument("--repeat", type=int, default=2, help="whole flights of each kind")
     parser.add_argument("--dem", default=None, help="also fly over this relief (builtin, FILE)")
-    parser.add_argument(
-        "--repeat", type=int, default=3, help="whole flights of each kind, alternated (best kept)"
-    )
+    parser.add_argument("--paired-seconds", type=float, default=0.0)
     args = parser.parse_args()
-    setup = load_setup(REPO / "missions" / f"{args.scenario}.plan", FlightOptions(air_start=True))
-    limit_ns = int(args.seconds * NS_PER_S)
+    plan = REPO / "missions" / f"{args.scenario}.plan"
+    setup = load_setup(plan, FlightOptions(nav="ekf"))
+    load0 = os.getloadavg()[0]
 
-    def fly(nav: str, over: FlightSetup | None = None) -> tuple[float, float, int, int]:
-        base = over or setup
-        flight = build_flight(replace(base, options=replace(base.options, nav=nav)))
-        t0, c0 = time.perf_counter(), time.process_time()
-        result = flight.run(stop=lambda s: False, max_sim_time_ns=limit_ns)
-        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-        return wall, cpu, flight.counters.steps, result.sim_time_ns
-
-    # Alternated, best of --repeat each: the machine is shared, the filter's cost is a
-    # difference, and a slow spell of the machine only ever adds time.
-    runs = [fly(nav) for _ in range(args.repeat) for nav in ("truth", "ekf")]
-    full, cpu = min(r[0] for r in runs[::2]), min(r[1] for r in runs[::2])
-    full_ekf, cpu_ekf = min(r[0] for r in runs[1::2]), min(r[1] for r in runs[1::2])
-    steps, sim_ns = runs[0][2], runs[0][3]
-
-    bare = build_flight(setup)
-    command = ActuatorCommand(throttle=0.5)
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        bare.fdm.step(command)
-    floor = time.perf_counter() - t0
-
-    sim_s = sim_ns / NS_PER_S
-    print(f"scenario {args.scenario}, {sim_s:.0f} s simulated, {steps} physics steps at 200 Hz")
-    print(f"bare flight model step   {floor / steps * 1e6:7.1f} us/step  {sim_s / floor:7.0f} x rt")
-    print(f"model+autopilot+sensors  {full / steps * 1e6:7.1f} us/step  {sim_s / full:7.0f} x rt")
-    print(
-        f"same + onboard EKF       {full_ekf / steps * 1e6:7.1f} us/step  "
-        f"{sim_s / full_ekf:7.0f} x rt"
-    )
-    print(f"ratio full / bare model  {full / floor:7.2f}")
-    print(
-        f"EKF cost {(full_ekf - full) / steps * 1e6:.1f} us/step wall, "
-        f"{(cpu_ekf - cpu) / steps * 1e6:.1f} us/step CPU (target <= 15); "
-        f"ratio with / without {full_ekf / full:.2f} wall, {cpu_ekf / cpu:.2f} CPU"
-    )
-    print(f"target: >= 100 x real time -> {'met' if sim_s / full >= 100 else 'NOT met'}")
-    cost, low, high, pairs = paired_cost(setup, steps)
-    print(
-        f"EKF cost, paired chunks: median {cost:.1f} us/step CPU (IQR {low:.1f}-{high:.1f}, "
-        f"{pairs} pairs of {CHUNK} steps; target <= 15)"
-    )
+    floor_us = bare_frame_s(setup) * 1e6
+    kinds: dict[str, tuple[str, ...]] = {"ekf": (), "truth": ("--nav", "truth")}
     if args.dem:
-        plan = REPO / "missions" / f"{args.scenario}.plan"
-        relief = load_setup(plan, FlightOptions(air_start=True), map=MapChoice(dem=args.dem))
-        runs_dem = [fly("truth", relief) for _ in range(2)]
-        cpu_dem = min(r[1] for r in runs_dem)
+        kinds["truth --dem"] = ("--nav", "truth", "--dem", args.dem)
+    whole: dict[str, list[tuple[float, int]]] = {k: [] for k in kinds}
+    start: dict[str, list[tuple[float, int]]] = {k: [] for k in kinds}
+    for _ in range(args.repeat):
+        for kind, extra in kinds.items():
+            whole[kind].append(fly_cpu(plan, *extra))
+            start[kind].append(fly_cpu(plan, *extra, "--max-sim-time", "2"))
+    bare_python = min(python_pass_cpu() for _ in range(3))
+
+    steps = whole["ekf"][0][1]
+    print(
+        f"scenario {args.scenario}, {steps} physics steps of 5 ms "
+        f"({steps * PHYSICS_STEP_NS / NS_PER_S:.0f} s simulated), best of {args.repeat}, "
+        f"load {load0:.1f} -> {os.getloadavg()[0]:.1f}"
+    )
+    print(f"{'what':44s} {'figure':>14s} {'floor':>12s} {'ratio':>7s} {'target':>7s}")
+    print(f"{'bare FGFDMExec.run() in the air (floor)':44s} {floor_us:11.2f} us {'':12s}")
+    targets = {"ekf": 4.0, "truth": 3.0}
+    for kind in kinds:
+        cpu_whole, n_whole = min(whole[kind])
+        cpu_start, n_start = min(start[kind])
+        per_step_us = (cpu_whole - cpu_start) / (n_whole - n_start) * 1e6
+        ratio = per_step_us / floor_us
+        target = targets.get(kind)
+        mark = "" if target is None else f"{target:g}x " + ("met" if ratio <= target else "NOT")
+        name = f"fly --no-camera --nav {kind}, per step"
+        print(f"{name:44s} {per_step_us:11.2f} us {floor_us:9.2f} us {ratio:6.2f}x {mark}")
+    for kind in kinds:
+        cpu_start = min(start[kind])[0]
+        name = f"start-up: a 2 s flight, --nav {kind}"
+        mark = "1 s " + ("met" if cpu_start <= 1.0 else "NOT")
         print(
-            f"--dem {args.dem}: {min(r[0] for r in runs_dem) / steps * 1e6:.1f} us/step wall, "
-            f"relief cost {(cpu_dem - cpu) / steps * 1e6:.1f} us/step CPU "
-            f"(ratio {cpu_dem / cpu:.2f} CPU)"
+            f"{name:44s} {cpu_start:12.2f} s {bare_python:10.3f} s "
+            f"{cpu_start / bare_python:6.1f}x {mark}  (floor: python -c pass)"
+        )
+    if args.paired_seconds > 0:
+        cost, low, high, pairs = paired_cost(setup, int(args.paired_seconds * 200))
+        print(
+            f"EKF cost, paired chunks: median {cost:.1f} us/step CPU (IQR {low:.1f}-{high:.1f}, "
+            f"{pairs} pairs of {CHUNK} steps)"
         )
 
 

@@ -13,7 +13,7 @@ from typing import Protocol
 
 from air_sitl.autopilot.executor import MissionExecutor, air_start_item
 from air_sitl.autopilot.params import GuidanceParams, ParamStore
-from air_sitl.autopilot.target import ControlPhase, ControlTarget
+from air_sitl.autopilot.target import ControlPhase, ControlTarget, control_target
 from air_sitl.frames import ned2geodetic
 from air_sitl.mission.geometry import (
     SurfaceFn,
@@ -22,7 +22,14 @@ from air_sitl.mission.geometry import (
     next_nav_index,
 )
 from air_sitl.mission.items import LOITER_COMMANDS, WAYPOINT_COMMANDS, MavCmd, Mission
-from air_sitl.state import ActuatorCommand, AutopilotStatus, FlightMode, GeoPoint, VehicleState
+from air_sitl.state import (
+    ActuatorCommand,
+    AutopilotStatus,
+    FlightMode,
+    GeoPoint,
+    VehicleState,
+    autopilot_status,
+)
 
 GUIDANCE_PERIOD_NS = 20_000_000  # 50 Hz
 
@@ -98,20 +105,28 @@ class Autopilot:
                 ex.arm()
         nav = ex.update(state)
         params = ex.params
-        self._target = dataclasses.replace(
-            nav.target,
-            pitch_max_rad=math.radians(params.in_range("FW_P_LIM_MAX")),
-            pitch_min_rad=math.radians(params.in_range("FW_P_LIM_MIN")),
+        t = nav.target
+        self._target = control_target(  # positional, in ControlTarget's field order (50 Hz)
+            t.phase,
+            t.roll_rad,
+            t.altitude_amsl_m,
+            t.airspeed_m_s,
+            t.heading_rad,
+            t.climb_rate_limit_m_s,
+            t.ground_amsl_m,
+            math.radians(params.in_range("FW_P_LIM_MAX")),
+            math.radians(params.in_range("FW_P_LIM_MIN")),
         )
-        self._status = AutopilotStatus(
-            mode=ex.mode,
-            armed=ex.armed,
-            current_seq=ex.current_seq,
-            capturing=ex.capturing,
-            mission_completed=ex.mission_completed,
-            cross_track_m=nav.cross_track_m,
-            alt_error_m=nav.alt_error_m,
-            tracking_settled=nav.settled,
+        self._status = autopilot_status(  # positional, in AutopilotStatus's field order
+            ex.mode,
+            ex.armed,
+            ex.current_seq,
+            ex.capturing,
+            ex.mission_completed,
+            -1,
+            nav.cross_track_m,
+            nav.alt_error_m,
+            nav.settled,
         )
         self._next_nav_ns = state.sim_time_ns + GUIDANCE_PERIOD_NS
 

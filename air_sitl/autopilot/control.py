@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 from air_sitl.autopilot.target import ControlPhase, ControlTarget
 from air_sitl.clock import NS_PER_S, PHYSICS_STEP_NS
-from air_sitl.state import ActuatorCommand, VehicleState
+from air_sitl.state import ActuatorCommand, VehicleState, actuator_command
 
 GRAVITY_M_S2 = 9.80665
 
@@ -145,11 +145,6 @@ def _wrap_pi(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def _winding_up(out: float, lo: float, hi: float, push: float) -> bool:
-    """True while ``out`` sits at a limit and ``push`` drives it further in (anti-windup)."""
-    return (out >= hi and push > 0.0) or (out <= lo and push < 0.0)
-
-
 class Controller:
     """The control laws of every phase; state is a handful of plain floats (integrators).
 
@@ -193,8 +188,11 @@ class Controller:
     def update(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
         """One step of the control law of ``target.phase``."""
         phase = target.phase
-        self._pitch_lo = max(self.gains.min_pitch_rad, target.pitch_min_rad)
-        self._pitch_hi = min(self.gains.max_pitch_rad, target.pitch_max_rad)
+        g = self.gains
+        # max() and min() written out (a 200 Hz path), choosing as the builtins do.
+        lo, hi = target.pitch_min_rad, target.pitch_max_rad
+        self._pitch_lo = lo if lo > g.min_pitch_rad else g.min_pitch_rad
+        self._pitch_hi = hi if hi < g.max_pitch_rad else g.max_pitch_rad
         if phase is ControlPhase.IDLE:
             self.reset()  # parked: nothing to remember
             return ActuatorCommand(brake=1.0)
@@ -220,49 +218,65 @@ class Controller:
     def _schedule(self, airspeed_m_s: float) -> float:
         """Surface-gain factor: (V_ref / V)^2, bounded for very slow and very fast flight."""
         g = self.gains
-        v = airspeed_m_s if airspeed_m_s > 0.5 * g.min_airspeed_m_s else 0.5 * g.min_airspeed_m_s
-        return _clamp((g.ref_airspeed_m_s / v) ** 2, 0.3, 3.0)
+        slowest = 0.5 * g.min_airspeed_m_s
+        v = airspeed_m_s if airspeed_m_s > slowest else slowest
+        k = (g.ref_airspeed_m_s / v) ** 2
+        return 0.3 if k < 0.3 else 3.0 if k > 3.0 else k
 
     def _integrate(self, value: float, rate: float, limit: float) -> float:
         """One step of an integrator, kept within [-limit, limit]."""
         return _clamp(value + rate * self.dt_s, -limit, limit)
 
     def _aileron(self, state: VehicleState, bank_cmd_rad: float, scale: float) -> float:
+        # The inner loops run at 200 Hz: _clamp, _winding_up and _integrate written out.
         g = self.gains
-        err = _clamp(bank_cmd_rad, -g.max_bank_rad, g.max_bank_rad) - state.roll_rad
+        hi = g.max_bank_rad
+        lo = -hi
+        bank = lo if bank_cmd_rad < lo else hi if bank_cmd_rad > hi else bank_cmd_rad
+        err = bank - state.roll_rad
         raw = g.roll_kp * err + self._roll_i - g.roll_kd * state.rate_frd_rad_s[0]
-        out = _clamp(scale * raw, -1.0, 1.0)
+        x = scale * raw
+        out = -1.0 if x < -1.0 else 1.0 if x > 1.0 else x
         # Anti-windup: integrate only in the air and while the output is not pushed further
         # into its limit.
-        if not (state.on_ground or _winding_up(out, -1.0, 1.0, err)):
-            self._roll_i = self._integrate(self._roll_i, g.roll_ki * err, g.roll_i_limit)
+        if not (state.on_ground or (out >= 1.0 and err > 0.0) or (out <= -1.0 and err < 0.0)):
+            i = self._roll_i + (g.roll_ki * err) * self.dt_s
+            limit = g.roll_i_limit
+            self._roll_i = -limit if i < -limit else limit if i > limit else i
         return out
 
     def _elevator(self, state: VehicleState, pitch_cmd_rad: float, scale: float) -> float:
         g = self.gains
-        pitch_cmd = _clamp(pitch_cmd_rad, self._pitch_lo, self._pitch_hi)
+        lo, hi = self._pitch_lo, self._pitch_hi
+        pitch_cmd = lo if pitch_cmd_rad < lo else hi if pitch_cmd_rad > hi else pitch_cmd_rad
         err = pitch_cmd - state.pitch_rad
         # Steady pitch rate of a level turn: g/V * sin^2(phi) / cos(phi).
-        v = max(state.airspeed_m_s, g.min_airspeed_m_s)
+        v = state.airspeed_m_s
+        v = g.min_airspeed_m_s if g.min_airspeed_m_s > v else v
         phi = state.roll_rad
-        cos_phi = max(math.cos(phi), 0.3)
+        cos_phi = math.cos(phi)
+        cos_phi = 0.3 if cos_phi < 0.3 else cos_phi
         q_ff = GRAVITY_M_S2 / v * math.sin(phi) ** 2 / cos_phi
         fb = -g.pitch_kp * err + g.pitch_kd * (state.rate_frd_rad_s[1] - q_ff)
-        out = _clamp(self._pitch_i + scale * fb, -1.0, 1.0)
+        x = self._pitch_i + scale * fb
+        out = -1.0 if x < -1.0 else 1.0 if x > 1.0 else x
         # The integrator is the elevator trim; elevator + = nose down, hence the minus signs.
-        if not _winding_up(out, -1.0, 1.0, -err):
-            self._pitch_i = self._integrate(
-                self._pitch_i, -(scale * g.pitch_ki * err), g.pitch_i_limit
-            )
+        push = -err
+        if not ((out >= 1.0 and push > 0.0) or (out <= -1.0 and push < 0.0)):
+            i = self._pitch_i + (-(scale * g.pitch_ki * err)) * self.dt_s
+            limit = g.pitch_i_limit
+            self._pitch_i = -limit if i < -limit else limit if i > limit else i
         return out
 
-    def _rudder_air(self, state: VehicleState) -> float:
+    def _rudder_air(self, state: VehicleState, scale: float) -> float:
+        """``scale``: :meth:`_schedule` of the state's airspeed."""
         g = self.gains
-        v = max(state.airspeed_m_s, g.min_airspeed_m_s)
+        v = state.airspeed_m_s
+        v = g.min_airspeed_m_s if g.min_airspeed_m_s > v else v
         r_turn = GRAVITY_M_S2 / v * math.sin(state.roll_rad) * math.cos(state.pitch_rad)
         ay = state.specific_force_frd_m_s2[1]
-        out = -g.yaw_ky * ay - g.yaw_kr * (state.rate_frd_rad_s[2] - r_turn)
-        return _clamp(out * self._schedule(state.airspeed_m_s), -1.0, 1.0)
+        out = (-g.yaw_ky * ay - g.yaw_kr * (state.rate_frd_rad_s[2] - r_turn)) * scale
+        return -1.0 if out < -1.0 else 1.0 if out > 1.0 else out
 
     def _steer(self, state: VehicleState, heading_rad: float) -> float:
         g = self.gains
@@ -286,7 +300,7 @@ class Controller:
             elevator = g.roll_elevator
         rudder = self._steer(state, target.heading_rad)
         if not state.on_ground:
-            rudder = self._rudder_air(state)
+            rudder = self._rudder_air(state, scale)
         return ActuatorCommand(
             aileron=aileron, elevator=elevator, rudder=rudder, throttle=g.climb_throttle
         )
@@ -304,7 +318,7 @@ class Controller:
         pitch_cmd = max(pitch_cmd, g.trim_pitch_rad)
         elevator = self._elevator(state, pitch_cmd, scale)
         aileron = self._aileron(state, target.roll_rad, scale)
-        rudder = self._rudder_air(state) if not state.on_ground else 0.0
+        rudder = self._rudder_air(state, scale) if not state.on_ground else 0.0
         # Do not climb faster than the target allows: take power off (pitch keeps the speed).
         over = -state.vel_ned_m_s[2] - target.climb_rate_limit_m_s
         throttle = g.climb_throttle
@@ -320,32 +334,44 @@ class Controller:
         self, state: VehicleState, height_dem_m: float, speed_dem_m_s: float, climb_limit: float
     ) -> tuple[float, float]:
         """Pitch command (rad) and throttle from the total-energy laws."""
+        # A 200 Hz path: _clamp, max, min, _winding_up and _integrate written out (max and
+        # min choosing as the builtins do).
         g = self.gains
-        v = max(state.airspeed_m_s, g.min_airspeed_m_s)
-        speed_dem = _clamp(speed_dem_m_s, g.min_airspeed_m_s, g.max_airspeed_m_s)
-        climb_max = max(climb_limit, 0.1)
+        dt = self.dt_s
+        airspeed = state.airspeed_m_s
+        v_min, v_max = g.min_airspeed_m_s, g.max_airspeed_m_s
+        v = v_min if v_min > airspeed else airspeed
+        speed_dem = (
+            v_min if speed_dem_m_s < v_min else v_max if speed_dem_m_s > v_max else speed_dem_m_s
+        )
+        climb_max = 0.1 if climb_limit < 0.1 else climb_limit
+        sink_max = -climb_max
         h = state.alt_amsl_m
         hdot = -state.vel_ned_m_s[2]
         # Feed forward how fast the demanded altitude moves (a glide slope, a ramped climb),
         # low-pass filtered: guidance updates its target only every few steps.
         if self._h_dem_prev == self._h_dem_prev:  # not NaN: a previous demand exists
-            rate = (height_dem_m - self._h_dem_prev) / self.dt_s
-            rate = _clamp(rate, -climb_max, climb_max)
-            self._h_dem_rate += (rate - self._h_dem_rate) * min(self.dt_s / g.demand_filter_s, 1.0)
+            rate = (height_dem_m - self._h_dem_prev) / dt
+            rate = sink_max if rate < sink_max else climb_max if rate > climb_max else rate
+            k = dt / g.demand_filter_s
+            self._h_dem_rate += (rate - self._h_dem_rate) * (1.0 if k > 1.0 else k)
         self._h_dem_prev = height_dem_m
-        hdot_dem = _clamp(self._h_dem_rate + g.height_k * (height_dem_m - h), -climb_max, climb_max)
+        x = self._h_dem_rate + g.height_k * (height_dem_m - h)
+        hdot_dem = sink_max if x < sink_max else climb_max if x > climb_max else x
         # Slew the demanded climb rate: a step in altitude gives a smooth pull-up.
-        slew = g.max_vert_accel_m_s2 * self.dt_s
-        hdot_dem = _clamp(hdot_dem, self._hdot_dem - slew, self._hdot_dem + slew)
+        slew = g.max_vert_accel_m_s2 * dt
+        lo, hi = self._hdot_dem - slew, self._hdot_dem + slew
+        hdot_dem = lo if hdot_dem < lo else hi if hdot_dem > hi else hdot_dem
         self._hdot_dem = hdot_dem
-        vdot_dem = _clamp(
-            g.speed_k * (speed_dem - state.airspeed_m_s), -g.max_accel_m_s2, g.max_accel_m_s2
-        )
+        acc_max = g.max_accel_m_s2
+        x = g.speed_k * (speed_dem - airspeed)
+        vdot_dem = -acc_max if x < -acc_max else acc_max if x > acc_max else x
         # Along-path acceleration from the accelerometer: u_dot = f_x - g sin(theta), low-pass
         # filtered: thrust shows in f_x at once, and unfiltered it closes a fast loop through
         # the throttle that rings at the step rate.
         vdot_raw = state.specific_force_frd_m_s2[0] - GRAVITY_M_S2 * math.sin(state.pitch_rad)
-        self._vdot += (vdot_raw - self._vdot) * min(self.dt_s / g.accel_filter_s, 1.0)
+        k = dt / g.accel_filter_s
+        self._vdot += (vdot_raw - self._vdot) * (1.0 if k > 1.0 else k)
         vdot = self._vdot
         gamma_dem = hdot_dem / v
         gamma = hdot / v
@@ -355,21 +381,24 @@ class Controller:
         ste_dem = gamma_dem + acc_dem
         ste_err = ste_dem - (gamma + acc)
         # Extra drag in a turn: the lift rises by 1/cos(phi), the induced drag with its square.
-        turn = 1.0 / max(math.cos(state.roll_rad), 0.5) ** 2 - 1.0
+        cos_roll = math.cos(state.roll_rad)
+        turn = 1.0 / (0.5 if cos_roll < 0.5 else cos_roll) ** 2 - 1.0
         thr_ff = g.trim_throttle + g.throttle_ff * ste_dem + 0.25 * turn * g.trim_throttle
         throttle = thr_ff + g.throttle_kp * ste_err + self._throttle_i
-        throttle_out = _clamp(throttle, 0.0, 1.0)
-        if not _winding_up(throttle, 0.0, 1.0, ste_err):
-            self._throttle_i = self._integrate(
-                self._throttle_i, g.throttle_ki * ste_err, g.energy_i_limit
-            )
+        throttle_out = 0.0 if throttle < 0.0 else 1.0 if throttle > 1.0 else throttle
+        limit = g.energy_i_limit
+        if not ((throttle >= 1.0 and ste_err > 0.0) or (throttle <= 0.0 and ste_err < 0.0)):
+            i = self._throttle_i + (g.throttle_ki * ste_err) * dt
+            self._throttle_i = -limit if i < -limit else limit if i > limit else i
         # Energy balance -> pitch.
         seb_err = (gamma_dem - acc_dem) - (gamma - acc)
         pitch = g.trim_pitch_rad + gamma_dem + g.balance_kp * seb_err + self._balance_i
-        if not _winding_up(pitch, g.min_pitch_rad, g.max_pitch_rad, seb_err):
-            self._balance_i = self._integrate(
-                self._balance_i, g.balance_ki * seb_err, g.energy_i_limit
-            )
+        if not (
+            (pitch >= g.max_pitch_rad and seb_err > 0.0)
+            or (pitch <= g.min_pitch_rad and seb_err < 0.0)
+        ):
+            i = self._balance_i + (g.balance_ki * seb_err) * dt
+            self._balance_i = -limit if i < -limit else limit if i > limit else i
         return pitch, throttle_out
 
     def _cruise(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
@@ -377,11 +406,12 @@ class Controller:
         pitch_cmd, throttle = self._tecs(
             state, target.altitude_amsl_m, target.airspeed_m_s, target.climb_rate_limit_m_s
         )
-        return ActuatorCommand(
-            aileron=self._aileron(state, target.roll_rad, scale),
-            elevator=self._elevator(state, pitch_cmd, scale),
-            rudder=self._rudder_air(state),
-            throttle=throttle,
+        return actuator_command(  # positional, in ActuatorCommand's field order
+            self._aileron(state, target.roll_rad, scale),
+            self._elevator(state, pitch_cmd, scale),
+            self._rudder_air(state, scale),
+            throttle,
+            0.0,
         )
 
     def _land(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
@@ -415,6 +445,6 @@ class Controller:
         return ActuatorCommand(
             aileron=self._aileron(state, bank, scale),
             elevator=self._elevator(state, pitch_cmd, scale),
-            rudder=self._rudder_air(state),
+            rudder=self._rudder_air(state, scale),
             throttle=0.0,
         )

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+
+from air_sitl.state import positional_builder
 
 
 class ControlPhase(enum.Enum):
@@ -33,3 +36,7 @@ class ControlTarget:
     # Pitch limits from the parameters (FW_P_LIM_MAX/MIN); the controller also keeps its own.
     pitch_max_rad: float = math.pi / 2
     pitch_min_rad: float = -math.pi / 2
+
+
+# Built by guidance at 50 Hz, positionally (fields in declared order).
+control_target: Callable[..., ControlTarget] = positional_builder(ControlTarget)

@@ -20,8 +20,8 @@ import jsbsim
 from air_sitl.clock import NS_PER_S, PHYSICS_STEP_NS
 from air_sitl.errors import AircraftError
 from air_sitl.fdm.base import InitialCondition, Terrain, Wind
-from air_sitl.frames import WGS84_A_M, WGS84_E2, euler2quat
-from air_sitl.state import ActuatorCommand, GeoPoint, VehicleState
+from air_sitl.frames import WGS84_A_M, WGS84_E2
+from air_sitl.state import ActuatorCommand, GeoPoint, VehicleState, vehicle_state
 
 FT_M = 0.3048
 M_FT = 1.0 / FT_M
@@ -29,6 +29,7 @@ DEFAULT_AIRCRAFT = "airsitl_uav"
 OWN_AIRCRAFT_DIR = Path(__file__).resolve().parent / "aircraft"
 _TWO_PI = 2.0 * math.pi
 _PI = math.pi
+_sin, _cos, _sqrt, _radians = math.sin, math.cos, math.sqrt, math.radians
 
 # Properties read every step, in the order _build_state unpacks them.
 _STATE_PROPERTIES = (
@@ -96,15 +97,16 @@ def _wind_ned_fps(wind: Wind) -> tuple[float, float]:
 
 
 class _LocalNed:
-    """geodetic -> NED relative to a fixed origin, with the origin's ECEF terms cached."""
+    """The origin of the local NED frame: its ECEF position and rotation, for ``_build_state``
+    (which turns each geodetic position into NED from these, written out at 200 Hz)."""
 
     def __init__(self, origin: GeoPoint) -> None:
         lat = math.radians(origin.lat_deg)
         lon = math.radians(origin.lon_deg)
-        self._x0, self._y0, self._z0 = self._ecef(lat, lon, origin.alt_amsl_m)
+        self.x0, self.y0, self.z0 = self._ecef(lat, lon, origin.alt_amsl_m)
         sl, cl = math.sin(lat), math.cos(lat)
         so, co = math.sin(lon), math.cos(lon)
-        self._m = (-sl * co, -sl * so, cl, -so, co, -cl * co, -cl * so, -sl)
+        self.m = (-sl * co, -sl * so, cl, -so, co, -cl * co, -cl * so, -sl)
 
     @staticmethod
     def _ecef(lat: float, lon: float, alt_m: float) -> tuple[float, float, float]:
@@ -112,16 +114,6 @@ class _LocalNed:
         n = WGS84_A_M / math.sqrt(1.0 - WGS84_E2 * sin_lat * sin_lat)
         r = (n + alt_m) * math.cos(lat)
         return (r * math.cos(lon), r * math.sin(lon), (n * (1.0 - WGS84_E2) + alt_m) * sin_lat)
-
-    def ned(self, lat_deg: float, lon_deg: float, alt_m: float) -> tuple[float, float, float]:
-        x, y, z = self._ecef(math.radians(lat_deg), math.radians(lon_deg), alt_m)
-        dx, dy, dz = x - self._x0, y - self._y0, z - self._z0
-        m = self._m
-        return (
-            m[0] * dx + m[1] * dy + m[2] * dz,
-            m[3] * dx + m[4] * dy,
-            m[5] * dx + m[6] * dy + m[7] * dz,
-        )
 
 
 class JSBSimModel:
@@ -387,12 +379,18 @@ class JSBSimModel:
         """Apply ``command`` and advance one physics step."""
         self._apply(command)
         run = self._run
-        for _ in range(self._substeps):
+        if self._substeps == 1:
             run()
+        else:
+            for _ in range(self._substeps):
+                run()
         self._time_ns += self.step_ns
         return self._build_state()
 
     def _build_state(self) -> VehicleState:
+        # A 200 Hz path: geodetic -> NED about _LocalNed's origin and Euler -> quaternion
+        # (frames.euler2quat) written out here, operation for operation, and the state built
+        # positionally (state.vehicle_state).
         g = self._getters
         lat = g[0]()
         lon = g[1]()
@@ -408,22 +406,44 @@ class JSBSimModel:
             # The ground the wheels meet during the next step: the terrain under the aircraft.
             ground_m, surface_m = terrain.ground_and_surface_at(lat, lon)
             self._set_terrain_ft(ground_m * M_FT)
-        return VehicleState(
-            sim_time_ns=self._time_ns,
-            lat_deg=lat,
-            lon_deg=lon,
-            alt_amsl_m=alt_m,
-            alt_agl_m=alt_m - self._ground.alt_amsl_m,
-            pos_ned_m=self._ned.ned(lat, lon, alt_m),
-            q_body_to_ned_wxyz=euler2quat(phi, theta, yaw),
-            roll_rad=phi,
-            pitch_rad=theta,
-            yaw_rad=yaw,
-            vel_ned_m_s=(g[6]() * FT_M, g[7]() * FT_M, g[8]() * FT_M),
-            rate_frd_rad_s=(g[9](), g[10](), g[11]()),
-            specific_force_frd_m_s2=(g[12]() * FT_M, g[13]() * FT_M, g[14]() * FT_M),
-            airspeed_m_s=g[15]() * FT_M,
-            on_ground=g[16]() > 0.5,
-            ground_amsl_m=ground_m,
-            surface_amsl_m=surface_m,
+        local = self._ned
+        lat_r = _radians(lat)
+        lon_r = _radians(lon)
+        sin_lat = _sin(lat_r)
+        n = WGS84_A_M / _sqrt(1.0 - WGS84_E2 * sin_lat * sin_lat)
+        r = (n + alt_m) * _cos(lat_r)
+        dx = r * _cos(lon_r) - local.x0
+        dy = r * _sin(lon_r) - local.y0
+        dz = (n * (1.0 - WGS84_E2) + alt_m) * sin_lat - local.z0
+        m = local.m
+        cr, sr = _cos(phi / 2), _sin(phi / 2)
+        cp, sp = _cos(theta / 2), _sin(theta / 2)
+        cy, sy = _cos(yaw / 2), _sin(yaw / 2)
+        return vehicle_state(
+            self._time_ns,
+            lat,
+            lon,
+            alt_m,
+            alt_m - self._ground.alt_amsl_m,
+            (
+                m[0] * dx + m[1] * dy + m[2] * dz,
+                m[3] * dx + m[4] * dy,
+                m[5] * dx + m[6] * dy + m[7] * dz,
+            ),
+            (
+                cr * cp * cy + sr * sp * sy,
+                sr * cp * cy - cr * sp * sy,
+                cr * sp * cy + sr * cp * sy,
+                cr * cp * sy - sr * sp * cy,
+            ),
+            phi,
+            theta,
+            yaw,
+            (g[6]() * FT_M, g[7]() * FT_M, g[8]() * FT_M),
+            (g[9](), g[10](), g[11]()),
+            (g[12]() * FT_M, g[13]() * FT_M, g[14]() * FT_M),
+            g[15]() * FT_M,
+            g[16]() > 0.5,
+            ground_m,
+            surface_m,
         )

@@ -40,7 +40,6 @@ from air_sitl.nav.sensors_extra import (
 )
 from air_sitl.nav.status import NavStatus
 from air_sitl.nav.types import AidMeasurement, AidResult
-from air_sitl.nav.vehicle import vehicle_state
 from air_sitl.state import (
     AutopilotStatus,
     FlightMode,
@@ -50,6 +49,7 @@ from air_sitl.state import (
     NavEstimate,
     Vec3,
     VehicleState,
+    vehicle_state,
 )
 
 if TYPE_CHECKING:

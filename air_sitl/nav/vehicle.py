@@ -9,48 +9,11 @@ specific force from the IMU minus the estimated biases, airspeed from the airspe
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import MISSING, fields
-from typing import Any, TypeVar
 
 from air_sitl.frames import quat2euler
-from air_sitl.state import ImuSample, NavEstimate, VehicleState
+from air_sitl.state import ImuSample, NavEstimate, VehicleState, positional_builder, vehicle_state
 
-T = TypeVar("T")
-
-
-def positional_builder(cls: type[T]) -> Callable[..., T]:
-    """A function building ``cls`` (a frozen dataclass with slots) from all its fields given
-    positionally in declared order: the same object as ``cls(...)``, three times faster.
-
-    The frozen ``__init__`` sets each field through ``object.__setattr__`` (a generic call
-    per field: most of the cost of one VehicleState per 200 Hz step). Here a plain twin class
-    with the same slots is filled by ordinary attribute stores and then becomes a ``cls``
-    (``__class__`` assignment, allowed between classes of identical layout). The twin's
-    ``__init__`` is generated from the fields, as dataclasses generates its own.
-    """
-    params, body = [], []
-    namespace: dict[str, Any] = {"_cls": cls}
-    for f in fields(cls):  # type: ignore[arg-type]
-        if f.default is MISSING:
-            params.append(f.name)
-        else:
-            namespace[f"_default_{f.name}"] = f.default
-            params.append(f"{f.name}=_default_{f.name}")
-        body.append(f"    self.{f.name} = {f.name}\n")
-    slots = cls.__slots__  # type: ignore[attr-defined]
-    namespace["_twin"] = type(f"_Writable{cls.__name__}", (), {"__slots__": slots})
-    code = (
-        f"def build({', '.join(params)}):\n    self = _twin()\n{''.join(body)}"
-        "    self.__class__ = _cls\n    return self\n"
-    )
-    exec(code, namespace)  # generated from the dataclass's own fields, as dataclasses does
-    built: Callable[..., T] = namespace["build"]
-    return built
-
-
-# One VehicleState per 200 Hz step (the estimate the autopilot flies on), one NavEstimate
-# per filter period.
-vehicle_state: Callable[..., VehicleState] = positional_builder(VehicleState)
+# One NavEstimate per filter period (the VehicleState the autopilot flies on: state.py's).
 nav_estimate: Callable[..., NavEstimate] = positional_builder(NavEstimate)
 
 
