@@ -1,4 +1,4 @@
-"""Open a map from a ``--map`` value: ``urban``, ``forest`` or GeoTIFF path(s) as dates.
+"""Open a map from a ``--map`` value: ``urban``, ``forest``, ``farmland`` or GeoTIFF path(s).
 
 GeoTIFF dates: ``--map a.tif,b.tif,c.tif`` lists the files of one area (date 0, 1, 2) and
 ``--map-date N`` picks one (default 0); ``--map-date other.tif`` names a date file directly.
@@ -21,9 +21,10 @@ _TIFF_SUFFIXES = (".tif", ".tiff", ".gtiff")
 
 
 def default_map_for_plan(plan_name: str) -> str:
-    """AIR's naming: plans starting with U fly over ``urban``, F over ``forest``."""
+    """AIR's naming: plans starting with U fly over ``urban``, F over ``forest``; ours
+    starting with A (agricultural) over ``farmland``."""
     name = Path(plan_name).name.strip().upper()
-    return "forest" if name.startswith("F") else "urban"
+    return "forest" if name.startswith("F") else "farmland" if name.startswith("A") else "urban"
 
 
 def _looks_like_path(text: str) -> bool:

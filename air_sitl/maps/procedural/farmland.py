@@ -326,8 +326,8 @@ class FarmlandWorld:
                 present = np.where(conifer, present, 0.55 * present)
             tone = leaves * lit[:, :, None]
         else:
-            present = np.clip(lay.trees * 0.85, 0.0, 1.0)
-            h = lay.tree_h * present
+            present = np.clip(lay.trees * 0.85, 0.0, 1.0).astype(np.float32)
+            h = (lay.tree_h * present).astype(np.float32)
             tone = (leaves * np.float32(0.85)).astype(np.float32)
         c = present[:, :, None].astype(np.float32)
         lay.col = (lay.col * (1.0 - c) + tone * c).astype(np.float32)
