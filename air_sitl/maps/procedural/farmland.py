@@ -42,7 +42,6 @@ from air_sitl.maps.procedural.farmland_layout import (
     HIGHWAY_HALF_M,
     QUARTER_M,
     SOY,
-    TERRAIN,
     WHEAT,
     band,
     creek_distance_m,
@@ -50,11 +49,10 @@ from air_sitl.maps.procedural.farmland_layout import (
     field_unit,
     fields,
     grid,
+    hills,
     is_highway,
-    pivot_running,
     pothole,
     roads,
-    terrain_m,
     water_level,
     wetness,
     year_of,
@@ -126,10 +124,7 @@ class FarmlandWorld:
         else:  # crowns below a pixel: their mean shadow
             shadow = 0.35 * np.clip(lay.trees[inner], 0.0, 1.0)
         out = out * (1.0 - 0.55 * shadow)[:, :, None]
-        k = key_of(self.seed, 0xF00)
         pm = 1.0 / gsd_m
-        fine = fractal_noise(k, x0, y0, size, 1.0 * pm, 2) * np.float32(min(1.0, 0.6 * pm))
-        out = out * (1.0 + 0.05 * fine)[:, :, None]
         grain = white_noise(key_of(self.seed, 0xF01, date.index), x0, y0, size)
         out = out + (np.float32(6.0 * min(1.0, 0.6 * pm)) * grain)[:, :, None]
         return np.clip(out, 0, 255).astype(np.uint8)
@@ -158,17 +153,20 @@ class FarmlandWorld:
         lay = Layers(x0, y0, size, gsd_m)
         g = grid(seed, x0, y0, size, gsd_m)
         f = fields(seed, g, year, gsd_m)
-        crop = np.where(f.pasture, GRASS, crop_in(seed, f.key, year))
-        prev = np.where(f.pasture, GRASS, crop_in(seed, f.key, year - 1))
-        running = pivot_running(seed, g.qi[None, :], g.qj[:, None], year)
-        state = _field_state(seed, f.key, crop, prev, year, season)
+        crop = np.where(f.pasture, GRASS, crop_in(seed, f.key, year)[f.fid])
+        prev = np.where(f.pasture, GRASS, crop_in(seed, f.key, year - 1)[f.fid])
+        running = f.running
+        state = _field_state(seed, f.key, f.fid, crop, prev, year, season)
         idle = (f.pivot > 0.5) & ~running & (crop != GRASS)
         state = np.where(idle, _STATE_NAMES.index("fallow"), state)
         # Soil: light on the eroded hilltops, darker in swales and in a wet year.
         k = key_of(seed, 0xF10)
-        wet = wetness(seed, year, x0, y0, size, gsd_m)
-        terr = terrain_m(seed, x0, y0, size, gsd_m) / np.float32(TERRAIN[0])
-        soil_v = 0.5 + 0.35 * terr + 0.18 * value_noise(k, x0 + 0.5, y0 + 0.5, size, 90.0 / gsd_m)
+        wet = wetness(seed, year)
+        soil_v = (
+            0.5
+            + 0.3 * hills(seed, x0, y0, size, gsd_m)
+            + 0.18 * value_noise(k, x0 + 0.5, y0 + 0.5, size, 90.0 / gsd_m)
+        )
         soil_v += 0.15 * value_noise(k + 3, x0 + 0.5, y0 + 0.5, size, 320.0 / gsd_m)
         soil_v = np.clip(soil_v - 0.2 * (wet - 0.5), 0.0, 1.0)
         soil = _SOIL_DARK + (_SOIL_LIGHT - _SOIL_DARK) * soil_v[:, :, None]
@@ -187,16 +185,13 @@ class FarmlandWorld:
         detail = np.float32(min(1.0, 0.6 / gsd_m))
         tex = fractal_noise(k + 4, x0, y0, size, 1.6 / gsd_m, 2) * detail
         cover = np.clip(cover * (1.0 + 0.35 * tex), 0.0, 1.0)
-        soil = (
-            soil
-            * (1.0 + 0.07 * fractal_noise(k + 5, x0, y0, size, 0.8 / gsd_m, 2) * detail)[:, :, None]
-        )
+        soil = soil * (1.0 - 0.1 * tex)[:, :, None]
         stripes = _rows(seed, g, f, year, gsd_m, state)
         cover = np.clip(cover * (1.0 + rows_amp * stripes * 1.6), 0.0, 1.0)
         ground = (
             soil / dark[:, :, None] * (1.0 - 0.5 * rows_amp * stripes * (cover < 0.3))[:, :, None]
         )
-        tone = 1.0 + 0.16 * (field_unit(seed, f.key, year, 9) - 0.5)
+        tone = 1.0 + 0.16 * (field_unit(seed, f.key, year, 9)[f.fid] - 0.5)
         col = (plant * cover[:, :, None] + ground * (1.0 - cover[:, :, None])) * tone[:, :, None]
         lay.col = col.astype(np.float32)
         lay.code = code
@@ -243,7 +238,7 @@ class FarmlandWorld:
         lay.paint((arm * is_pivot).astype(np.float32), (200, 204, 206), 10)
         lay.paint((hub * is_pivot).astype(np.float32), GRAVEL_BGR, GRAVEL)
 
-    def _water(self, lay: Layers, g: object, f: object, date: DateLook, wet: FloatImage) -> None:
+    def _water(self, lay: Layers, g: object, f: object, date: DateLook, wet: float) -> None:
         """The creek (water, trees and grass along it) and the potholes: cattails round the
         basin, mud where the water receded, open water up to the year's level."""
         seed, x0, y0, size, gsd = self.seed, lay.x0, lay.y0, lay.size, lay.gsd_m
@@ -338,6 +333,7 @@ class FarmlandWorld:
 def _field_state(
     seed: int,
     key: npt.NDArray[np.uint64],
+    fid: npt.NDArray[np.int64],
     crop: npt.NDArray[np.int64],
     prev: npt.NDArray[np.int64],
     year: int,
@@ -346,8 +342,8 @@ def _field_state(
     """Index into ``_STATES`` of each field in this survey: the year's crop in its season
     (harvested yet, tilled, cut), in spring the residue of last year's crop."""
     s = _STATE_NAMES.index
-    u = field_unit(seed, key, year, 1 if season != "spring" else 2)
-    v = field_unit(seed, key, year, 3)
+    u = field_unit(seed, key, year, 1 if season != "spring" else 2)[fid]
+    v = field_unit(seed, key, year, 3)[fid]
     if season == "summer":
         choices = [
             crop == CORN, crop == SOY, crop == WHEAT,
@@ -392,12 +388,12 @@ def _rows(
     fade = float(np.clip(1.0 - (2.2 * gsd_m / period) ** 2, 0.0, 1.0))
     if fade == 0.0:
         return np.zeros(state.shape, np.float32)
-    east_rows = (field_unit(seed, f.key, year, 4) < 0.7) == f.along_e
+    east_rows = (field_unit(seed, f.key, year, 4)[f.fid] < 0.7) == f.along_e
     coord = np.where(
         east_rows, g.b[:, None] + 0.0 * g.a[None, :], g.a[None, :] + 0.0 * g.b[:, None]
     )
     coord = np.where(f.edge_m < _HEADLAND_M, f.edge_m, coord)
     coord = np.where(np.isfinite(f.pivot_r_m) & (f.pivot > 0.5), f.pivot_r_m, coord)
-    phase = field_unit(seed, f.key, year, 5) * period
+    phase = field_unit(seed, f.key, year, 5)[f.fid] * period
     out: FloatImage = (fade * np.sin(2.0 * math.pi * (coord + phase) / period)).astype(np.float32)
     return out

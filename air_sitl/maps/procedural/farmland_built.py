@@ -64,9 +64,15 @@ class Layers:
 
     def paint(self, cover: FloatImage, color: Color | FloatImage, code: int) -> None:
         """Blend ``color`` over the whole window with ``cover`` (0..1)."""
-        c = cover[:, :, None]
-        self.col = (self.col * (1.0 - c) + np.asarray(color, np.float32) * c).astype(np.float32)
-        self.code = np.where(cover >= 0.5, np.uint8(code), self.code)
+        where = cover > 0.0
+        if not where.any():
+            return
+        c = cover[where].astype(np.float32)[:, None]
+        paint = np.asarray(color, np.float32)
+        if paint.ndim == 3:
+            paint = paint[where]
+        self.col[where] = self.col[where] * (1.0 - c) + paint * c
+        self.code[cover >= 0.5] = np.uint8(code)
 
     def _span(self, e0: float, e1: float, n0: float, n1: float) -> tuple[slice, slice] | None:
         g = self.gsd_m

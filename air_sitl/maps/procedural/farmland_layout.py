@@ -132,61 +132,71 @@ def roads(seed: int, g: Grid, gsd_m: float) -> tuple[Floats, Floats, Floats]:
 
 
 class Fields(NamedTuple):
-    """Per pixel (rows x columns): the field it lies in and where in it."""
+    """The fields over a window: one entry per field in ``key``, ``fid`` per pixel."""
 
-    key: npt.NDArray[np.uint64]  # the field's identity (a hash)
+    key: npt.NDArray[np.uint64]  # the identity (a hash) of each field
+    fid: Ints  # per pixel (rows x columns): index of its field in ``key``
     edge_m: Floats  # distance to the field's nearest edge
     along_e: npt.NDArray[np.bool_]  # whether the field is longer east-west
     pivot: Floats  # 0..1 inside a centre pivot's circle (running or not)
     pivot_r_m: Floats  # distance from the pivot's centre (where a pivot stands)
     pasture: npt.NDArray[np.bool_]  # a quarter kept in pasture
+    running: npt.NDArray[np.bool_]  # the quarter's pivot (if any) runs this year
 
 
 def fields(seed: int, g: Grid, year: int, gsd_m: float) -> Fields:
     """The fields of every quarter in ``year``: whole, halves, forties or strips; a quarter's
     layout changes (fields split or merged) in one year of its own."""
-    qi, qj = g.qi[None, :], g.qj[:, None]
+    # Draws per quarter on the window's few quarters, then spread to the pixels.
+    uqi, ii = np.unique(g.qi, return_inverse=True)
+    uqj, jj = np.unique(g.qj, return_inverse=True)
+    qi, qj = uqi[None, :], uqj[:, None]
+
+    def spread(q: npt.NDArray[np.generic]) -> npt.NDArray[np.generic]:
+        return q[jj][:, ii]
+
     k = key_of(seed, 0xFB0)
     changed = year >= 1990 + np.floor(unit2(qi, qj, k + 1) * 60.0)
-    layout = np.floor(unit2(qi, qj, k + 2) * 5.0).astype(np.int64)
+    layout_q = np.floor(unit2(qi, qj, k + 2) * 5.0).astype(np.int64)
     later = np.floor(unit2(qi, qj, k + 3) * 5.0).astype(np.int64)
-    layout = np.where(changed, later, layout)
-    a, b = g.a[None, :] * np.ones((g.b.size, 1)), g.b[:, None] * np.ones((1, g.a.size))
+    layout_q = np.where(changed, later, layout_q)
+    kind = unit2(qi, qj, k + 5)
+    pivot_from = 1985 + np.floor(unit2(qi, qj, k + 6) * 45.0)
+    pivot_q = (kind < PIVOT_SHARE) & (year >= pivot_from)
+    pasture_q = (kind >= PIVOT_SHARE) & (kind < PIVOT_SHARE + PASTURE_SHARE)
+    # Field keys: (quarter, field index 0..3, layout); a pivot's circle is one field.
+    nq = uqj.size * uqi.size
+    f4 = np.arange(4, dtype=np.int64)
+    fk = unit2(qi[:, :, None] * 8 + f4, (qj * 8 + layout_q)[:, :, None] + 0 * f4, k + 4)
+    fk = np.where(pivot_q[:, :, None], unit2(qi, qj, k + 7)[:, :, None] + 0 * f4, fk)
+    keys = (fk.reshape(nq * 4) * 2.0**53).astype(np.uint64)
+    layout = spread(layout_q)
+    is_pivot = spread(pivot_q).astype(bool)
+    a, b = g.a[None, :], g.b[:, None]
     half = QUARTER_M / 2.0
     third = QUARTER_M / 3.0
     # Field index and its extent (a0, a1, b0, b1) by layout: 0 whole, 1 east/west halves,
     # 2 north/south halves, 3 forties, 4 three strips north-south.
-    ea, eb = a >= half, b >= half
-    strip = np.minimum(np.floor(a / third), 2.0)
-    f = np.select(
-        [layout == 1, layout == 2, layout == 3, layout == 4],
-        [ea * 1, eb * 1, ea * 1 + 2 * eb, strip.astype(np.int64)],
-        0,
-    )
-    a0 = np.select([(layout == 1) | (layout == 3), layout == 4], [ea * half, strip * third], 0.0)
-    a1 = np.select(
-        [(layout == 1) | (layout == 3), layout == 4],
-        [half + ea * half, (strip + 1) * third],
-        QUARTER_M,
-    )
-    b0 = np.where((layout == 2) | (layout == 3), eb * half, 0.0)
-    b1 = np.where((layout == 2) | (layout == 3), half + eb * half, QUARTER_M)
+    ea, eb = (a >= half) * np.ones_like(b, bool), (b >= half) * np.ones_like(a, bool)
+    strip = np.minimum(np.floor(a / third), 2.0) * np.ones_like(b)
+    by_e = (layout == 1) | (layout == 3)
+    by_n = (layout == 2) | (layout == 3)
+    f = np.where(by_e, ea, 0) + np.where(by_n, 2 * eb, 0) + np.where(layout == 4, strip, 0)
+    f = np.where(layout == 2, eb, f).astype(np.int64)
+    a0 = np.where(by_e, ea * half, np.where(layout == 4, strip * third, 0.0))
+    a1 = np.where(by_e, half + ea * half, np.where(layout == 4, (strip + 1) * third, QUARTER_M))
+    b0 = np.where(by_n, eb * half, 0.0)
+    b1 = np.where(by_n, half + eb * half, QUARTER_M)
     edge = np.minimum(np.minimum(a - a0, a1 - a), np.minimum(b - b0, b1 - b))
-    key = unit2(qi * 8 + f, qj * 8 + layout, k + 4)
-    fkey = (key * 2.0**53).astype(np.uint64)
-    kind = unit2(qi, qj, k + 5)
-    pivot_from = 1985 + np.floor(unit2(qi, qj, k + 6) * 45.0)
-    is_pivot = (kind < PIVOT_SHARE) & (year >= pivot_from)
+    fid = (jj[:, None] * uqi.size + ii[None, :]) * 4 + f
     r = np.hypot(a - half, b - half)
     pivot_r = QUARTER_M / 2.0 - 14.0
     inside = np.clip((pivot_r - r) / gsd_m + 0.5, 0.0, 1.0) * is_pivot
-    # A pivot's circle is one field (keyed by the quarter alone).
-    qkey = (unit2(qi, qj, k + 7) * 2.0**53).astype(np.uint64)
-    fkey = np.where(is_pivot, qkey, fkey)
     edge = np.where(is_pivot, np.abs(pivot_r - r), edge)
-    pasture = (kind >= PIVOT_SHARE) & (kind < PIVOT_SHARE + PASTURE_SHARE)
     along = np.where(is_pivot, True, (a1 - a0) >= (b1 - b0))
-    return Fields(fkey, edge, along, inside, np.where(is_pivot, r, np.inf), pasture)
+    pasture = spread(pasture_q).astype(bool)
+    running = spread(pivot_running(seed, qi, qj, year)).astype(bool)
+    return Fields(keys, fid, edge, along, inside, np.where(is_pivot, r, np.inf), pasture, running)
 
 
 def crop_in(seed: int, field_key: npt.NDArray[np.uint64], year: int) -> Ints:
@@ -211,23 +221,17 @@ def pivot_running(seed: int, qi: Ints, qj: Ints, year: int) -> npt.NDArray[np.bo
     return out
 
 
-def wetness(seed: int, year: int, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
+def wetness(seed: int, year: int) -> float:
     """How wet ``year`` left the ground (0 drought .. 1 flooded): the year's weather over the
-    region (one draw per year) and its variation over tens of kilometres."""
-    base = 0.15 + 0.7 * unit_of(seed, 0xFD0, year)
-    local = value_noise(key_of(seed, 0xFD1, year), x0 + 0.5, y0 + 0.5, size, 20000.0 / gsd_m)
-    out: FloatImage = np.clip(base + 0.12 * local, 0.0, 1.0).astype(np.float32)
-    return out
+    region, one draw per year (potholes fill to their level, the creek widens)."""
+    return 0.15 + 0.7 * unit_of(seed, 0xFD0, year)
 
 
-def terrain_m(seed: int, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
-    """The bare terrain's noise (metres about zero) the built-in surface raises: rolling
-    loess hills, 8 m over 1.5 km (shared with ``surface.TERRAIN``)."""
-    from air_sitl.maps.procedural.noise import fractal_noise
-
-    amp, cell_m, octaves = TERRAIN
-    noise = fractal_noise(key_of(seed, 0x7E44), x0, y0, size, cell_m / gsd_m, octaves)
-    out: FloatImage = (amp * noise).astype(np.float32)
+def hills(seed: int, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
+    """The broadest octave of the bare terrain the built-in surface raises (about -1 on the
+    valley floors .. 1 on the hilltops): where the soil is eroded light."""
+    _amp, cell_m, _octaves = TERRAIN
+    out: FloatImage = value_noise(key_of(seed, 0x7E44), x0, y0, size, cell_m / gsd_m)
     return out
 
 
@@ -275,11 +279,10 @@ def pothole(seed: int, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
     return out
 
 
-def water_level(wet: FloatImage) -> FloatImage:
+def water_level(wet: float) -> float:
     """Pothole depth index above which a basin holds open water in a year this wet (a dry
     year: only the deepest middles, or none)."""
-    out: FloatImage = (1.55 - 1.4 * wet).astype(np.float32)
-    return out
+    return 1.55 - 1.4 * wet
 
 
 def year_of(label: str) -> int:
