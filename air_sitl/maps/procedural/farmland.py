@@ -89,8 +89,8 @@ _STATES: dict[str, tuple[tuple[float, float, float], float, float, float, float,
     "fallow": ((86, 128, 124), 0.45, 0.05, 1.0, 0.2, FALLOW),
 }
 _STATE_NAMES = tuple(_STATES)
-_SOIL_LIGHT = np.array((116, 140, 162), np.float32)  # eroded hilltops, dry (BGR)
-_SOIL_DARK = np.array((50, 64, 82), np.float32)  # black loam
+_SOIL_LIGHT = np.array((118, 136, 150), np.float32)  # eroded hilltops, dry (BGR)
+_SOIL_DARK = np.array((54, 64, 76), np.float32)  # black loam
 _WATER = np.array((70, 62, 42), np.float32)
 _MUD = np.array((100, 118, 128), np.float32)
 _CATTAIL = {"summer": (46, 96, 64), "autumn": (80, 118, 134), "spring": (84, 108, 118)}
@@ -162,12 +162,9 @@ class FarmlandWorld:
         # Soil: light on the eroded hilltops, darker in swales and in a wet year.
         k = key_of(seed, 0xF10)
         wet = wetness(seed, year)
-        soil_v = (
-            0.5
-            + 0.3 * hills(seed, x0, y0, size, gsd_m)
-            + 0.18 * value_noise(k, x0 + 0.5, y0 + 0.5, size, 90.0 / gsd_m)
-        )
-        soil_v += 0.15 * value_noise(k + 3, x0 + 0.5, y0 + 0.5, size, 320.0 / gsd_m)
+        soil_v = 0.45 + 0.15 * hills(seed, x0, y0, size, gsd_m)
+        soil_v += 0.1 * value_noise(k, x0 + 0.5, y0 + 0.5, size, 90.0 / gsd_m)
+        soil_v += 0.1 * value_noise(k + 3, x0 + 0.5, y0 + 0.5, size, 320.0 / gsd_m)
         soil_v = np.clip(soil_v - 0.2 * (wet - 0.5), 0.0, 1.0)
         soil = _SOIL_DARK + (_SOIL_LIGHT - _SOIL_DARK) * soil_v[:, :, None]
         table = list(_STATES.values())
@@ -184,8 +181,8 @@ class FarmlandWorld:
         # Plants and clods at 0.5-3 m: the grain of a field on 0.6 m imagery.
         detail = np.float32(min(1.0, 0.6 / gsd_m))
         tex = fractal_noise(k + 4, x0, y0, size, 1.6 / gsd_m, 2) * detail
-        cover = np.clip(cover * (1.0 + 0.35 * tex), 0.0, 1.0)
-        soil = soil * (1.0 - 0.1 * tex)[:, :, None]
+        cover = np.clip(cover * (1.0 + 0.12 * tex), 0.0, 1.0)
+        soil = soil * (1.0 - 0.05 * tex)[:, :, None]
         stripes = _rows(seed, g, f, year, gsd_m, state)
         cover = np.clip(cover * (1.0 + rows_amp * stripes * 1.6), 0.0, 1.0)
         ground = (
