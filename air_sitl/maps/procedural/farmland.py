@@ -43,6 +43,8 @@ from air_sitl.maps.procedural.farmland_layout import (
     QUARTER_M,
     SOY,
     WHEAT,
+    Fields,
+    Grid,
     band,
     creek_distance_m,
     crop_in,
@@ -194,7 +196,7 @@ class FarmlandWorld:
         lay.code = code
         lay.height = (height * (cover > 0.3)).astype(np.float32)
         self._pivots(lay, g, f, date)
-        self._water(lay, g, f, date, wet)
+        self._water(lay, date, wet)
         gravel, paved, ditch = roads(seed, g, gsd_m)
         lay.paint(ditch.astype(np.float32), _DITCH[season], GRASS)
         lay.height *= (1.0 - ditch).astype(np.float32)
@@ -207,11 +209,8 @@ class FarmlandWorld:
         self._canopy(lay, date)
         return lay
 
-    def _pivots(self, lay: Layers, g: object, f: object, date: DateLook) -> None:
+    def _pivots(self, lay: Layers, g: Grid, f: Fields, date: DateLook) -> None:
         """Corners of pivot quarters in grass, wheel tracks, the arm where it stopped."""
-        from air_sitl.maps.procedural.farmland_layout import Fields, Grid
-
-        assert isinstance(g, Grid) and isinstance(f, Fields)
         is_pivot = np.isfinite(f.pivot_r_m)
         if not is_pivot.any():
             return
@@ -235,7 +234,7 @@ class FarmlandWorld:
         lay.paint((arm * is_pivot).astype(np.float32), (200, 204, 206), 10)
         lay.paint((hub * is_pivot).astype(np.float32), GRAVEL_BGR, GRAVEL)
 
-    def _water(self, lay: Layers, g: object, f: object, date: DateLook, wet: float) -> None:
+    def _water(self, lay: Layers, date: DateLook, wet: float) -> None:
         """The creek (water, trees and grass along it) and the potholes: cattails round the
         basin, mud where the water receded, open water up to the year's level."""
         seed, x0, y0, size, gsd = self.seed, lay.x0, lay.y0, lay.size, lay.gsd_m
@@ -275,11 +274,8 @@ class FarmlandWorld:
         )
         lay.trees *= (1.0 - bank).astype(np.float32)
 
-    def _markings(self, lay: Layers, g: object, gsd: float) -> None:
+    def _markings(self, lay: Layers, g: Grid, gsd: float) -> None:
         """The highway's yellow centre line (dashed) and white edge lines."""
-        from air_sitl.maps.procedural.farmland_layout import Grid
-
-        assert isinstance(g, Grid)
         hwy = is_highway(self.seed, g.line_i)
         if not hwy.any():
             return
@@ -342,45 +338,36 @@ def _field_state(
     u = field_unit(seed, key, year, 1 if season != "spring" else 2)[fid]
     v = field_unit(seed, key, year, 3)[fid]
     if season == "summer":
-        choices = [
-            crop == CORN, crop == SOY, crop == WHEAT,
-            (crop == ALFALFA) & (u < 0.35), crop == ALFALFA,
+        pairs = [
+            (crop == CORN, "corn_june"), (crop == SOY, "soy_june"), (crop == WHEAT, "wheat_ripe"),
+            ((crop == ALFALFA) & (u < 0.35), "alfalfa_cut"), (crop == ALFALFA, "alfalfa"),
         ]  # fmt: skip
-        names = ["corn_june", "soy_june", "wheat_ripe", "alfalfa_cut", "alfalfa"]
-        return np.select(choices, [s(n) for n in names], s("grass"))
-    if season == "autumn":
+        default = "grass"
+    elif season == "autumn":
         harvested = ((crop == CORN) & (u < 0.45)) | ((crop == SOY) & (u < 0.75))
-        choices = [
-            harvested & (v < 0.25), (crop == CORN) & harvested, crop == CORN,
-            (crop == SOY) & harvested, crop == SOY, (crop == WHEAT) & (v < 0.4),
-            crop == WHEAT, crop == ALFALFA,
+        pairs = [
+            (harvested & (v < 0.25), "tilled"), ((crop == CORN) & harvested, "corn_residue"),
+            (crop == CORN, "corn_dry"), ((crop == SOY) & harvested, "soy_residue"),
+            (crop == SOY, "soy_dry"), ((crop == WHEAT) & (v < 0.4), "tilled"),
+            (crop == WHEAT, "wheat_stubble"), (crop == ALFALFA, "alfalfa"),
         ]  # fmt: skip
-        names = [
-            "tilled", "corn_residue", "corn_dry", "soy_residue", "soy_dry", "tilled",
-            "wheat_stubble", "alfalfa",
+        default = "grass_dry"
+    else:  # spring: wheat, alfalfa and grass green; last year's residue, tilled or planted
+        pairs = [
+            (crop == WHEAT, "wheat_green"), (crop == ALFALFA, "alfalfa"),
+            (crop == GRASS, "grass_spring"), (u < 0.3, "tilled"), (u < 0.42, "planted"),
+            (prev == CORN, "corn_residue"), (prev == SOY, "soy_residue"),
+            (prev == WHEAT, "wheat_stubble"),
         ]  # fmt: skip
-        return np.select(choices, [s(n) for n in names], s("grass_dry"))
-    # Spring: winter wheat, alfalfa and grass are green; the rest shows last year's residue,
-    # tilled or just planted.
-    choices = [
-        crop == WHEAT, crop == ALFALFA, crop == GRASS, u < 0.3, u < 0.42,
-        prev == CORN, prev == SOY, prev == WHEAT,
-    ]  # fmt: skip
-    names = [
-        "wheat_green", "alfalfa", "grass_spring", "tilled", "planted", "corn_residue",
-        "soy_residue", "wheat_stubble",
-    ]  # fmt: skip
-    return np.select(choices, [s(n) for n in names], s("grass_spring"))
+        default = "grass_spring"
+    return np.select([c for c, _ in pairs], [s(n) for _, n in pairs], s(default))
 
 
 def _rows(
-    seed: int, g: object, f: object, year: int, gsd_m: float, state: npt.NDArray[np.int64]
+    seed: int, g: Grid, f: Fields, year: int, gsd_m: float, state: npt.NDArray[np.int64]
 ) -> FloatImage:
     """Row stripes (-1..1) of each field: across the field in the year's direction, along
     the field's edges in the headlands, in circles on pivots."""
-    from air_sitl.maps.procedural.farmland_layout import Fields, Grid
-
-    assert isinstance(g, Grid) and isinstance(f, Fields)
     period = _ROW_PERIOD_M
     fade = float(np.clip(1.0 - (2.2 * gsd_m / period) ** 2, 0.0, 1.0))
     if fade == 0.0:
