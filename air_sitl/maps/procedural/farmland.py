@@ -300,12 +300,13 @@ class FarmlandWorld:
             np.array(_LEAVES[season], np.float32),
         )
         if gsd <= CANOPY_MAX_GSD_M:
-            blob = value_noise(k, x0 + 0.5, y0 + 0.5, size, 4.5 / gsd)
+            blob = value_noise(k, x0 + 0.5, y0 + 0.5, size, 3.5 / gsd)
             blob += 0.5 * value_noise(k + 1, x0 + 0.5, y0 + 0.5, size, 2.0 / gsd)
             wanted = lay.trees * (1.0 + 0.45 * blob)
-            present = np.clip((wanted - 0.5) / 0.12, 0.0, 1.0)
+            present = np.clip((wanted - 0.4) / 0.12, 0.0, 1.0)
             # Crowns as domes: the height rises over a few metres from the crown's rim.
-            h = lay.tree_h * np.sqrt(np.clip((wanted - 0.44) / 0.5, 0.0, 1.0))
+            rim = np.sqrt(np.clip((wanted - 0.34) / 0.3, 0.0, 1.0))
+            h = lay.tree_h * np.clip(0.82 + 0.12 * blob, 0.5, 1.0) * rim
             grad = np.gradient(h.astype(np.float32), gsd)
             sun_e, sun_n = date.sun_dir()
             lit = np.clip(1.0 + 0.25 * (grad[1] * sun_e - grad[0] * sun_n), 0.6, 1.4)

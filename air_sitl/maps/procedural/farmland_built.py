@@ -374,7 +374,7 @@ def _homes(
 ) -> None:  # fmt: skip
     inner = BLOCK_M - 2 * STREET_HALF_M
     lay.box(
-        e0, e0 + inner, n0, n0 + inner, (0, 0, 0), TREES, 0.0, (0.55, float(rng.uniform(9, 15)))
+        e0, e0 + inner, n0, n0 + inner, (0, 0, 0), TREES, 0.0, (0.45, float(rng.uniform(9, 15)))
     )
     n_lots = int(rng.integers(4, 7))
     w = inner / n_lots
