@@ -40,7 +40,7 @@ class FlightSetup:
 
     mission: Mission
     home: GeoPoint
-    name: str  # scenario name: archive names, the default map (U* urban, F* forest)
+    name: str  # scenario name: archive names, the default map (U* urban, F* forest, A* farmland)
     options: FlightOptions = field(default_factory=FlightOptions)
     plan: Path | None = None
     camera: CameraModel | None = None

@@ -46,7 +46,8 @@ class FlightOptions:
 
 @dataclass(frozen=True, slots=True, kw_only=True)
 class MapChoice:
-    """Which map the camera sees: ``spec`` is urban, forest or GeoTIFF path(s); None = by name."""
+    """Which map the camera sees: ``spec`` is urban, forest, farmland or GeoTIFF path(s);
+    None = by name."""
 
     spec: str | None = None
     seed: int = 0

@@ -111,7 +111,8 @@ def bench_scenario(scenario: str, out: Path) -> None:
 
 def bench_all(jobs: int, out: Path) -> None:
     """Part 2: all 12 scenarios with ``air-sitl dataset -j JOBS``."""
-    cmd = [sys.executable, "-m", "air_sitl", "dataset", "-j", str(jobs), "--out", str(out)]
+    cmd = [sys.executable, "-m", "air_sitl", "dataset", "--scenarios", "air", "-j", str(jobs)]
+    cmd += ["--out", str(out)]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)

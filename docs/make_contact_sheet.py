@@ -1,10 +1,10 @@
-"""Contact sheet of the procedural maps: forest and urban on their three dates at 100 to 3000 m.
+"""Contact sheet of the procedural maps: forest, urban and farmland, three dates, 100 to 3000 m.
 
 Run from the repository: ``.venv/bin/python docs/make_contact_sheet.py`` writes
 ``docs/procedural_contact_sheet.png`` (rows: map and date; columns: height above the
 ground). Frames are the camera's own (640 x 480, 57 degree HFOV, nadir, no noise), rendered
 with the built-in surface (``--dem builtin``): what ``air-sitl render --dem builtin`` shows.
-``--frames DIR`` also keeps every frame as a PNG. About 2 minutes on one core.
+``--frames DIR`` also keeps every frame as a PNG. About 3 minutes on one core.
 """
 
 from __future__ import annotations
@@ -28,9 +28,11 @@ HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
 CENTRES = {
     "forest": HOME,
     "urban": GeoPoint(lat_deg=54.696871, lon_deg=25.242495, alt_amsl_m=120.0),
+    # The farmland scenarios' home (York, Nebraska): quarter sections, a pivot, a farmstead.
+    "farmland": GeoPoint(lat_deg=40.8968, lon_deg=-97.6227, alt_amsl_m=509.0),
 }
 ALTITUDES_M = (100.0, 200.0, 300.0, 3000.0)
-ROWS = tuple((kind, date) for kind in ("forest", "urban") for date in (0, 1, 2))
+ROWS = tuple((kind, date) for kind in ("forest", "urban", "farmland") for date in (0, 1, 2))
 CELL = (400, 300)  # width, height of one frame on the sheet
 LABEL_W, HEAD_H = 150, 34
 

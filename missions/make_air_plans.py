@@ -1,4 +1,5 @@
-"""Generate the 12 AIR scenario plans (``missions/*.plan``) and their README table.
+"""Generate the scenario plans (``missions/*.plan``) and their README table: AIR's 12 and
+our 6 over farmland (map letter A, with the figures of their urban counterparts).
 
 Usage: python missions/make_air_plans.py [--out DIR] [--table]
 
@@ -22,7 +23,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from air_sitl.dataset.scenarios import PAPER_TABLE
+from air_sitl.dataset.scenarios import SCENARIO_TABLE
 from air_sitl.frames import GRAVITY_M_S2, ned2geodetic
 from air_sitl.mission.items import MavCmd, MavFrame, Mission, MissionItem
 from air_sitl.mission.plan_file import write_plan
@@ -56,6 +57,12 @@ SITES = {
         GeoPoint(lat_deg=29.1790, lon_deg=-81.7400, alt_amsl_m=20.0),
         90.0,
     ),
+    "A": Site(
+        "York County, Nebraska, USA: home at York Municipal Airport (KJYR); legs run north "
+        "over centre-pivot and dryland quarter sections on the one-mile survey grid",
+        GeoPoint(lat_deg=40.8968, lon_deg=-97.6227, alt_amsl_m=509.0),
+        0.0,
+    ),
     "U": Site(
         "Sacramento, California, USA: home at Sacramento Executive Airport (KSAC); legs run "
         "north over the Land Park, Curtis Park and Oak Park neighbourhoods toward downtown",
@@ -64,7 +71,7 @@ SITES = {
     ),
 }
 
-PAPER = PAPER_TABLE  # scenario -> (images at 50 Hz, distance of the captured part in m)
+PAPER = SCENARIO_TABLE  # scenario -> (images at 50 Hz, distance of the captured part in m)
 
 
 @dataclass(frozen=True, slots=True)
@@ -238,7 +245,7 @@ def table(scenarios: list[Scenario]) -> str:
 
 
 def main(out: Path, print_table: bool) -> int:
-    """Write the 12 plans into ``out``; print the README table when asked."""
+    """Write the 18 plans into ``out``; print the README table when asked."""
     out.mkdir(parents=True, exist_ok=True)
     scenarios = [build(name) for name in PAPER]
     for sc in scenarios:

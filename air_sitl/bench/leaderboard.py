@@ -41,6 +41,9 @@ SCENARIO_CLASSES = {
     "FL": "forest line",
     "FR": "forest rectangle",
     "FC": "forest circle",
+    "AL": "farmland line",
+    "AR": "farmland rectangle",
+    "AC": "farmland circle",
 }
 
 

@@ -23,9 +23,9 @@ def add_map_arguments(parser: argparse.ArgumentParser) -> None:
         "--map",
         default=None,
         metavar="MAP",
-        help="urban, forest (procedural) or a GeoTIFF path; several GeoTIFFs of one area as "
-        "dates: a.tif,b.tif, or a folder of dated GeoTIFFs (map fetch's) in date order. "
-        "Default: urban for plans named U*, forest for F*, else urban",
+        help="urban, forest, farmland (procedural) or a GeoTIFF path; several GeoTIFFs of one "
+        "area as dates: a.tif,b.tif, or a folder of dated GeoTIFFs (map fetch's) in date order. "
+        "Default: urban for plans named U*, forest for F*, farmland for A*, else urban",
     )
     group.add_argument(
         "--map-seed", type=int, default=0, metavar="N", help="seed of a procedural map (default 0)"

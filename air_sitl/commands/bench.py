@@ -22,7 +22,7 @@ from air_sitl.options import int_in_range, positive_number
 if TYPE_CHECKING:
     from air_sitl.bench import BenchConfig
 
-HELP = "rank localization methods over the AIR scenarios: leaderboard, box plots"
+HELP = "rank localization methods over the scenarios (AIR's and farmland): leaderboard, box plots"
 
 # What --help shows without loading the methods and the bench (numpy, OpenCV, zenoh, JSBSim);
 # tests/test_cli_startup.py keeps them equal to air_sitl.localize.METHODS, eval's ALIGNMENTS
@@ -36,7 +36,10 @@ REFERENCE_DATE = 0
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``bench``."""
     parser.add_argument(
-        "--scenarios", default="all", help="'all' (default) or names such as UL-200,UC-300"
+        "--scenarios",
+        default="all",
+        help="'all' (default: AIR's 12 and the 6 farmland ones), 'air', 'farmland' or names "
+        "such as UL-200,UC-300,AC-200",
     )
     parser.add_argument(
         "--methods",

@@ -1,4 +1,7 @@
-"""``air-sitl dataset``: fly AIR's scenarios from ``missions/`` into ``ROOT/<scenario>/``.
+"""``air-sitl dataset``: fly the scenarios from ``missions/`` into ``ROOT/<scenario>/``.
+
+``--scenarios all`` flies AIR's 12 and the 6 farmland ones (``air`` or ``farmland`` alone);
+the table compares AIR's rows with the paper, the farmland rows follow with their own total.
 
 Each scenario is one ``fly`` recording (camera, dataset writer, manifest). ``-j N`` runs N
 scenarios at once in separate processes. Says first how much disk the recordings will take
@@ -27,13 +30,16 @@ from air_sitl.options import MapChoice, add_flight_arguments, flight_options_fro
 if TYPE_CHECKING:  # the flights' modules load when they fly, not for --help
     from air_sitl.recording.batch import Job
 
-HELP = "fly the AIR scenarios (all 12 or a list) into ROOT/<scenario>/ and print the AIR table"
+HELP = "fly the scenarios (AIR's 12 and farmland's 6, or a list) into ROOT/<scenario>/: AIR table"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Arguments of ``dataset``."""
     parser.add_argument(
-        "--scenarios", default="all", help="'all' (default) or names such as FL-200,UC-300"
+        "--scenarios",
+        default="all",
+        help="'all' (default: AIR's 12 and the 6 farmland ones), 'air', 'farmland' or names "
+        "such as FL-200,UC-300,AC-200",
     )
     parser.add_argument("--out", default="out/air", metavar="ROOT", help="default out/air")
     parser.add_argument(
@@ -42,6 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--missions", default=None, metavar="DIR", help="folder of the plans")
     parser.add_argument("--map-urban", default=None, metavar="PATH", help="GeoTIFF for U*")
     parser.add_argument("--map-forest", default=None, metavar="PATH", help="GeoTIFF for F*")
+    parser.add_argument("--map-farmland", default=None, metavar="PATH", help="GeoTIFF for A*")
     parser.add_argument(
         "--map",
         default=None,
@@ -92,7 +99,7 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
     dates: list[str | None] = [None]
     if args.dates:
         dates = [d.strip() for d in args.dates.split(",") if d.strip()] or [None]
-    for path in (args.map_urban, args.map_forest):
+    for path in (args.map_urban, args.map_forest, args.map_farmland):
         if path and not Path(path).is_file():
             msg = f"{path}: no such GeoTIFF"
             raise OptionError(msg)
@@ -107,6 +114,8 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
             spec = args.map_urban
         elif scenario.upper().startswith("F") and args.map_forest:
             spec = args.map_forest
+        elif scenario.upper().startswith("A") and args.map_farmland:
+            spec = args.map_farmland
         setup = load_setup(
             folder / f"{scenario}.plan",
             options,
@@ -142,14 +151,19 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
 
 def run(args: argparse.Namespace) -> int:
     """Fly every job; exit 0 when all completed, 1 when a mission did not, 2 on errors."""
-    from air_sitl.dataset.scenarios import PAPER_TABLE, ScenarioStats, format_table, stats_table
+    from air_sitl.dataset.scenarios import (
+        ScenarioStats,
+        expected_images,
+        format_table,
+        stats_table,
+    )
     from air_sitl.files import require_writable_folder, write_bytes_atomic
     from air_sitl.progress import JobsProgress
     from air_sitl.recording.batch import Outcome, run_jobs
 
     jobs = build_jobs(args)
     root = Path(args.out)
-    expected = {j.name: PAPER_TABLE.get(j.setup.name.upper(), (0, 0))[0] for j in jobs}
+    expected = {j.name: expected_images(j.setup.name) for j in jobs}
     # A read-only disk, then too little room: refused before anything flies or is made.
     require_writable_folder(root, "output folder", create=False)
     already = check_disk(jobs, expected, root, args)
@@ -225,7 +239,7 @@ def check_disk(
     jobs: list[Job], expected: dict[str, int], root: Path, args: argparse.Namespace
 ) -> dict[str, int]:
     """Say how much the recordings will write; DatasetError when ROOT's file system has less
-    free space (unless ``--ignore-free-space``). Estimated from the paper's frame counts and the
+    free space (unless ``--ignore-free-space``). Estimated from the planned frame counts and the
     JPEG quality (:mod:`air_sitl.dataset.size`); a resumed folder counts only what is missing,
     a complete one nothing. Returns the frames of the complete ones (``--resume``)."""
     from air_sitl.dataset.size import (

@@ -18,7 +18,7 @@ from pathlib import Path
 from air_sitl.errors import OptionError
 from air_sitl.state import GeoPoint
 
-HELP = "make map files (map make {urban,forest} --out FILE.tif)"
+HELP = "make map files (map make {urban,forest,farmland} --out FILE.tif)"
 
 DEFAULT_ORIGIN = (54.6872, 25.2797)  # Vilnius, where AIR was made
 
@@ -31,7 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="write a procedural map as a georeferenced Cloud-Optimized GeoTIFF",
         description="write a procedural map as a georeferenced Cloud-Optimized GeoTIFF",
     )
-    make.add_argument("kind", choices=("urban", "forest"), help="procedural map")
+    make.add_argument("kind", choices=("urban", "forest", "farmland"), help="procedural map")
     make.add_argument("--out", required=True, metavar="FILE.tif", help="output GeoTIFF")
     make.add_argument("--seed", type=int, default=0, help="map seed (default 0)")
     make.add_argument(

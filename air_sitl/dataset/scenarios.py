@@ -1,4 +1,12 @@
-"""The 12 AIR scenarios: the paper's Table 2, where their plans live, the stats table."""
+"""The scenarios: AIR's 12 (the paper's Table 2) and our 6 over farmland, where their plans
+live, the stats table.
+
+``--scenarios all`` is all 18: AIR's 12 and the farmland ones; ``air`` names AIR's 12 alone,
+``farmland`` the 6 farmland ones (groups and names mix in a comma list). The stats table
+compares only AIR's rows with the paper: its ``total`` row sums AIR's rows (as when AIR's 12
+alone are flown), the farmland rows follow with their own ``total farmland`` row and no paper
+figures (the paper has no farmland).
+"""
 
 from __future__ import annotations
 
@@ -24,7 +32,20 @@ PAPER_TABLE: dict[str, tuple[int, int]] = {
     "UC-200": (3422, 1016),
     "UC-300": (3272, 970),
 }
-ALL_SCENARIOS: tuple[str, ...] = tuple(PAPER_TABLE)
+AIR_SCENARIOS: tuple[str, ...] = tuple(PAPER_TABLE)
+# Ours: AIR's shapes and heights (map letter A, agricultural) over the ``farmland`` map, each
+# with the figures (images at 50 Hz, captured distance) of its urban counterpart.
+FARMLAND_TABLE: dict[str, tuple[int, int]] = {
+    "A" + name[1:]: figures for name, figures in PAPER_TABLE.items() if name[0] == "U"
+}
+FARMLAND_SCENARIOS: tuple[str, ...] = tuple(FARMLAND_TABLE)
+SCENARIO_TABLE: dict[str, tuple[int, int]] = {**PAPER_TABLE, **FARMLAND_TABLE}  # planned
+ALL_SCENARIOS: tuple[str, ...] = AIR_SCENARIOS + FARMLAND_SCENARIOS
+GROUPS: dict[str, tuple[str, ...]] = {
+    "all": ALL_SCENARIOS,
+    "air": AIR_SCENARIOS,
+    "farmland": FARMLAND_SCENARIOS,
+}
 
 STATS_COLUMNS = (
     "scenario",
@@ -60,12 +81,19 @@ def missions_dir(explicit: str | None = None) -> Path:
 
 
 def parse_scenarios(text: str, folder: Path) -> list[str]:
-    """``all`` or a comma list of names; each must have ``<name>.plan`` in ``folder``."""
-    names = list(ALL_SCENARIOS) if text.strip().lower() == "all" else []
+    """A comma list of names and groups (``all``, ``air``, ``farmland``); each name must
+    have ``<name>.plan`` in ``folder``."""
+    names: list[str] = []
+    for part in (p.strip() for p in text.split(",")):
+        if part.lower() in GROUPS:
+            names += GROUPS[part.lower()]
+        elif part:
+            names.append(part.upper())
     if not names:
-        names = [n.strip().upper() for n in text.split(",") if n.strip()]
-    if not names:
-        msg = f"--scenarios {text!r}: expected 'all' or names such as FL-200,UC-300"
+        msg = (
+            f"--scenarios {text!r}: expected 'all', 'air', 'farmland' or names such as "
+            "FL-200,UC-300,AC-200"
+        )
         raise OptionError(msg)
     available = sorted(p.stem for p in folder.glob("*.plan"))
     by_upper = {n.upper(): n for n in available}
@@ -109,30 +137,45 @@ class ScenarioStats:
         ]
 
 
+def expected_images(scenario: str) -> int:
+    """The planned frames of a scenario (``FL-200`` or ``FL-200@1``; 0 when unknown)."""
+    return SCENARIO_TABLE.get(scenario.split("@", maxsplit=1)[0].upper(), (0, 0))[0]
+
+
 def stats_table(stats: Sequence[ScenarioStats]) -> list[list[str]]:
-    """Rows for stats.csv (header, one per scenario, then the total)."""
+    """Rows for stats.csv: the header, AIR's scenarios and their ``total`` beside the paper's
+    figures, then any other scenarios (farmland) and their ``total farmland``."""
+    air = [s for s in stats if s.scenario.split("@")[0].upper() in PAPER_TABLE]
+    other = [s for s in stats if s not in air]
     rows = [list(STATS_COLUMNS)]
-    rows += [s.row() for s in stats]
+    if air:
+        rows += [s.row() for s in air]
+        rows.append(_total("total", air))
+    if other:
+        rows += [s.row() for s in other]
+        rows.append(_total("total farmland", other))
+    return rows
+
+
+def _total(label: str, stats: Sequence[ScenarioStats]) -> list[str]:
+    """The total row of ``stats`` (with the paper's figures when it has them all)."""
     images = sum(s.images for s in stats)
     dist = sum(s.distance_m for s in stats)
     papers = [PAPER_TABLE.get(s.scenario.split("@")[0].upper()) for s in stats]
     known = [p for p in papers if p is not None]
     p_img = sum(p[0] for p in known) if len(known) == len(stats) else None
     p_dist = sum(p[1] for p in known) if len(known) == len(stats) else None
-    rows.append(
-        [
-            "total",
-            str(images),
-            f"{dist:.1f}",
-            "" if p_img is None else str(p_img),
-            "" if p_dist is None else str(p_dist),
-            "" if not p_img else f"{images / p_img:.3f}",
-            "" if not p_dist else f"{dist / p_dist:.3f}",
-            str(all(s.mission_completed for s in stats)).lower(),
-            f"{sum(s.sim_time_s for s in stats):.1f}",
-        ]
-    )
-    return rows
+    return [
+        label,
+        str(images),
+        f"{dist:.1f}",
+        "" if p_img is None else str(p_img),
+        "" if p_dist is None else str(p_dist),
+        "" if not p_img else f"{images / p_img:.3f}",
+        "" if not p_dist else f"{dist / p_dist:.3f}",
+        str(all(s.mission_completed for s in stats)).lower(),
+        f"{sum(s.sim_time_s for s in stats):.1f}",
+    ]
 
 
 def format_table(rows: Sequence[Sequence[str]]) -> str:

@@ -36,6 +36,7 @@ from air_sitl.localize.mapmatch_filter import (
 )
 from air_sitl.maps import open_map
 from air_sitl.maps.base import MapSource
+from air_sitl.maps.procedural import KINDS
 from air_sitl.state import GeoPoint, Quat
 
 DEFAULT_REFERENCE_DATE = 0
@@ -59,7 +60,7 @@ def open_reference(context: LocalizerContext) -> MapSource:
         spec = str(info["spec"])  # the flight's GeoTIFF dates (a list or a folder)
     if spec is None:
         kind = info.get("kind") or context.map_name
-        if info.get("source", "procedural") != "procedural" or kind not in ("urban", "forest"):
+        if info.get("source", "procedural") != "procedural" or kind not in KINDS:
             msg = (
                 f"mapmatch: the flight's map ({info.get('source') or context.map_name}) is not a "
                 "procedural one: give the reference map (--reference-map FILE.tif[,...])"

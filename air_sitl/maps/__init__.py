@@ -1,4 +1,5 @@
-"""Map sources: GeoTIFF/COG files and procedural ``urban``/``forest`` worlds, by pyramid level."""
+"""Map sources: GeoTIFF/COG files and procedural ``urban``/``forest``/``farmland`` worlds,
+by pyramid level."""
 
 from __future__ import annotations
 

@@ -12,7 +12,8 @@ from air_sitl.state import GeoPoint
 
 
 def open_chosen_map(choice: MapChoice, home: GeoPoint, plan_name: str = "") -> MapSource:
-    """The MapSource ``choice`` names (default from the plan name: U* urban, F* forest)."""
+    """The MapSource ``choice`` names (default from the plan name: U* urban, F* forest,
+    A* farmland)."""
     spec = choice.spec or default_map_for_plan(plan_name)
     return open_map(spec, home, seed=choice.seed, date=choice.date)
 

@@ -1,4 +1,5 @@
-"""Open a map from a ``--map`` value: ``urban``, ``forest``, GeoTIFF path(s) or a folder as dates.
+"""Open a map from a ``--map`` value: ``urban``, ``forest``, ``farmland``, GeoTIFF path(s) or a
+folder of dated GeoTIFFs.
 
 GeoTIFF dates: ``--map a.tif,b.tif,c.tif`` lists the files of one area (date 0, 1, 2) and
 ``--map DIR`` takes every dated GeoTIFF of a folder (its TIFFTAG_DATETIME or ACQUISITION_DATE,
@@ -28,9 +29,10 @@ _TIFF_SUFFIXES = (".tif", ".tiff", ".gtiff")
 
 
 def default_map_for_plan(plan_name: str) -> str:
-    """AIR's naming: plans starting with U fly over ``urban``, F over ``forest``."""
+    """AIR's naming: plans starting with U fly over ``urban``, F over ``forest``; ours
+    starting with A (agricultural) over ``farmland``."""
     name = Path(plan_name).name.strip().upper()
-    return "forest" if name.startswith("F") else "urban"
+    return "forest" if name.startswith("F") else "farmland" if name.startswith("A") else "urban"
 
 
 def _looks_like_path(text: str) -> bool:

@@ -5,7 +5,7 @@ The lines are read from README.md itself (the code block under "## A tour") and 
 and ``examples/``, as in a fresh clone. Two lines are changed, because as written they take
 minutes or never end:
 
-- ``sweep examples/air_sweep_small.yaml`` (24 runs, about 8 minutes) runs a SPEC made from that
+- ``sweep examples/air_sweep_small.yaml`` (36 runs, about 12 minutes) runs a SPEC made from that
   file with every axis cut to its first value and 45 simulated seconds (12 s of capture): one run;
 - ``serve`` (runs until Ctrl-C) gets ``--max-sim-time 5``, a link on a port the kernel picks
   (``--mavlink udpin:127.0.0.1:0``) instead of sending to QGroundControl's and MAVSDK's ports,

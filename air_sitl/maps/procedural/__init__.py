@@ -1,4 +1,5 @@
-"""Built-in procedural maps (``urban``, ``forest``): unbounded, deterministic, several dates.
+"""Built-in procedural maps (``urban``, ``forest``, ``farmland``): unbounded, deterministic,
+several dates.
 
 The world is a function of absolute UTM coordinates (zone of home), seed and date, so two
 flights with different homes in one area see the same ground, and ``map make`` writes the same
@@ -27,13 +28,14 @@ from air_sitl.maps.base import (
     map_error,
 )
 from air_sitl.maps.procedural.canvas import DATES, DateLook
+from air_sitl.maps.procedural.farmland import FarmlandWorld
 from air_sitl.maps.procedural.forest import ForestWorld
 from air_sitl.maps.procedural.survey import acquire, displacement_m
 from air_sitl.maps.procedural.urban import UrbanWorld
 from air_sitl.maps.utm import latlon2utm, utm_zone_of
 from air_sitl.state import GeoPoint
 
-KINDS = ("urban", "forest")
+KINDS = ("urban", "forest", "farmland")
 DEFAULT_GSD_M = 0.6
 NOMINAL_HALF_PX = 5120
 NUM_LEVELS = 9  # level 8 is 256 x gsd per pixel (154 m at 0.6 m)
@@ -57,7 +59,7 @@ def parse_date(value: str | int | None) -> DateLook:
 
 
 class ProceduralMap(TiledMap):
-    """One date of the ``urban`` or ``forest`` world around ``home``."""
+    """One date of the ``urban``, ``forest`` or ``farmland`` world around ``home``."""
 
     def __init__(
         self,
@@ -79,8 +81,12 @@ class ProceduralMap(TiledMap):
         self.date = parse_date(date).at_latitude(home.lat_deg)
         self.zone = utm_zone_of(home.lat_deg, home.lon_deg)
         e, n = latlon2utm(home.lat_deg, home.lon_deg, self.zone)
-        self._world: UrbanWorld | ForestWorld = (
-            UrbanWorld(self.seed) if kind == "urban" else ForestWorld(self.seed, (e, n))
+        self._world: UrbanWorld | ForestWorld | FarmlandWorld = (
+            UrbanWorld(self.seed)
+            if kind == "urban"
+            else FarmlandWorld(self.seed)
+            if kind == "farmland"
+            else ForestWorld(self.seed, (e, n))
         )
         # Absolute lattice: pixel k spans [k, k+1) * gsd east and [-k-1, -k) * gsd north.
         cell_x = math.floor(e / gsd_m / TILE_PX) * TILE_PX
@@ -101,7 +107,7 @@ class ProceduralMap(TiledMap):
         self.home_px = self.latlon_to_map_px(home.lat_deg, home.lon_deg)
 
     @property
-    def world(self) -> UrbanWorld | ForestWorld:
+    def world(self) -> UrbanWorld | ForestWorld | FarmlandWorld:
         """The generator (its ``objects`` give the built-in surface's roofs and canopy)."""
         return self._world
 

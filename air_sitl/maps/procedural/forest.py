@@ -424,7 +424,12 @@ def _low_sun(date: DateLook) -> float:
 
 
 def _cast_shadow(
-    height: FloatImage, pad: int, size: int, gsd_m: float, date: DateLook
+    height: FloatImage,
+    pad: int,
+    size: int,
+    gsd_m: float,
+    date: DateLook,
+    steps_m: tuple[float, ...] = SHADOW_STEPS_M,
 ) -> FloatImage:
     """Shadow (0..1) on the inner size x size pixels of a height field padded by ``pad``:
     whether the crowns toward the sun rise above the sun's ray through the pixel."""
@@ -433,7 +438,7 @@ def _cast_shadow(
     here = height[pad : pad + size, pad : pad + size]
     worst = np.zeros((size, size), dtype=np.float32)
     seen: set[tuple[int, int]] = set()
-    for t in SHADOW_STEPS_M:
+    for t in steps_m:
         dx, dy = round(t * sun_e / gsd_m), round(-t * sun_n / gsd_m)
         if (dx, dy) in seen or max(abs(dx), abs(dy)) > pad or (dx, dy) == (0, 0):
             continue

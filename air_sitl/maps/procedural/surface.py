@@ -17,12 +17,13 @@ import numpy as np
 
 from air_sitl.maps.base import TILE_PX
 from air_sitl.maps.procedural import ProceduralMap
+from air_sitl.maps.procedural.farmland_layout import TERRAIN as FARM_TERRAIN
 from air_sitl.maps.procedural.noise import fractal_noise, key_of
 from air_sitl.maps.procedural.survey import acquire_heights
 from air_sitl.maps.surface import BLOCK_PX, HeightBlock, Heights, TiledSurface
 
 # (amplitude m, cell m, octaves) of the bare terrain of each map.
-TERRAIN = {"urban": (4.0, 600.0, 2), "forest": (28.0, 900.0, 3)}
+TERRAIN = {"urban": (4.0, 600.0, 2), "forest": (28.0, 900.0, 3), "farmland": FARM_TERRAIN}
 
 
 class ProceduralSurface(TiledSurface):
