@@ -120,7 +120,11 @@ class MapMatchBase:
         self._clear()
         self.home = context.home
         reference = self._given_reference or open_reference(context)
-        self.matcher = MapMatcher(reference, context.camera, context.home)
+        self.matcher = MapMatcher(reference, context.camera, context.home, **self.matcher_options())
+
+    def matcher_options(self) -> dict[str, Any]:
+        """The matcher's correlator and gate (:class:`MapMatcher` keywords; none: its own)."""
+        return {}
 
     # -- per frame ----------------------------------------------------------------------------
     def _inputs(self, obs: Observation) -> None:
