@@ -285,8 +285,8 @@ def _match_frames(
     cpu = 0.0
     for gray, q, e, n, (pe, pn) in frames:
         img = invert(gray, how)
-        for off in (0.0, WRONG_OFFSET_M):  # the map's tiles made before timing, not by the first
-            matcher.rectify(img, q, height, pe + off, pn, 35.0)
+        for shift in (0.0, WRONG_OFFSET_M):  # the map's tiles made before timing, not by the first
+            matcher.rectify(img, q, height, pe + shift, pn, 35.0)
         c0 = time.process_time()
         res = matcher.match(img, q, height, pe, pn, 35.0)
         cpu += time.process_time() - c0
