@@ -2,6 +2,8 @@
 
     python benchmarks/bench_mapmatch.py ARCHIVE [ARCHIVE ...] [--correlators] [--methods]
         [--step 100] [--limit N]
+    python benchmarks/bench_mapmatch.py --frames [--maps urban,forest] [--dates 0,1,2]
+        [--heights 200,300] [--count 40] [--inversions none,global,checker] [--calibrate]
 
 ``--correlators``: every ``--step``-th frame of each archive, rectified with the recorded AHRS
 attitude and the true height plus 0.5 m noise around a prior 0-10 m off the truth (and, to see
@@ -16,6 +18,17 @@ median, p95, max horizontal error, recall at 25 m over all capture frames, avail
 share of frames > 50 m off, share of frames with an accepted fix, and speed as frames per
 second of this process's CPU time on one OpenCV thread (the one-core figure, whatever else
 the machine runs) and of wall time.
+
+``--frames`` (no archive): frames rendered from each map (``--maps``) at each date
+(``--dates``, against date 0) and height (``--heights``), ``--count`` random places and headings
+with roll and pitch up to 5 degrees, each matched by every registered map-matching method's
+matcher (``mapmatch``, ``mapmatch-axial``: correlator and gate) from a prior 10-30 m off, and
+400 m off (a wrong place); also with the frame's contrast reversed (``--inversions``: ``global``
+255 - image, ``checker`` every other cell of a 4 x 4 grid). Per line: share accepted within
+5 m, accepted farther, median response, wrong places accepted, CPU ms per frame (both
+matches) of each method in the same run. ``--calibrate``: each method's gate thresholds
+matched to ``mapmatch``'s on the same-date control (``--dates 0``): how ``mapmatch-axial``'s
+were set.
 """
 
 from __future__ import annotations
