@@ -12,7 +12,7 @@ correlator on the same patches: share of right fixes (< 5 m), median error, the 
 (second / first peak) of right matches (p95) beside that of wrong ones (p5, 400 m off): the
 gap between them is what a quality gate can use. Orientation correlation is the method's.
 
-``--methods``: ``mapmatch`` and ``fused`` through the offline driver (writing
+``--methods``: ``mapmatch``, ``mapmatch-axial`` and ``fused`` through the offline driver (writing
 ``estimates/<method>.csv`` into the archive: pass copies), scored against ``frames.csv``:
 median, p95, max horizontal error, recall at 25 m over all capture frames, availability,
 share of frames > 50 m off, share of frames with an accepted fix, and speed as frames per
@@ -372,7 +372,7 @@ def run_methods(
     from air_sitl.localize.output import write_estimates
 
     out = []
-    print(f"{'archive':8s} {'method':9s} {'median':>6s} {'p95':>6s} {'max':>6s} {'rec@25':>6s} "
+    print(f"{'archive':8s} {'method':14s} {'median':>6s} {'p95':>6s} {'max':>6s} {'rec@25':>6s} "
           f"{'avail':>6s} {'>50m':>6s} {'fixes':>6s} {'fps cpu':>7s} {'fps wall':>8s}")  # fmt: skip
     for archive in archives:
         truth = _truth(archive)
@@ -404,12 +404,12 @@ def run_methods(
                 "recall_25m": float(np.mean(err <= 25.0)),
                 "availability": len(fin) / len(err),
                 "over_50m": float(np.mean(err > 50.0)),
-                "fix_share": float(np.mean([(e.quality or 0.0) >= 0.5 for e in est])),
+                "fix_share": float(np.mean([bool(e.fix) for e in est])),
                 "fps_cpu": len(err) / cpu,
                 "fps_wall": len(err) / wall,
             }
             out.append(fig)
-            print(f"{archive.name:8s} {method:9s} {fig['median_m']:6.2f} {fig['p95_m']:6.2f} "
+            print(f"{archive.name:8s} {method:14s} {fig['median_m']:6.2f} {fig['p95_m']:6.2f} "
                   f"{fig['max_m']:6.2f} {fig['recall_25m']:6.3f} {fig['availability']:6.3f} "
                   f"{fig['over_50m']:6.3f} {fig['fix_share']:6.3f} {fig['fps_cpu']:7.0f} "
                   f"{fig['fps_wall']:8.0f}", flush=True)  # fmt: skip
@@ -421,7 +421,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("archives", nargs="*", type=Path)
     parser.add_argument("--correlators", action="store_true")
     parser.add_argument("--methods", action="store_true")
-    parser.add_argument("--method", action="append", default=None, help="mapmatch, fused")
+    parser.add_argument(
+        "--method", action="append", default=None, help="mapmatch, mapmatch-axial, fused"
+    )
     parser.add_argument("--step", type=int, default=100, help="correlators: every n-th frame")
     parser.add_argument("--limit", type=int, default=None, help="methods: first n frames")
     parser.add_argument("--json", type=Path, default=None, help="methods: figures as JSON")
@@ -452,7 +454,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.correlators:
         correlators(args.archives, args.step)
     if args.methods:
-        figures = run_methods(args.archives, args.method or ["mapmatch", "fused"], args.limit)
+        methods = args.method or ["mapmatch", "mapmatch-axial", "fused"]
+        figures = run_methods(args.archives, methods, args.limit)
         if args.json is not None:
             args.json.write_text(json.dumps(figures, indent=1))
     return 0
