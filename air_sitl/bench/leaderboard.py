@@ -1,7 +1,8 @@
 """The leaderboard: method x scenario figures from the eval reports, as JSON and markdown.
 
 Figures per cell (SPEC section 5 names): median, p95 and rmse horizontal error, recall@5 m and
-@25 m, availability, drift % and the turn/straight RPE ratio. A method's summary row is the median
+@25 m, availability, the fix rate and the longest time without a map fix (null for a method
+without map fixes), drift % and the turn/straight RPE ratio. A method's summary row is the median
 over the scenarios it was measured on; a failed or missing cell is ``null`` / "-" (never 0).
 """
 
@@ -25,6 +26,22 @@ FIGURES: tuple[tuple[str, tuple[str, ...], str, str, str], ...] = (
     ("recall_5m", ("recall", "5m"), "recall@5 m (share of all frames)", ".3f", "high"),
     ("recall_25m", ("recall", "25m"), "recall@25 m (share of all frames)", ".3f", "high"),
     ("availability", ("availability",), "availability", ".3f", "high"),
+    # Availability stays 1 while a map-based method propagates between fixes: the fix rate
+    # says how many frames the map really gave (SPEC section 10).
+    (
+        "fix_rate",
+        ("fix_rate",),
+        "fix rate (share of all frames with an accepted map fix)",
+        ".3f",
+        "high",
+    ),
+    (
+        "longest_without_fix_s",
+        ("longest_without_fix_s",),
+        "longest time without a map fix (s)",
+        ".1f",
+        "low",
+    ),
     ("drift_pct", ("drift_pct",), "final drift (% of distance)", ".2f", "low"),
     (
         "turn_straight_rpe_ratio",
@@ -163,7 +180,10 @@ def build(
     )
 
 
-GAP_FIGURES = ("median_m", "p95_m", "recall_5m", "recall_25m", "availability")
+GAP_FIGURES = (
+    "median_m", "p95_m", "recall_5m", "recall_25m", "availability", "fix_rate",
+    "longest_without_fix_s",
+)  # fmt: skip
 
 
 def gaps_markdown(boards: Sequence[Leaderboard]) -> str:

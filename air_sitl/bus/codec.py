@@ -262,6 +262,7 @@ class Estimate:
     geo: GeoPoint | None
     q_body_to_ned_wxyz: Quat | None = None
     cov_enu_m2: tuple[float, ...] | None = None  # 3x3 row-major
+    fix: bool | None = None  # a map fix accepted at this frame (None: the estimator does not say)
 
 
 def encode_estimate(
@@ -272,6 +273,7 @@ def encode_estimate(
     geo: GeoPoint | None = None,
     q_body_to_ned_wxyz: Quat | None = None,
     cov_enu_m2: tuple[float, ...] | None = None,
+    fix: bool | None = None,
 ) -> bytes:
     """What an estimator publishes on ``estimate/<name>`` (clients may write the JSON by hand)."""
     m: dict[str, Any] = {}
@@ -287,6 +289,8 @@ def encode_estimate(
         m["q_body_to_ned_wxyz"] = q_body_to_ned_wxyz
     if cov_enu_m2 is not None:
         m["cov_enu_m2"] = cov_enu_m2
+    if fix is not None:
+        m["fix"] = fix
     return dumps(m)
 
 
@@ -301,6 +305,7 @@ def decode_estimate(payload: bytes, what: str) -> Estimate:
         geo=f["geo"],
         q_body_to_ned_wxyz=f["q"],
         cov_enu_m2=f["cov"],
+        fix=f["fix"],
     )
 
 

@@ -10,7 +10,9 @@ estimate log's to judge (:mod:`air_sitl.bus.estimates`), with the same reasons.
 Plausible magnitudes: positions within :data:`MAX_ENU_M` of home on each axis, altitudes in
 :data:`ALT_AMSL_RANGE_M`, a quaternion of norm 1 within :data:`QUAT_NORM_TOLERANCE`,
 covariances finite with a non-negative diagonal. ``null`` (or NaN) coordinates remain the
-contract's "no estimate for this frame".
+contract's "no estimate for this frame". ``fix``, optional, is a JSON boolean: a map fix was
+accepted at this frame (``true``) or not (``false``); absent or ``null``: the estimator does not
+say.
 """
 
 from __future__ import annotations
@@ -56,7 +58,8 @@ class EstimateRejectedError(BusError):
 
 def check_estimate(payload: bytes, what: str) -> dict[str, Any]:
     """The checked fields of one estimate: ``frame``, ``sim_time_ns`` (int or None), ``enu_m``
-    (Vec3 or None), ``geo``, ``q`` and ``cov`` (or None); EstimateRejectedError otherwise."""
+    (Vec3 or None), ``geo``, ``q``, ``cov`` and ``fix`` (or None); EstimateRejectedError
+    otherwise."""
     m = _json_object(payload, what)
     try:
         fields = _fields(m, what)
@@ -141,7 +144,13 @@ def _fields(m: dict[str, Any], what: str) -> dict[str, Any]:
     cov = None
     if m.get("cov_enu_m2") is not None:
         cov = _numbers(m["cov_enu_m2"], 9, "cov_enu_m2 (3x3 row-major)", what, nulls=False)
-    return {"frame": frame, "sim_time_ns": t, "enu_m": enu, "geo": geo, "q": q, "cov": cov}
+    fix = m.get("fix")
+    if fix is not None and not isinstance(fix, bool):
+        msg = f"{what}: 'fix' must be true, false or null, got {json.dumps(fix)[:40]}"
+        raise EstimateRejectedError(MALFORMED, msg)
+    return {
+        "frame": frame, "sim_time_ns": t, "enu_m": enu, "geo": geo, "q": q, "cov": cov, "fix": fix
+    }  # fmt: skip
 
 
 def _check_magnitudes(f: dict[str, Any], what: str) -> None:

@@ -48,6 +48,7 @@ ESTIMATE_COLUMNS = (
     "qz",
     "latency_wall_ms",
     "latency_frames",
+    "fix",  # 1: a map fix accepted at this frame, 0: none, empty: the method does not say
 )
 ESTIMATE_HEADER = ",".join(ESTIMATE_COLUMNS) + "\n"
 KEPT_PAYLOADS = 8  # per estimator, the payloads of its latest frames (to know a repeat)
@@ -117,7 +118,7 @@ class EstimateLog:
             latency_ms = "" if wall is None else f"{(received - wall) * 1e3:.3f}"
             latency_frames = "" if frame is None or wall is None else str(last - frame)
             q = est.q_body_to_ned_wxyz
-            row = estimate_row(t, capture, enu, geo, q, latency_ms, latency_frames)
+            row = estimate_row(t, capture, enu, geo, q, latency_ms, latency_frames, est.fix)
         with self._cond:
             if self._closed:
                 return
@@ -308,12 +309,13 @@ def estimate_row(
     q_body_to_ned_wxyz: Quat | None,
     latency_wall_ms: str = "",
     latency_frames: str = "",
+    fix: bool | None = None,
 ) -> str:
     """One line of ``estimates/<name>.csv`` (:data:`ESTIMATE_COLUMNS`, newline included).
 
     The one home of the format: the bus recorder writes it, offline localization too
     (:mod:`air_sitl.localize.output`); an unknown time, frame, position or attitude is empty
-    (a position NaN).
+    (a position NaN), and so is ``fix`` when the estimator does not say.
     """
     return (
         ",".join(
@@ -333,6 +335,7 @@ def estimate_row(
                 ),
                 latency_wall_ms,
                 latency_frames,
+                "" if fix is None else ("1" if fix else "0"),
             )
         )
         + "\n"

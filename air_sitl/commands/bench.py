@@ -27,7 +27,7 @@ HELP = "rank localization methods over the scenarios (AIR's and farmland): leade
 # What --help shows without loading the methods and the bench (numpy, OpenCV, zenoh, JSBSim);
 # tests/test_cli_startup.py keeps them equal to air_sitl.localize.METHODS, eval's ALIGNMENTS
 # and air_sitl.bench.config's FLIGHT_DATES and REFERENCE_DATE.
-METHOD_NAMES = ("deadreckon", "vo", "mapmatch", "fused")
+METHOD_NAMES = ("deadreckon", "vo", "mapmatch", "mapmatch-axial", "fused")
 ALIGNMENTS = ("none", "posyaw", "se3", "sim3")
 FLIGHT_DATES = (0, 1, 2)
 REFERENCE_DATE = 0

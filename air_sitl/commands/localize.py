@@ -29,7 +29,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "archive", nargs="?", metavar="ARCHIVE", help="archive folder (offline; not with --bus)"
     )
     parser.add_argument(
-        "--method", required=True, metavar="M", help="deadreckon, vo (and any registered method)"
+        "--method",
+        required=True,
+        metavar="M",
+        help="deadreckon, vo, mapmatch, mapmatch-axial, fused (any registered method)",
     )
     parser.add_argument(
         "--name", default=None, help="estimator name: estimates/NAME.csv (default: the method)"

@@ -85,6 +85,9 @@ def score(truth: Truth, est: Estimate, align: str = "none", archive: str = "") -
         }
     else:
         latency = {"median": None, "p95": None}
+    fixed = np.zeros(n, dtype=bool)
+    if m.fix_frames is not None:
+        fixed[m.fix_frames] = True
     report: dict[str, Any] = {
         "v": REPORT_VERSION,
         "archive": archive or truth.where,
@@ -93,6 +96,10 @@ def score(truth: Truth, est: Estimate, align: str = "none", archive: str = "") -
         "frames": n,
         "estimated_frames": k,
         "availability": k / n if n else None,
+        "fix_rate": None if m.fix_frames is None or not n else m.fix_frames.size / n,
+        "longest_without_fix_s": None
+        if m.fix_frames is None
+        else metrics.longest_run(~fixed) * truth.period_s(),
         "distance_m": distance,
         "horizontal_error_m": metrics.stats(h_err),
         "error_3d_m": metrics.stats(e3),
@@ -130,6 +137,8 @@ _ROWS: tuple[tuple[str, str, str], ...] = (
     ("frames", "frames", "d"),
     ("estimated frames", "estimated_frames", "d"),
     ("availability", "availability", "pct"),
+    ("fix rate (map fixes)", "fix_rate", "pct"),
+    ("longest without fix s", "longest_without_fix_s", ".2f"),
     ("distance m", "distance_m", ".1f"),
     ("horizontal error m  mean", "horizontal_error_m.mean", ".2f"),
     ("                    median", "horizontal_error_m.median", ".2f"),

@@ -5,7 +5,8 @@ A SOURCE is, tried in this order:
 - a name: ``ARCHIVE/estimates/NAME.csv`` (what the bus recorder writes);
 - ``svo``: AIR's SvoX..SvoZ columns of ``metadata.csv`` (an original AIR archive's baseline);
 - a path to a CSV in the recorder's format (``sim_time_ns`` and/or ``frame``; ENU
-  ``east_m,north_m,up_m`` or ``lat_deg,lon_deg,alt_amsl_m``; optional ``latency_wall_ms``);
+  ``east_m,north_m,up_m`` or ``lat_deg,lon_deg,alt_amsl_m``; optional ``latency_wall_ms``
+  and ``fix``: 1 a map fix accepted at the row's frame, 0 none, empty unsaid);
 - a path to a TUM file ``t x y z qx qy qz qw`` (t simulated seconds, ENU metres from home, as
   ``air-sitl export --tum`` writes).
 
@@ -18,7 +19,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +27,7 @@ import numpy as np
 from air_sitl.dataset.air_schema import ESTIMATES_DIR, METADATA_CSV
 from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive
+from air_sitl.eval.cells import Triple, check_time_order, integer, number, triple
 from air_sitl.eval.errors import EvalError
 from air_sitl.eval.trajectory import F64, I64, NO_FRAME, NO_TIME, Bools, Estimate, Truth
 from air_sitl.files import decode_text
@@ -37,9 +38,6 @@ SVO = "svo"
 ENU_COLUMNS = ("east_m", "north_m", "up_m")
 GEO_COLUMNS = ("lat_deg", "lon_deg", "alt_amsl_m")
 TUM_COLUMNS = ("t", "x", "y", "z", "qx", "qy", "qz", "qw")
-_NAN_WORDS = ("", "nan")
-
-Triple = tuple[float, float, float]
 
 
 def load_truth(archive: Archive) -> Truth:
@@ -70,63 +68,6 @@ def load_truth(archive: Archive) -> Truth:
     return Truth(where=str(archive.path), t_ns=t_ns, pos_enu_m=pos, yaw_enu_rad=yaw)
 
 
-def _number(text: str, where: str, line: int, column: str) -> float:
-    """A finite float, or NaN for an empty / ``nan`` cell; anything else is an error."""
-    t = text.strip()
-    if t.lower() in _NAN_WORDS:
-        return math.nan
-    try:
-        value = float(t)
-    except ValueError:
-        msg = f"{where}: line {line}: {column} {text!r} is not a number"
-        raise EvalError(msg) from None
-    if not math.isfinite(value):
-        msg = f"{where}: line {line}: {column} {text!r} is not a finite number"
-        raise EvalError(msg)
-    return value
-
-
-def _integer(text: str, where: str, line: int, column: str) -> int | None:
-    t = text.strip()
-    if t == "":
-        return None
-    try:
-        return int(t)
-    except ValueError:
-        msg = f"{where}: line {line}: {column} {text!r} is not an integer"
-        raise EvalError(msg) from None
-
-
-def _triple(cells: Sequence[str], columns: Sequence[str], where: str, line: int) -> Triple | None:
-    """Three position cells: all numbers, or all empty/nan (None); a mix is an error."""
-    values = [_number(c, where, line, col) for c, col in zip(cells, columns, strict=True)]
-    finite = [math.isfinite(v) for v in values]
-    if all(finite):
-        return (values[0], values[1], values[2])
-    if any(finite):
-        shown = ",".join(c.strip() or "''" for c in cells)
-        msg = (
-            f"{where}: line {line}: {','.join(columns)} = {shown}: some but not all "
-            "position columns are empty or nan"
-        )
-        raise EvalError(msg)
-    return None
-
-
-def _check_time_order(t_ns: list[int], lines: list[int], where: str) -> None:
-    prev_t, prev_line = None, 0
-    for t, line in zip(t_ns, lines, strict=True):
-        if t == NO_TIME:
-            continue
-        if prev_t is not None and t <= prev_t:
-            msg = (
-                f"{where}: line {line}: time {t} ns is not after {prev_t} ns (line {prev_line}): "
-                "times out of order"
-            )
-            raise EvalError(msg)
-        prev_t, prev_line = t, line
-
-
 @dataclass(frozen=True, slots=True)
 class _Layout:
     """Where the columns of an estimates CSV are."""
@@ -137,6 +78,7 @@ class _Layout:
     enu: list[int] | None
     geo: list[int] | None
     latency: int | None
+    fix: int | None
 
 
 def parse_csv(text: str, where: str, name: str, home: GeoPoint | None) -> Estimate:
@@ -161,6 +103,7 @@ def parse_csv(text: str, where: str, name: str, home: GeoPoint | None) -> Estima
         enu=[col[c] for c in ENU_COLUMNS] if all(c in col for c in ENU_COLUMNS) else None,
         geo=[col[c] for c in GEO_COLUMNS] if all(c in col for c in GEO_COLUMNS) else None,
         latency=col.get("latency_wall_ms"),
+        fix=col.get("fix"),
     )
     if layout.enu is None and layout.geo is None:
         msg = (
@@ -176,7 +119,7 @@ def parse_csv(text: str, where: str, name: str, home: GeoPoint | None) -> Estima
     fast = _columns(table, layout, home)
     if fast is None:
         fast = _rows(table, layout, home, where)  # raises on the first bad value
-    line, frame, t_ns, pos, latency = fast
+    line, frame, t_ns, pos, latency, fix = fast
     return Estimate(
         name=name,
         where=where,
@@ -185,10 +128,28 @@ def parse_csv(text: str, where: str, name: str, home: GeoPoint | None) -> Estima
         t_ns=t_ns,
         pos_enu_m=pos,
         latency_wall_ms=latency,
+        fix=fix,
     )
 
 
-_Parsed = tuple[I64, I64, I64, F64, F64 | None]
+_Parsed = tuple[I64, I64, I64, F64, F64 | None, F64 | None]
+_FIX_VALUES = {"1": 1.0, "0": 0.0, "": math.nan}
+
+
+def _fix_column(cells: list[str]) -> F64 | None:
+    """``fix`` cells as 1, 0 or NaN (empty); None when a cell is anything else."""
+    try:
+        return np.array([_FIX_VALUES[c.strip()] for c in cells], dtype=np.float64)
+    except KeyError:
+        return None
+
+
+def _fix(text: str, where: str, line: int) -> float:
+    value = _FIX_VALUES.get(text.strip())
+    if value is None:
+        msg = f"{where}: line {line}: fix {text!r} is not 1, 0 or empty"
+        raise EvalError(msg)
+    return value
 
 
 def _float_column(cells: list[str]) -> F64 | None:
@@ -274,8 +235,13 @@ def _columns(
         latency = _float_column([f[layout.latency] for _, f in table])
         if latency is None:
             return None
+    fix = None
+    if layout.fix is not None:
+        fix = _fix_column([f[layout.fix] for _, f in table])
+        if fix is None:
+            return None
     line = np.array([k for k, _ in table], dtype=np.int64)
-    return line, frame, t_ns, pos, latency
+    return line, frame, t_ns, pos, latency, fix
 
 
 def _rows(
@@ -287,6 +253,7 @@ def _rows(
     times: list[int] = []
     positions: list[Triple] = []
     latencies: list[float] = []
+    fixes: list[float] = []
     nan3 = (math.nan, math.nan, math.nan)
     enu, geo = layout.enu, layout.geo
     for line, fields in table:
@@ -294,18 +261,18 @@ def _rows(
             msg = f"{where}: line {line}: {len(fields)} fields, expected {layout.width}"
             raise EvalError(msg)
         frame = (
-            None if layout.frame is None else _integer(fields[layout.frame], where, line, "frame")
+            None if layout.frame is None else integer(fields[layout.frame], where, line, "frame")
         )
         t = (
             None
             if layout.time is None
-            else _integer(fields[layout.time], where, line, "sim_time_ns")
+            else integer(fields[layout.time], where, line, "sim_time_ns")
         )
         if frame is None and t is None:
             msg = f"{where}: line {line}: neither a frame nor a sim_time_ns"
             raise EvalError(msg)
-        p_enu = None if enu is None else _triple([fields[k] for k in enu], ENU_COLUMNS, where, line)
-        p_geo = None if geo is None else _triple([fields[k] for k in geo], GEO_COLUMNS, where, line)
+        p_enu = None if enu is None else triple([fields[k] for k in enu], ENU_COLUMNS, where, line)
+        p_geo = None if geo is None else triple([fields[k] for k in geo], GEO_COLUMNS, where, line)
         pos = p_enu
         if pos is None and p_geo is not None:
             if home is None:
@@ -321,14 +288,17 @@ def _rows(
         times.append(NO_TIME if t is None else t)
         positions.append(nan3 if pos is None else pos)
         if layout.latency is not None:
-            latencies.append(_number(fields[layout.latency], where, line, "latency_wall_ms"))
-    _check_time_order(times, lines, where)
+            latencies.append(number(fields[layout.latency], where, line, "latency_wall_ms"))
+        if layout.fix is not None:
+            fixes.append(_fix(fields[layout.fix], where, line))
+    check_time_order(times, lines, where)
     return (
         np.array(lines, dtype=np.int64),
         np.array(frames, dtype=np.int64),
         np.array(times, dtype=np.int64),
         np.array(positions, dtype=np.float64).reshape(-1, 3),
         None if layout.latency is None else np.array(latencies, dtype=np.float64),
+        None if layout.fix is None else np.array(fixes, dtype=np.float64),
     )
 
 
@@ -396,17 +366,17 @@ def _tum_rows(table: list[tuple[int, list[str]]], where: str) -> tuple[I64, I64,
                 f"{len(TUM_COLUMNS)} ({' '.join(TUM_COLUMNS)})"
             )
             raise EvalError(msg)
-        t_s = _number(parts[0], where, line, "t")
+        t_s = number(parts[0], where, line, "t")
         if math.isnan(t_s):
             msg = f"{where}: line {line}: t {parts[0]!r} is not a number"
             raise EvalError(msg)
-        pos = _triple(parts[1:4], TUM_COLUMNS[1:4], where, line)
+        pos = triple(parts[1:4], TUM_COLUMNS[1:4], where, line)
         for text_q, column in zip(parts[4:], TUM_COLUMNS[4:], strict=True):
-            _number(text_q, where, line, column)
+            number(text_q, where, line, column)
         lines.append(line)
         times.append(round(t_s * 1e9))
         positions.append(nan3 if pos is None else pos)
-    _check_time_order(times, lines, where)
+    check_time_order(times, lines, where)
     return (
         np.array(lines, dtype=np.int64),
         np.array(times, dtype=np.int64),

@@ -4,7 +4,7 @@ No I/O here: :mod:`air_sitl.eval.sources` parses files into these types. Positio
 metres relative to home (AIR's PoseX..PoseZ), times integer nanoseconds of simulation time.
 An estimate row is keyed by its capture frame (truth at that frame's exposure) or, without a
 frame, by its simulated time (truth interpolated linearly between the two frames around it,
-never the nearest sample).
+never the nearest sample). A row may also say whether a map fix was accepted at its frame.
 """
 
 from __future__ import annotations
@@ -66,6 +66,7 @@ class Estimate:
     t_ns: I64  # (M,) NO_TIME when keyed by frame only
     pos_enu_m: F64  # (M, 3), NaN rows = no estimate
     latency_wall_ms: F64 | None  # (M,) NaN when absent; None when the source has no latency
+    fix: F64 | None = None  # (M,) 1 accepted map fix, 0 none, NaN unsaid; None: no column
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -79,6 +80,7 @@ class Matched:
     path_m: F64  # (K,) horizontal truth path length at that time
     answered_latency_ms: F64  # latencies of every answered row (NaN-free; empty if none)
     has_latency: bool
+    fix_frames: I64 | None = None  # capture frames with an accepted map fix; None: not said
 
 
 def _nearest_frame(t_frames: I64, t: I64) -> I64:
@@ -145,6 +147,9 @@ def match(truth: Truth, est: Estimate) -> Matched:
         for axis in range(3):
             truth_pos[keyed_by_time, axis] = np.interp(t, tf, truth.pos_enu_m[:, axis])
         path[keyed_by_time] = np.interp(t, tf, path_all)
+    fix_frames = None
+    if est.fix is not None and np.isfinite(est.fix).any():
+        fix_frames = np.unique(frame[est.fix == 1.0]).astype(np.int64)
     latency = np.empty(0, dtype=np.float64)
     if est.latency_wall_ms is not None:
         latency = est.latency_wall_ms[np.isfinite(est.latency_wall_ms)]
@@ -156,4 +161,5 @@ def match(truth: Truth, est: Estimate) -> Matched:
         path_m=path,
         answered_latency_ms=latency,
         has_latency=est.latency_wall_ms is not None,
+        fix_frames=fix_frames,
     )

@@ -86,6 +86,9 @@ class Estimate:
     cov_enu_m2: tuple[float, ...] | None = None  # 3x3 row-major
     quality: float | None = None  # method-specific confidence in [0, 1], when it has one
     q_body_to_ned_wxyz: Quat | None = None
+    # A map fix accepted at this frame (True), tried or propagated without one (False); None
+    # for a method without map fixes. ``estimates/<name>.csv``'s ``fix`` column.
+    fix: bool | None = None
 
 
 @runtime_checkable

@@ -10,7 +10,8 @@ a fix that passes the matcher's quality gate is fused only if its innovation pas
 Mahalanobis test (chi-square, 2 degrees of freedom, 99.9 %). Gated-out fixes are not lost
 evidence: when :data:`REACQUIRE_FIXES` consecutive ones agree with each other (the filter has
 drifted, not the matcher), the filter restarts at the latest. The output is the filter's
-state at every frame, its covariance, and a quality from its uncertainty.
+state at every frame, its covariance, and a quality from its uncertainty; ``fix`` is True at a
+frame whose map fix corrected the filter (fused, or restarting it).
 """
 
 from __future__ import annotations
@@ -90,7 +91,10 @@ class FusedLocalizer(MapMatchBase):
         """Predict, match around the prediction, gate and fuse; the filter's state."""
         self._inputs(obs)
         result = self._match(obs)
+        fixed = False  # the fix corrected the filter: fused, or restarted it
         if result is not None and result.accepted:
-            self.fuse_fix(result.east_m, result.north_m, result.sigma_m)
+            restarts = self.restarts
+            fixed = self.fuse_fix(result.east_m, result.north_m, result.sigma_m)
+            fixed = fixed or self.restarts > restarts
         quality = max(0.0, min(1.0, 1.0 - self.filter.sigma_m / QUALITY_SIGMA_M))
-        return self._propagated(obs, quality=quality)
+        return self._propagated(obs, quality=quality, fix=fixed)

@@ -8,10 +8,11 @@ peak on the search border). The prior is the last position moved on by dead reck
 :mod:`air_sitl.localize.mapmatch_filter`), and the search radius follows its uncertainty.
 
 Output, every frame: an accepted match gives the fix itself (covariance from the attitude
-floor and the peak ratio, quality >= 0.5); a refused or skipped frame gives the propagated
-position with its grown covariance and a quality below 0.5 (0 when refused), so that
-availability stays at 100 % after the first frame and recall counts what the method really
-holds. ``every=k`` matches every k-th frame only (propagating between).
+floor and the peak ratio, quality >= 0.5, ``fix`` True); a refused or skipped frame gives the
+propagated position with its grown covariance, a quality below 0.5 (0 when refused) and
+``fix`` False, so that availability stays at 100 % after the first frame, recall counts what
+the method really holds and the fix rate what the map gave. ``every=k`` matches every k-th
+frame only (propagating between).
 
 Reference: ``reference_map`` (``urban``, ``forest`` or GeoTIFF path(s), as ``--map``) at
 ``reference_date`` (default 0) from the driver's context; without one, the flight's own
@@ -123,7 +124,11 @@ class MapMatchBase:
         self._clear()
         self.home = context.home
         reference = self._given_reference or open_reference(context)
-        self.matcher = MapMatcher(reference, context.camera, context.home)
+        self.matcher = MapMatcher(reference, context.camera, context.home, **self.matcher_options())
+
+    def matcher_options(self) -> dict[str, Any]:
+        """The matcher's correlator and gate (:class:`MapMatcher` keywords; none: its own)."""
+        return {}
 
     # -- per frame ----------------------------------------------------------------------------
     def _inputs(self, obs: Observation) -> None:
@@ -179,7 +184,9 @@ class MapMatchBase:
     def _var_up(self, obs: Observation) -> float:
         return VAR_UP_BARO_M2 if obs.baro_alt_rel_m is not None else VAR_UP_GNSS_M2
 
-    def _propagated(self, obs: Observation, quality: float) -> Estimate | None:
+    def _propagated(
+        self, obs: Observation, quality: float, *, fix: bool = False
+    ) -> Estimate | None:
         if not self.filter.initialised or self.height_m is None:
             return None
         east, north = self.filter.position
@@ -190,6 +197,7 @@ class MapMatchBase:
             cov_enu_m2=self.filter.cov_enu(self._var_up(obs)),
             quality=quality,
             q_body_to_ned_wxyz=obs.q_ahrs_body_to_ned_wxyz,
+            fix=fix,
         )
 
 
@@ -218,6 +226,7 @@ class MapMatchLocalizer(MapMatchBase):
             cov_enu_m2=(var, 0.0, 0.0, 0.0, var, 0.0, 0.0, 0.0, self._var_up(obs)),
             quality=result.quality,
             q_body_to_ned_wxyz=obs.q_ahrs_body_to_ned_wxyz,
+            fix=True,
         )
 
 

@@ -27,6 +27,7 @@ products, sum and square root); the other OpenCV calls here were measured alignm
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -60,7 +61,8 @@ class MatchResult:
     shift_east_m: float  # the correction it makes to the prior
     shift_north_m: float
     peak_ratio: float  # best peak outside the main one / main peak (lower: more distinct)
-    response: float  # main peak as the mean cosine of orientation differences (0..1)
+    response: float  # main peak as the mean cosine of orientation differences (0..1; of
+    # doubled orientation differences for the axial correlator)
     valid_fraction: float  # share of the patch that holds ground in both images
     level: int  # reference pyramid level matched at
     gsd_m: float  # metres per pixel of that level
@@ -136,6 +138,13 @@ def orientation_correlation(rect: Rectified) -> Scored:
     """Cross-correlation of unit gradient orientations (3 FFTs): score map and normaliser."""
     a = _orientation(rect.patch, rect.patch_mask)
     b = _orientation(rect.reference, rect.reference_mask)
+    return correlate(rect, a, b)
+
+
+def correlate(rect: Rectified, a: npt.NDArray[np.float32], b: npt.NDArray[np.float32]) -> Scored:
+    """The real part of the FFT cross-correlation of two 2-channel (complex) images, the
+    patch's ``a`` over the reference window's ``b``, at every integer shift of the search
+    window; the normaliser is the patch's footprint in pixels."""
     ph, pw = a.shape[:2]
     rh, rw = b.shape[:2]
     nh, nw = cv2.getOptimalDFTSize(rh), cv2.getOptimalDFTSize(rw)
@@ -149,8 +158,12 @@ def orientation_correlation(rect: Rectified) -> Scored:
     return score, float(cv2.countNonZero(rect.patch_mask))
 
 
+Correlator = Callable[[Rectified], Scored]
+
+
 class MapMatcher:
-    """Matches frames of one camera against one reference map (a date of it, or a GeoTIFF)."""
+    """Matches frames of one camera against one reference map (a date of it, or a GeoTIFF),
+    with a correlator (default: orientation correlation) and its gate."""
 
     def __init__(
         self,
@@ -161,6 +174,7 @@ class MapMatcher:
         gsd_factor: float = GSD_FACTOR,
         max_peak_ratio: float = MAX_PEAK_RATIO,
         min_response: float = MIN_RESPONSE,
+        correlator: Correlator = orientation_correlation,
     ) -> None:
         self.map = reference
         self.camera = camera
@@ -168,6 +182,7 @@ class MapMatcher:
         self.gsd_factor = gsd_factor
         self.max_peak_ratio = max_peak_ratio
         self.min_response = min_response
+        self.correlator = correlator
         self._c2b_kinv = camera.r_cam_to_body() @ np.linalg.inv(camera.intrinsics())
         # d(level-0 map px)/d(north, east) at home: UTM scale and grid convergence change by
         # about 1e-5 over a flight's few kilometres, far below a pixel over a footprint.
@@ -298,7 +313,7 @@ class MapMatcher:
         )
         if rect is None:
             return None
-        return self.locate(rect, orientation_correlation(rect))
+        return self.locate(rect, self.correlator(rect))
 
     def locate(self, rect: Rectified, scored: Scored) -> MatchResult | None:
         """The best peak of a score map over the search window, its distinctness, the gate."""

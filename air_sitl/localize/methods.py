@@ -15,6 +15,7 @@ from air_sitl.localize.base import Localizer
 from air_sitl.localize.deadreckon import DeadReckoning
 from air_sitl.localize.fused import FusedLocalizer
 from air_sitl.localize.mapmatch import MapMatchLocalizer
+from air_sitl.localize.mapmatch_axial import AxialMapMatchLocalizer
 from air_sitl.localize.vo import VisualOdometry
 
 # method name -> factory(**options) -> Localizer
@@ -22,6 +23,7 @@ METHODS: dict[str, Callable[..., Localizer]] = {
     "deadreckon": DeadReckoning,
     "vo": VisualOdometry,
     "mapmatch": MapMatchLocalizer,
+    "mapmatch-axial": AxialMapMatchLocalizer,
     "fused": FusedLocalizer,
 }
 

@@ -380,6 +380,7 @@ class BusLocalizer:
             enu_m=enu,
             q_body_to_ned_wxyz=None if est is None else est.q_body_to_ned_wxyz,
             cov_enu_m2=None if est is None or enu is None else est.cov_enu_m2,
+            fix=None if est is None else est.fix,
         )
         self._out.put(self._last_answer)
         return est

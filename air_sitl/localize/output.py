@@ -28,7 +28,7 @@ def estimate_row(est: Estimate, home: GeoPoint | None) -> str:
     enu = est.enu_m
     if enu is None or not all(math.isfinite(c) for c in enu):
         return recorder.estimate_row(
-            est.sim_time_ns, est.frame, _NO_POSITION, None, est.q_body_to_ned_wxyz
+            est.sim_time_ns, est.frame, _NO_POSITION, None, est.q_body_to_ned_wxyz, fix=est.fix
         )
     geo = None
     if home is not None:
@@ -36,7 +36,9 @@ def estimate_row(est: Estimate, home: GeoPoint | None) -> str:
             enu[1], enu[0], -enu[2], home.lat_deg, home.lon_deg, home.alt_amsl_m
         )
         geo = GeoPoint(lat_deg=lat, lon_deg=lon, alt_amsl_m=alt)
-    return recorder.estimate_row(est.sim_time_ns, est.frame, enu, geo, est.q_body_to_ned_wxyz)
+    return recorder.estimate_row(
+        est.sim_time_ns, est.frame, enu, geo, est.q_body_to_ned_wxyz, fix=est.fix
+    )
 
 
 def write_estimates(

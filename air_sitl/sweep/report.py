@@ -1,7 +1,9 @@
 """``air-sitl sweep report DIR``: each metric against each axis, as a table and as plots.
 
-An axis is an option whose value differs between the runs of ``results.jsonl`` (the SPEC's
-axes first, as ``sweep.json`` lists them). ``seed`` is the spread, not an axis, when there is
+Metrics: errors, recall, availability, the fix rate and the longest time without a map fix
+(``-`` for a method without map fixes; per date gap on the ``map-date`` axis), drift. An axis
+is an option whose value differs between the runs of ``results.jsonl`` (the SPEC's axes
+first, as ``sweep.json`` lists them). ``seed`` is the spread, not an axis, when there is
 another one. For each axis value and method: the median over every run with that value (its
 seeds and the other axes' values) and the spread as the 25-75 % range. Writes
 ``DIR/report.md`` and ``DIR/report.png`` (matplotlib, imported only here).
@@ -46,6 +48,8 @@ EVAL_METRICS = (
     Metric("recall at 5 m", ("recall", "5m"), "{:.2f}", fraction=True),
     Metric("recall at 25 m", ("recall", "25m"), "{:.2f}", fraction=True),
     Metric("availability", ("availability",), "{:.2f}", fraction=True),
+    Metric("fix rate", ("fix_rate",), "{:.2f}", fraction=True),
+    Metric("longest without fix s", ("longest_without_fix_s",), "{:.1f}"),
     Metric("final drift % of distance", ("drift_pct",), "{:.1f}"),
 )
 FLIGHT_METRICS = (
@@ -266,7 +270,11 @@ def plot(
     import matplotlib.pyplot as plt  # after the backend is chosen
 
     constant = constant_metrics(rows, entries, metrics)
-    drawn = [m for m in metrics if m.label not in constant] or list(metrics[:1])
+    # A metric no run has (the fix rate of methods without map fixes) is an empty panel.
+    known = [
+        m for m in metrics if any(_value_of(r, e, m) is not None for r in rows for e in entries)
+    ]
+    drawn = [m for m in known if m.label not in constant] or list(metrics[:1])
     ncols = max(1, len(axes))
     fig, grid = plt.subplots(
         len(drawn), ncols, figsize=(3.6 * ncols + 0.6, 2.4 * len(drawn) + 1.0), squeeze=False

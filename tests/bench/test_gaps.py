@@ -17,11 +17,15 @@ from air_sitl.state import GeoPoint
 from air_sitl.sweep.measurements import EntryResult
 
 
-def _result(scenario: str, entry: str, median: float, recall: float) -> EntryResult:
+def _result(
+    scenario: str, entry: str, median: float, recall: float, fixes: float | None = None
+) -> EntryResult:
     report = {
         "horizontal_error_m": {"median": median, "rmse": median, "p95": 2 * median},
         "recall": {"5m": recall / 2, "25m": recall},
         "availability": 1.0,
+        "fix_rate": fixes,
+        "longest_without_fix_s": None if fixes is None else 10.0 * (1.0 - fixes),
     }
     return EntryResult(scenario=scenario, entry=entry, report=report)
 
@@ -32,8 +36,8 @@ def test_gaps_summary_and_one_section_per_gap() -> None:
             ("mapmatch", "vo"),
             ("UC-200", "FC-200"),
             [
-                _result("UC-200", "mapmatch", 2.0 + 10 * d, 1.0 - 0.2 * d),
-                _result("FC-200", "mapmatch", 4.0 + 10 * d, 1.0 - 0.3 * d),
+                _result("UC-200", "mapmatch", 2.0 + 10 * d, 1.0 - 0.2 * d, 1.0 - 0.4 * d),
+                _result("FC-200", "mapmatch", 4.0 + 10 * d, 1.0 - 0.3 * d, 1.0 - 0.5 * d),
                 _result("UC-200", "vo", 30.0, 0.5),
                 _result("FC-200", "vo", 40.0, 0.4),
             ],
@@ -47,6 +51,11 @@ def test_gaps_summary_and_one_section_per_gap() -> None:
     assert "| mapmatch | 1.000 | 0.750 | 0.500 |" in md  # recall@25 m
     assert "| mapmatch | 0.500 | 0.375 | 0.250 |" in md  # recall@5 m: finer than 25 m
     assert "| mapmatch | 6.0 | 26.0 | 46.0 |" in md  # p95
+    # availability stays 1 while the fix rate falls with the gap; vo has no map fixes
+    fix_table = md.split("## fix rate", 1)[1].split("\n## ", 1)[0]
+    assert "| mapmatch | 1.000 | 0.550 | 0.100 |" in fix_table
+    assert "| vo | - | - | - |" in fix_table
+    assert "| mapmatch | 0.0 | 4.5 | 9.0 |" in md.split("## longest time without", 1)[1]
     for d in (0, 1, 2):
         assert f"# reference date 0 -> flight date {d}" in md
     assert md.count("### median horizontal error (m)") == 3
@@ -57,6 +66,12 @@ def test_gaps_summary_and_one_section_per_gap() -> None:
         (0, 2),
     ]
     assert "Map dates: reference date 0 -> flight date 2" in boards[2].to_markdown()
+    assert data["gaps"][2]["summary"]["mapmatch"]["fix_rate"] == pytest.approx(0.1)
+    assert data["gaps"][2]["summary"]["vo"]["fix_rate"] is None
+    row = data["gaps"][1]["rows"][0]
+    assert (row["method"], row["scenario"], row["availability"]) == ("mapmatch", "UC-200", 1.0)
+    assert row["fix_rate"] == pytest.approx(0.6)
+    assert row["longest_without_fix_s"] == pytest.approx(4.0)
 
 
 def test_map_dates_parse_and_refuse_repeats(capsys: pytest.CaptureFixture[str]) -> None:

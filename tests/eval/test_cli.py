@@ -20,9 +20,9 @@ pytestmark = pytest.mark.integration
 
 SPEC_KEYS = [
     "v", "archive", "estimate", "alignment", "frames", "estimated_frames", "availability",
-    "distance_m", "horizontal_error_m", "error_3d_m", "recall", "final_error_m", "drift_pct",
-    "rpe", "straight", "turn", "turn_straight_rpe_ratio", "latency_ms", "time_to_first_fix_s",
-    "longest_outage_s",
+    "fix_rate", "longest_without_fix_s", "distance_m", "horizontal_error_m", "error_3d_m",
+    "recall", "final_error_m", "drift_pct", "rpe", "straight", "turn", "turn_straight_rpe_ratio",
+    "latency_ms", "time_to_first_fix_s", "longest_outage_s",
 ]  # fmt: skip
 STATS = ["mean", "median", "rmse", "p95", "max"]
 
@@ -63,6 +63,7 @@ def test_report_of_a_noisy_estimate_has_the_spec_keys(line: Path, tmp_path: Path
     assert list(report["straight"]) == ["frames", "horizontal_error_m", "rpe"]
     assert report["estimate"] == "noisy" and report["alignment"] == "none"
     assert 0.85 < report["availability"] < 0.95
+    assert report["fix_rate"] is None and report["longest_without_fix_s"] is None  # not said
     # 2-D gaussian with sigma 4 m: Rayleigh, rmse = 4 * sqrt(2)
     assert report["horizontal_error_m"]["rmse"] == pytest.approx(4.0 * 2**0.5, rel=0.1)
     assert report["latency_ms"]["median"] == pytest.approx(8.4, rel=0.2)
@@ -204,6 +205,21 @@ def test_bad_estimate_csv_is_one_line_and_exit_2(
     assert len(err) == 1, err
     assert says in err[0], err[0]
     assert str(path) in err[0]
+
+
+def test_a_bad_fix_cell_is_one_line_and_exit_2(
+    line: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    truth = truth_of(line)
+    good = rows(truth, truth.pos_enu_m[:1], np.array([0]))
+    write_csv(
+        line / "estimates" / "badfix.csv",
+        [good[0] + ",1", good[0].replace(f"{truth.t_ns[0]},0,", f"{truth.t_ns[1]},1,") + ",yes"],
+        header=HEADER + ",fix",
+    )
+    assert run(str(line), "--estimate", "badfix") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "badfix.csv: line 3: fix 'yes' is not 1, 0 or empty" in err[0], err
 
 
 def test_all_nan_and_all_empty_rows_are_no_estimate(line: Path) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -222,6 +223,47 @@ def test_longest_run() -> None:
     assert longest_run(np.array([False, True, True, False, True])) == 2
     assert longest_run(np.zeros(3, dtype=bool)) == 0
     assert longest_run(np.ones(3, dtype=bool)) == 3
+
+
+def with_fix(est: Estimate, fix: list[float]) -> Estimate:
+    return dataclasses.replace(est, fix=np.array(fix, dtype=np.float64))
+
+
+def test_fix_rate_counts_accepted_fixes_over_all_frames_beside_availability() -> None:
+    """Propagated frames (fix 0) keep availability at 1; the fix rate and the longest time
+    without a fix say what the map gave. Frames without a row count as without a fix."""
+    truth = make_truth(wiggly(10))
+    est = with_fix(by_frame(truth.pos_enu_m), [1, 0, 0, 1, 1, 0, 0, 0, 1, 0])
+    report = score(truth, est, "none").report
+    assert report["availability"] == 1.0
+    assert report["fix_rate"] == pytest.approx(0.4)
+    assert report["longest_without_fix_s"] == pytest.approx(3 * 0.02)
+    keep = np.array([0, 1, 2, 3], dtype=np.int64)  # frames 4..9 unanswered
+    part = with_fix(by_frame(truth.pos_enu_m[keep], keep), [1, 1, 0, 1])
+    report = score(truth, part, "none").report
+    assert report["fix_rate"] == pytest.approx(0.3)
+    assert report["longest_without_fix_s"] == pytest.approx(6 * 0.02)
+
+
+def test_all_refused_is_fix_rate_0_and_unsaid_is_null() -> None:
+    truth = make_truth(wiggly(50))
+    refused = score(truth, with_fix(by_frame(truth.pos_enu_m), [0.0] * 50), "none").report
+    assert refused["availability"] == 1.0
+    assert refused["fix_rate"] == 0.0
+    assert refused["longest_without_fix_s"] == pytest.approx(50 * 0.02)
+    for est in (by_frame(truth.pos_enu_m), with_fix(by_frame(truth.pos_enu_m), [math.nan] * 50)):
+        report = score(truth, est, "none").report
+        assert report["fix_rate"] is None and report["longest_without_fix_s"] is None
+    # a time-keyed row's fix belongs to the frame its time maps to
+    t = truth.t_ns[:10] + PERIOD_NS // 4
+    by_time = Estimate(
+        name="t", where="mem.csv", line=np.arange(10, dtype=np.int64) + 2,
+        frame=np.full(10, NO_FRAME, dtype=np.int64), t_ns=t.astype(np.int64),
+        pos_enu_m=truth.pos_enu_m[:10], latency_wall_ms=None,
+        fix=np.array([0, 0, 1, 0, 0, 0, 0, 0, 0, 1], dtype=np.float64),
+    )  # fmt: skip
+    m = match(truth, by_time)
+    assert m.fix_frames is not None and m.fix_frames.tolist() == [2, 9]
 
 
 def test_an_alignment_that_cannot_be_computed_gives_null_figures_not_zeros() -> None:

@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 
 from air_sitl.bus import codec
+from air_sitl.bus.estimate_contract import EstimateRejectedError
 from air_sitl.bus.estimates import ESTIMATE_COLUMNS
 from air_sitl.camera.model import CameraModel
 from air_sitl.dataset.estimates import parse_estimates
 from air_sitl.errors import DatasetError
+from air_sitl.eval.sources import parse_csv
 from air_sitl.frames import euler2quat, ned2geodetic
 from air_sitl.localize import METHODS, Estimate, Localizer, LocalizerContext, Observation
 from air_sitl.localize.archive import _fix_of, check_writable, denial_windows
@@ -52,7 +54,31 @@ def test_rows_parse_back_and_no_position_is_no_estimate() -> None:
     lat, lon, _alt = ned2geodetic(-2.25, 1.5, -200.0, HOME.lat_deg, HOME.lon_deg, HOME.alt_amsl_m)
     assert float(fields[5]) == pytest.approx(lat, abs=1e-9)
     assert float(fields[6]) == pytest.approx(lon, abs=1e-9)
-    assert fields[-2:] == ["", ""]  # latency: none offline
+    assert fields[-3:] == ["", "", ""]  # latency: none offline; fix: the method does not say
+
+
+def test_the_fix_column_round_trips_through_the_csv_and_the_bus() -> None:
+    """``fix`` is the last column: 1 / 0 / empty, read back by eval as 1 / 0 / NaN; on the
+    bus an optional boolean, recorded when present."""
+    assert ESTIMATE_COLUMNS[-1] == "fix"
+    said = (True, False, None, True)
+    rows = [
+        Estimate(frame=k, sim_time_ns=5 + k, enu_m=(1.0, 2.0, 3.0) if k != 1 else None, fix=f)
+        for k, f in enumerate(said)
+    ]
+    lines = [estimate_row(r, HOME) for r in rows]
+    assert [ln.rstrip("\n").split(",")[-1] for ln in lines] == ["1", "0", "", "1"]
+    text = ",".join(ESTIMATE_COLUMNS) + "\n" + "".join(lines)
+    parsed = parse_csv(text, "x.csv", "x", HOME)
+    assert parsed.fix is not None
+    assert parsed.fix[[0, 1, 3]].tolist() == [1.0, 0.0, 1.0] and math.isnan(parsed.fix[2])
+    assert len(parse_estimates(text, "x.csv", HOME)) == 3  # the dataset reader skips it
+    for fix in said:
+        payload = codec.encode_estimate(frame=3, enu_m=(1.0, 2.0, 3.0), fix=fix)
+        assert (b'"fix"' in payload) == (fix is not None)
+        assert codec.decode_estimate(payload, "k").fix is fix
+    with pytest.raises(EstimateRejectedError, match="'fix' must be true, false or null"):
+        codec.decode_estimate(b'{"frame": 3, "fix": 1}', "k")
 
 
 def test_input_models_are_seeded_and_sized() -> None:

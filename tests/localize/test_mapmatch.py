@@ -20,6 +20,7 @@ from short_plans import write_short_plan
 from air_sitl.camera.model import CameraModel
 from air_sitl.cli import main
 from air_sitl.dataset.reader import open_archive
+from air_sitl.eval import evaluate
 from air_sitl.frames import ned2geodetic
 from air_sitl.localize.archive import (
     context_of,
@@ -203,6 +204,26 @@ def test_quality_gate_refuses_another_area_and_another_map(flight: Path) -> None
     assert all(e.quality is not None and e.quality < 0.5 for e in estimates[1:])
     covs = [e.cov_enu_m2[0] for e in estimates if e.cov_enu_m2 is not None]
     assert covs[-1] > covs[1]  # the propagated uncertainty grows
+
+
+def test_refused_fixes_score_fix_rate_0_with_availability_1(flight: Path) -> None:
+    """mapmatch against a map that is not the flight's (the forest under an urban flight):
+    every match refused, a propagated position at every frame. eval says both: availability
+    1, fix rate 0, no fix for the whole flight; against the right map, fixes nearly always."""
+    run_archive(flight, "mapmatch", name="mm-forest", reference_map="forest", reference_date=0)
+    rows = read_rows(flight / "estimates" / "mm-forest.csv")
+    assert {r["fix"] for r in rows} == {"0"}
+    refused = evaluate(flight, "mm-forest")
+    assert refused["availability"] == 1.0
+    assert refused["fix_rate"] == 0.0
+    frames = refused["frames"]
+    assert refused["longest_without_fix_s"] == pytest.approx(frames * 0.02)
+    run_archive(flight, "mapmatch", name="mm-urban")
+    right = evaluate(flight, "mm-urban")
+    assert right["availability"] == 1.0 and right["fix_rate"] >= 0.95
+    assert right["longest_without_fix_s"] < 1.0
+    vo_like = evaluate(flight, "svo")  # AIR's Svo columns say nothing of fixes
+    assert vo_like["fix_rate"] is None and vo_like["longest_without_fix_s"] is None
 
 
 def test_default_reference_is_another_date(flight: Path) -> None:

@@ -57,12 +57,32 @@ def test_a_metric_the_same_in_every_run_is_named_not_drawn(tmp_path: Path) -> No
     assert same in flat_md
     assert "The same in every run: availability 1.00" in varied_md
     # The tables keep every column either way.
-    row = "| 0 | mapmatch | 2 | 0 | 2.00 (1.50-2.50) | 4.00 | 0.50 | 1.00 | 1.00 | 0.2 |"
+    row = "| 0 | mapmatch | 2 | 0 | 2.00 (1.50-2.50) | 4.00 | 0.50 | 1.00 | 1.00 | - | - | 0.2 |"
     assert row in flat_md
     # One row of panels fewer for the one more constant metric.
     flat_h = _png_height((flat / "report.png").read_bytes())
     varied_h = _png_height((varied / "report.png").read_bytes())
     assert flat_h < varied_h
+
+
+def test_the_fix_rate_per_date_gap_beside_availability(tmp_path: Path) -> None:
+    """Rows carry each method's fix_rate and longest_without_fix_s (its eval report): the
+    report shows them per map date; a method without map fixes shows '-'."""
+    folder = _sweep(tmp_path / "fixes", [1.0, 0.8, 0.9, 0.7])
+    rows = [json.loads(line) for line in (folder / RESULTS).read_text().splitlines()]
+    for row in rows:
+        gap = row["options"]["map-date"]
+        row["eval"]["mapmatch"].update(fix_rate=1.0 - 0.6 * gap, longest_without_fix_s=5.0 * gap)
+        row["eval"]["vo"].update(fix_rate=None, longest_without_fix_s=None)
+    (folder / RESULTS).write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert main(["sweep", "report", str(folder), "--quiet"]) == 0
+    md = (folder / "report.md").read_text()
+    head = md.split("## map-date", 1)[1].split("\n")[2]
+    assert "| availability | fix rate | longest without fix s |" in head
+    assert (
+        "| 1 | mapmatch | 2 | 0 | 3.00 (2.50-3.50) | 6.00 | 0.38 | 0.75 | 1.00 | 0.40 | 5.0 |" in md
+    )
+    assert "| 1 | vo | 2 | 0 | 5.00 (4.50-5.50) | 10.00 | 0.38 | 0.75 | 1.00 | - | - |" in md
 
 
 def test_a_partial_sweep_says_how_many_runs_and_which_axes_it_left_out(
