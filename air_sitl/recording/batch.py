@@ -165,6 +165,7 @@ def run_jobs(
     # rendered in-process before running a pool hung this way.
     ctx = multiprocessing.get_context("spawn")
     progress = ctx.Queue()
+    done = {}
     with ProcessPoolExecutor(
         max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(progress,)
     ) as pool:
