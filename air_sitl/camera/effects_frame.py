@@ -52,8 +52,8 @@ Image = npt.NDArray[np.uint8]
 F64 = npt.NDArray[np.float64]
 COARSE_PX = 16  # the grid of the blur's paths and the haze (both vary slowly over the sensor)
 MARGIN_PX = 10  # pixels rendered around the sensor for the blur (16 taps: a path of 16 px)
-TILE_PX = 64  # the blur's tiles where the motion varies over the frame
-_UNIFORM_PX = 0.5  # the motion varies by less over the frame: one kernel for all of it
+TILE_PX = 64  # the blur's smallest regions where the motion varies over the frame
+_UNIFORM_PX = 1.0  # the motion varies by less over a region: one kernel for all of it
 
 
 def at_time(state: VehicleState, dt_s: float) -> VehicleState:
@@ -124,6 +124,7 @@ class EffectsPath:
         self._gu, self._gv = fx_mod.undistort_points(gu, gv, k, fx.distortion)
         self._air = np.array(fx.airlight_bgr, dtype=np.float64)
         self._light = fx.on("haze") or fx.on("vignette") or fx.on("exposure")
+        self._kernels: dict[tuple[int, int], tuple[npt.NDArray[np.float32], tuple[int, int]]] = {}
 
     # -- geometry -----------------------------------------------------------------------------
     def _row_times(self, rows: F64) -> F64:
@@ -304,30 +305,57 @@ class EffectsPath:
         return out
 
     def _blur(self, sharp: Image, pad: int, ex: F64, ey: F64) -> Image:
-        """Motion blur of the sensor's part of ``sharp`` (``pad`` px around it): each tile
-        with the kernel of its mean path (one tile where the paths are alike)."""
+        """Motion blur of the sensor's part of ``sharp`` (``pad`` px around it): regions
+        whose grid paths differ by under _UNIFORM_PX (split in four until they do, down to
+        TILE_PX) each with the kernel of their mean path."""
         cam = self.camera
-        w, h = cam.width_px, cam.height_px
-        out = np.empty((h, w, 4), dtype=np.uint8)
-        uniform = max(float(np.ptp(ex)), float(np.ptp(ey))) < _UNIFORM_PX
-        tile = max(w, h) if uniform else TILE_PX
-        sh, sw = sharp.shape[:2]
-        for y0 in range(0, h, tile):
-            y1 = min(h, y0 + tile)
-            gy = (self._rows >= y0 - 0.5) & (self._rows < y1 - 0.5)
-            for x0 in range(0, w, tile):
-                x1 = min(w, x0 + tile)
-                gx = (self._cols >= x0 - 0.5) & (self._cols < x1 - 0.5)
-                sel = np.ix_(gy, gx)
-                k, anchor = line_kernel(float(ex[sel].mean()), float(ey[sel].mean()))
-                # The tile and the pixels its kernel reaches (within the rendered frame).
-                r0, r1 = max(0, y0 + pad - k.shape[0]), min(sh, y1 + pad + k.shape[0])
-                c0, c1 = max(0, x0 + pad - k.shape[1]), min(sw, x1 + pad + k.shape[1])
-                part = cv2.filter2D(sharp[r0:r1, c0:c1], -1, k, anchor=anchor,
-                                    borderType=cv2.BORDER_REPLICATE)  # fmt: skip
-                out[y0:y1, x0:x1] = part[y0 + pad - r0 : y1 + pad - r0,
-                                         x0 + pad - c0 : x1 + pad - c0]  # fmt: skip
+        out = np.empty((cam.height_px, cam.width_px, 4), dtype=np.uint8)
+        self._blur_region(sharp, pad, ex, ey, out, 0, len(self._rows), 0, len(self._cols))
         return out
+
+    def _blur_region(
+        self, sharp: Image, pad: int, ex: F64, ey: F64, out: Image, i0: int, i1: int, j0: int,
+        j1: int,
+    ) -> None:  # fmt: skip
+        """The blur of the pixels nearest grid rows [i0, i1) and columns [j0, j1)."""
+        px, py = ex[i0:i1, j0:j1], ey[i0:i1, j0:j1]
+        y0, y1 = self._edge(self._rows, i0), self._edge(self._rows, i1)
+        x0, x1 = self._edge(self._cols, j0), self._edge(self._cols, j1)
+        spread = max(float(px.max() - px.min()), float(py.max() - py.min()))
+        if spread >= _UNIFORM_PX and max(y1 - y0, x1 - x0) > TILE_PX:
+            im, jm = (i0 + i1) // 2, (j0 + j1) // 2
+            for a, b in ((i0, im), (im, i1)):
+                for c, d in ((j0, jm), (jm, j1)):
+                    if a < b and c < d:
+                        self._blur_region(sharp, pad, ex, ey, out, a, b, c, d)
+            return
+        k, anchor = self._kernel(float(px.mean()), float(py.mean()))
+        # The region and the pixels its kernel reaches (within the rendered frame).
+        sh, sw = sharp.shape[:2]
+        r0, r1 = max(0, y0 + pad - k.shape[0]), min(sh, y1 + pad + k.shape[0])
+        c0, c1 = max(0, x0 + pad - k.shape[1]), min(sw, x1 + pad + k.shape[1])
+        part = cv2.filter2D(sharp[r0:r1, c0:c1], -1, k, anchor=anchor,
+                            borderType=cv2.BORDER_REPLICATE)  # fmt: skip
+        out[y0:y1, x0:x1] = part[y0 + pad - r0 : y1 + pad - r0, x0 + pad - c0 : x1 + pad - c0]
+
+    @staticmethod
+    def _edge(nodes: F64, i: int) -> int:
+        """The first pixel nearer grid node ``i`` than node ``i - 1`` (0; the size at the end)."""
+        if i <= 0:
+            return 0
+        if i >= len(nodes):
+            return round(float(nodes[-1] + (nodes[-1] - nodes[-2]) / 2.0 + 0.5))
+        return math.ceil(float(nodes[i - 1] + nodes[i]) / 2.0)
+
+    def _kernel(self, ex: float, ey: float) -> tuple[npt.NDArray[np.float32], tuple[int, int]]:
+        """line_kernel of the path rounded to 1/16 px, kept (a flight's paths repeat)."""
+        key = (round(ex * 16.0), round(ey * 16.0))
+        found = self._kernels.get(key)
+        if found is None:
+            if len(self._kernels) > 4096:
+                self._kernels.clear()
+            found = self._kernels[key] = line_kernel(key[0] / 16.0, key[1] / 16.0)
+        return found
 
     def _relief_maps(self, state: VehicleState, g: FrameGeometry) -> npt.NDArray[np.float32]:
         """Level-px ground points of each pixel at its row's time over relief (the rows'
