@@ -206,16 +206,20 @@ def _executor(config: BenchConfig) -> Executor:
     return PoolExecutor(config.jobs)
 
 
-def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard:
-    """Make or reuse the archives, measure every (scenario, entry), write the leaderboard."""
+def run_bench(
+    config: BenchConfig, stream: IO[str] | None = None, *, made: bool = False
+) -> Leaderboard:
+    """Make or reuse the archives, measure every (scenario, entry), write the leaderboard
+    (``made``: the archives were just made for this bench, nothing to check or fly)."""
     stream = stream if stream is not None else sys.stderr
     config.out.mkdir(parents=True, exist_ok=True)
     for scenario in config.scenarios:  # archives kept from before: the bench's own message
         if (config.archives / scenario / MANIFEST_JSON).is_file():
             check_archive_inputs(config, scenario)
     start = time.perf_counter()
-    make_archives(config)
-    if not config.quiet:  # the flights and their rendering (dataset): nothing when reused
+    if not made:  # the flights and their rendering (dataset): nothing to fly when reused
+        make_archives(config)
+    if not config.quiet and not made:
         progress_note(stream, f"bench: archives {time.perf_counter() - start:.1f} s (fly, render)")
     missing = [s for s in config.scenarios if not (config.archives / s / MANIFEST_JSON).is_file()]
     if missing:
@@ -261,25 +265,31 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
     return board
 
 
-def fly_dates_once(config: BenchConfig, flight_dates: tuple[int, ...]) -> None:
+def fly_dates_once(config: BenchConfig, flight_dates: tuple[int, ...], stream: IO[str]) -> bool:
     """The archives of every flight date, each scenario flown once for all its dates
     (``dataset`` renders each date from the same flight, byte-identical to flying it):
     made under ``OUT/flights/`` and moved to each date's bench (``OUT/date<N>/archives/``).
-    Scenarios with any of those archives already there are left to each date's bench."""
+    Scenarios with any of those archives already there are left to each date's bench.
+    True when every scenario's archives were made here (the benches need not check them)."""
     configs = {d: replace(config, flight_date=d, out=config.out / f"date{d}") for d in flight_dates}
     fresh = tuple(
         s for s in config.scenarios if not any((c.archives / s).exists() for c in configs.values())
     )
     if not fresh or len(flight_dates) < 2:
-        return
+        return False
     staging = config.out / "flights"
+    start = time.perf_counter()
     make_archives(replace(config, scenarios=fresh), flight_dates, staging)
+    if not config.quiet:
+        took = time.perf_counter() - start
+        progress_note(stream, f"bench: archives of dates {flight_dates} {took:.1f} s (fly, render)")
     for scenario in fresh:
         for d, c in configs.items():
             made = staging / f"{scenario}@{d}"
             if (made / MANIFEST_JSON).is_file():
                 c.archives.mkdir(parents=True, exist_ok=True)
                 made.replace(c.archives / scenario)
+    return fresh == config.scenarios
 
 
 def run_gaps(
@@ -289,9 +299,9 @@ def run_gaps(
     all against the reference date; ``OUT/leaderboard.md`` and ``.json`` compare the gaps.
     The flights are flown once for all dates (:func:`fly_dates_once`)."""
     config.out.mkdir(parents=True, exist_ok=True)
-    fly_dates_once(config, flight_dates)
+    made = fly_dates_once(config, flight_dates, stream if stream is not None else sys.stderr)
     boards = [
-        run_bench(replace(config, flight_date=d, out=config.out / f"date{d}"), stream)
+        run_bench(replace(config, flight_date=d, out=config.out / f"date{d}"), stream, made=made)
         for d in flight_dates
     ]
     write_json_atomic(config.out / "leaderboard.json", gaps_json(boards))
