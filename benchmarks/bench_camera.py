@@ -14,7 +14,12 @@ Run: ``python benchmarks/bench_camera.py [--frames N] [--cog /tmp/bench40k.tif]`
    real time at 50 Hz) and the CPU ratio to the floor, at 200, 300 and 3000 m over ``urban`` and
    ``forest`` with ``--dem builtin``, and over ``urban`` with a GeoTIFF DSM (the built-in
    urban surface written at 1.2 m, like a lidar DSM; ``--dsm``, built when missing)
-   (``--relief-only`` runs just this part).
+   (``--relief-only`` runs just this part);
+5. camera effects (issue 34): render + noise + JPEG per frame (``Renderer.frame_jpeg``) with
+   every effect on (blur, rolling-shutter, vignette, exposure, haze, distortion) beside the
+   plain frame of the same states (the floor), CPU time of the process (one render thread),
+   best of 3 passes, at 200 and 300 m in straight flight (18 m/s, a gentle roll) and in a
+   45 deg/s roll; target ratio <= 2 (``--effects-only`` runs just this part).
 """
 
 from __future__ import annotations
@@ -24,6 +29,7 @@ import math
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -31,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.camera.bridge import CameraBridge
+from air_sitl.camera.effects import CameraEffects
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
 from air_sitl.frames import ned2geodetic
@@ -237,6 +244,57 @@ def relief(frames: int, dsm: Path) -> None:
             )
 
 
+ALL_EFFECTS = ("blur", "rolling-shutter", "vignette", "exposure", "haze", "distortion")
+
+
+def moving_states(alt_m: float, n: int, roll_rate_deg_s: float) -> list[VehicleState]:
+    """18 m/s north; a 45 deg/s roll from -20 deg, or a gentle roll oscillation (rates set,
+    as the blur and the rolling shutter read them)."""
+    out = []
+    for i in range(n):
+        lat, lon, _ = ned2geodetic(18.0 * i / 50.0, 0.0, 0.0, HOME.lat_deg, HOME.lon_deg, 0.0)
+        if roll_rate_deg_s:
+            roll = math.radians(-20.0 + roll_rate_deg_s * i / 50.0)
+            rates = (math.radians(roll_rate_deg_s), 0.01, 0.02)
+        else:
+            roll = math.radians(5.0) * math.sin(i / 40.0)
+            rates = (math.radians(5.0) * 50.0 / 40.0 * math.cos(i / 40.0), 0.01, 0.02)
+        state = pose_state(
+            lat, lon, HOME.alt_amsl_m + alt_m, alt_agl_m=alt_m, roll_rad=roll,
+            pitch_rad=math.radians(2.0), yaw_rad=0.02, sim_time_ns=i * 20_000_000,
+        )  # fmt: skip
+        out.append(replace(state, vel_ned_m_s=(18.0, 0.0, 0.0), rate_frd_rad_s=rates))
+    return out
+
+
+def effects(frames: int) -> None:
+    """All camera effects vs the plain frame, same states, same run: CPU ms per frame."""
+    cv2.setNumThreads(1)
+    print(
+        "5) camera effects (all six) vs the plain frame: render + noise + JPEG, urban, tiles warm"
+    )
+    print("   CPU ms per frame of this process (one render thread), best of 3 passes; target <= 2")
+    print(f"{'case':>14} {'plain ms':>9} {'effects ms':>10} {'ratio':>6}")
+    m = open_map("urban", HOME, seed=0)
+    for alt, rate in ((200.0, 0.0), (300.0, 0.0), (200.0, 45.0), (300.0, 45.0)):
+        states = moving_states(alt, frames, rate)
+        plain = Renderer(m, CameraModel(), seed=0)
+        fx = Renderer(m, CameraModel(effects=CameraEffects(enabled=ALL_EFFECTS)), seed=0)
+        for s in states[:: max(1, frames // 10)]:  # the tiles and the kernels, untimed
+            plain.frame_jpeg(s, 0)
+            fx.frame_jpeg(s, 0)
+        cpu: list[list[float]] = [[], []]
+        for _ in range(3):
+            for k, renderer in enumerate((plain, fx)):
+                c0 = time.process_time()
+                for i, s in enumerate(states):
+                    renderer.frame_jpeg(s, i)
+                cpu[k].append((time.process_time() - c0) / frames * 1e3)
+        a, b = min(cpu[0]), min(cpu[1])
+        case = f"{alt:.0f} m " + (f"roll {rate:.0f}/s" if rate else "line")
+        print(f"{case:>14} {a:9.2f} {b:10.2f} {b / a:6.2f}")
+
+
 def write_dsm(path: Path, m: MapSource, half_m: float = 3200.0) -> None:
     """The built-in surface of a procedural map as a GeoTIFF at twice its pixel size."""
     import rasterio
@@ -267,11 +325,15 @@ def main() -> None:
     parser.add_argument("--skip-cog", action="store_true")
     parser.add_argument("--only-cog", action="store_true")
     parser.add_argument("--relief-only", action="store_true")
+    parser.add_argument("--effects-only", action="store_true")
     parser.add_argument("--dsm", type=Path, default=Path("/tmp/bench_dsm_urban.tif"))
     args = parser.parse_args()
     print(f"RSS at start {rss_mb():.0f} MB")
     if args.relief_only:
         relief(args.frames, args.dsm)
+        return
+    if args.effects_only:
+        effects(args.frames)
         return
     if not args.skip_cog:
         big_cog(args.cog, args.frames)  # first: its RSS is not mixed with the other maps'
@@ -279,6 +341,7 @@ def main() -> None:
         one_core(args.frames)
         threaded(args.frames * 2)
         relief(args.frames, args.dsm)
+        effects(args.frames)
 
 
 if __name__ == "__main__":

@@ -21,7 +21,9 @@ import json
 import shlex
 import subprocess
 import sys
+import time
 from dataclasses import replace
+from pathlib import Path
 from typing import IO, Any
 
 import yaml
@@ -33,7 +35,7 @@ from air_sitl.errors import DatasetError
 from air_sitl.files import write_bytes_atomic, write_json_atomic
 from air_sitl.maps.dates import date_fields
 from air_sitl.progress import Progress
-from air_sitl.sweep import Executor, PoolExecutor, RayExecutor, make_tasks, run_tasks
+from air_sitl.sweep import Executor, PoolExecutor, RayExecutor, make_tasks, run_tasks, time_parts
 from air_sitl.sweep.measurements import EntryResult, archive_id, load_errors, read
 from air_sitl.sweep.run import RunTask
 from air_sitl.sweep.spec import SweepSpec, parse_spec
@@ -74,14 +76,23 @@ class BenchProgress:
         self.bar.update_to(self.done)
 
 
-def make_archives(config: BenchConfig) -> None:
+def progress_note(stream: IO[str], line: str) -> None:
+    """One line on the bench's stream."""
+    stream.write(line + "\n")
+    stream.flush()
+
+
+def make_archives(
+    config: BenchConfig, dates: tuple[int, ...] | None = None, out: Path | None = None
+) -> None:
     """Fly the missing archives with ``air-sitl dataset --resume`` (complete ones are kept;
-    an archive made with other inputs is refused by name, nothing is overwritten)."""
+    an archive made with other inputs is refused by name, nothing is overwritten); over
+    ``dates`` into ``out`` (``dataset``'s folders) instead of the bench's own date."""
     cmd = [
         sys.executable, "-m", "air_sitl", "dataset",
         "--scenarios", ",".join(config.scenarios),
-        "--dates", str(config.flight_date),
-        "--out", str(config.archives),
+        "--dates", ",".join(str(d) for d in dates or (config.flight_date,)),
+        "--out", str(out or config.archives),
         "--missions", str(config.missions),
         "--seed", str(config.seed),
         "-j", str(config.jobs),
@@ -203,14 +214,21 @@ def _executor(config: BenchConfig) -> Executor:
     return PoolExecutor(config.jobs)
 
 
-def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard:
-    """Make or reuse the archives, measure every (scenario, entry), write the leaderboard."""
+def run_bench(
+    config: BenchConfig, stream: IO[str] | None = None, *, made: bool = False
+) -> Leaderboard:
+    """Make or reuse the archives, measure every (scenario, entry), write the leaderboard
+    (``made``: the archives were just made for this bench, nothing to check or fly)."""
     stream = stream if stream is not None else sys.stderr
     config.out.mkdir(parents=True, exist_ok=True)
     for scenario in config.scenarios:  # archives kept from before: the bench's own message
         if (config.archives / scenario / MANIFEST_JSON).is_file():
             check_archive_inputs(config, scenario)
-    make_archives(config)
+    start = time.perf_counter()
+    if not made:  # the flights and their rendering (dataset): nothing to fly when reused
+        make_archives(config)
+    if not config.quiet and not made:
+        progress_note(stream, f"bench: archives {time.perf_counter() - start:.1f} s (fly, render)")
     missing = [s for s in config.scenarios if not (config.archives / s / MANIFEST_JSON).is_file()]
     if missing:
         msg = f"{config.archives}: no complete archive for {', '.join(missing)}"
@@ -224,6 +242,8 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
     progress = BenchProgress(len(cells), stream, config.quiet, done=len(measured))
 
     def on_row(task: RunTask, row: dict[str, Any]) -> None:
+        if not config.quiet and row.get("time_s"):
+            progress.bar.note(f"bench {task.scenario}: {row['wall_s']:.1f} s{time_parts(row)}")
         for result in _row_results(task, row):
             if (result.scenario, result.entry) not in measured:
                 progress.update(result)
@@ -260,13 +280,43 @@ def _map_dates(config: BenchConfig) -> tuple[str | None, ...]:
     return tuple(date_fields(info)["dates"]) if isinstance(info, dict) else ()
 
 
+def fly_dates_once(config: BenchConfig, flight_dates: tuple[int, ...], stream: IO[str]) -> bool:
+    """The archives of every flight date, each scenario flown once for all its dates
+    (``dataset`` renders each date from the same flight, byte-identical to flying it):
+    made under ``OUT/flights/`` and moved to each date's bench (``OUT/date<N>/archives/``).
+    Scenarios with any of those archives already there are left to each date's bench.
+    True when every scenario's archives were made here (the benches need not check them)."""
+    configs = {d: replace(config, flight_date=d, out=config.out / f"date{d}") for d in flight_dates}
+    fresh = tuple(
+        s for s in config.scenarios if not any((c.archives / s).exists() for c in configs.values())
+    )
+    if not fresh or len(flight_dates) < 2:
+        return False
+    staging = config.out / "flights"
+    start = time.perf_counter()
+    make_archives(replace(config, scenarios=fresh), flight_dates, staging)
+    if not config.quiet:
+        took = time.perf_counter() - start
+        progress_note(stream, f"bench: archives of dates {flight_dates} {took:.1f} s (fly, render)")
+    for scenario in fresh:
+        for d, c in configs.items():
+            made = staging / f"{scenario}@{d}"
+            if (made / MANIFEST_JSON).is_file():
+                c.archives.mkdir(parents=True, exist_ok=True)
+                made.replace(c.archives / scenario)
+    return fresh == config.scenarios
+
+
 def run_gaps(
     config: BenchConfig, flight_dates: tuple[int, ...], stream: IO[str] | None = None
 ) -> list[Leaderboard]:
     """One bench per flight date (``OUT/date<N>/``, each with its archives and leaderboard),
-    all against the reference date; ``OUT/leaderboard.md`` and ``.json`` compare the gaps."""
+    all against the reference date; ``OUT/leaderboard.md`` and ``.json`` compare the gaps.
+    The flights are flown once for all dates (:func:`fly_dates_once`)."""
+    config.out.mkdir(parents=True, exist_ok=True)
+    made = fly_dates_once(config, flight_dates, stream if stream is not None else sys.stderr)
     boards = [
-        run_bench(replace(config, flight_date=d, out=config.out / f"date{d}"), stream)
+        run_bench(replace(config, flight_date=d, out=config.out / f"date{d}"), stream, made=made)
         for d in flight_dates
     ]
     write_json_atomic(config.out / "leaderboard.json", gaps_json(boards))

@@ -141,16 +141,25 @@ def effects_from_options(profile: str | None, names: str | None) -> CameraEffect
 
 
 def undistorted_grid(
-    width: int, height: int, k: npt.NDArray[np.float64], coeffs: Sequence[float]
+    width: int, height: int, k: npt.NDArray[np.float64], coeffs: Sequence[float], margin: int = 0
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """Pinhole pixel (u, v) seen at each distorted sensor pixel (inverse of plumb_bob).
+    """Pinhole pixel (u, v) seen at each distorted sensor pixel (inverse of plumb_bob), on
+    the sensor's grid and ``margin`` pixels around it (rows and columns -margin ..)."""
+    v, u = np.mgrid[-margin : height + margin, -margin : width + margin].astype(np.float64)
+    return undistort_points(u, v, k, coeffs)
+
+
+def undistort_points(
+    u: npt.NDArray[np.float64], v: npt.NDArray[np.float64], k: npt.NDArray[np.float64],
+    coeffs: Sequence[float],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:  # fmt: skip
+    """Pinhole points seen at distorted sensor points (u, v) (inverse of plumb_bob).
 
     Fixed-point iteration on normalised coordinates to 1e-10, as OpenCV's undistortPoints
     does with more iterations (its default five leave 0.1 px at strong distortion).
     """
     fx, fy, cx, cy = k[0, 0], k[1, 1], k[0, 2], k[1, 2]
     k1, k2, p1, p2, k3 = (float(c) for c in coeffs)
-    v, u = np.mgrid[0:height, 0:width].astype(np.float64)
     xd, yd = (u - cx) / fx, (v - cy) / fy
     x, y = xd.copy(), yd.copy()
     for _ in range(50):

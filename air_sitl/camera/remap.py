@@ -11,15 +11,14 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import replace
 from typing import Any, Protocol
 
 import cv2
 import numpy as np
 import numpy.typing as npt
 
-from air_sitl.camera import effects as fx_mod
 from air_sitl.camera import relief
+from air_sitl.camera.effects_frame import EffectsPath
 from air_sitl.camera.homography import (
     MAX_MOSAIC_HALF_PX,
     MIN_DOWN,
@@ -32,9 +31,7 @@ from air_sitl.camera.homography import (
     tuple9,
 )
 from air_sitl.camera.model import CameraModel
-from air_sitl.frames import ned2geodetic, quat_multiply, quat_normalize
 from air_sitl.maps.base import FILL_BGRX, TILE_PX, MapSource
-from air_sitl.maps.procedural.noise import key_of
 from air_sitl.maps.surface import SurfaceModel
 from air_sitl.state import VehicleState
 
@@ -72,6 +69,8 @@ class FrameOwner(Protocol):
 
     def _note_nodata(self, warped: npt.NDArray[Any], sky: npt.NDArray[np.bool_] | None) -> None: ...
 
+    def _add_nodata(self, px: int) -> None: ...
+
     def _noised(self, rows: Image, noise: tuple[Image, Image], v0: int, v1: int) -> Image: ...
 
 
@@ -91,19 +90,8 @@ class RemapPaths:
         self._local = threading.local()  # this thread's last window of heights
         if self.surface is not None:
             relief.warm()  # the kernels compiled before the first frame, not during it
-        self._pinhole: tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]] | None = None
-        self._vignette: npt.NDArray[np.float32] | None = None
-        if camera.has_effects:
-            assert camera.effects is not None
-            k = camera.intrinsics()
-            self._pinhole = fx_mod.undistorted_grid(
-                camera.width_px, camera.height_px, k, camera.effects.distortion
-            )
-            if camera.effects.on("vignette"):
-                self._vignette = fx_mod.vignette_gain(
-                    camera.width_px, camera.height_px, k, *self._pinhole,
-                    camera.effects.vignette_power,
-                )[:, :, None]  # fmt: skip
+        # Camera effects: their own part (``effects_frame``), which samples through this one.
+        self._effects = EffectsPath(owner, self) if camera.has_effects else None
 
     def render(
         self,
@@ -114,8 +102,8 @@ class RemapPaths:
         noise_index: int | None,
     ) -> Image:
         """The frame into ``out``: with the camera's effects if it has any, else over relief."""
-        if self._pinhole is not None:
-            return self._render_effects(state, g, out, noise, noise_index)
+        if self._effects is not None:
+            return self._effects.render(state, g, out, noise, noise_index)
         return self._render_relief(state, g, out, noise)
 
     # -- relief -------------------------------------------------------------------------------
@@ -301,7 +289,7 @@ class RemapPaths:
         return part, float(x0 - ox), float(y0 - oy)
 
     # -- camera effects ------------------------------------------------------------------------
-    def _pose_maps(
+    def pose_maps(
         self, state: VehicleState, level: int, pu: npt.NDArray[np.float64],
         pv: npt.NDArray[np.float64],
     ) -> npt.NDArray[np.float32]:  # fmt: skip
@@ -349,136 +337,6 @@ class RemapPaths:
         if g.sees_horizon:
             out[~down] = -1e7
         return out
-
-    def _at_time(self, state: VehicleState, dt_s: float) -> VehicleState:
-        """The pose ``dt_s`` later, moving at the state's velocity and body rates."""
-        if dt_s == 0.0:
-            return state
-        vn, ve, vd = state.vel_ned_m_s
-        lat, lon, alt = ned2geodetic(
-            vn * dt_s, ve * dt_s, vd * dt_s, state.lat_deg, state.lon_deg, state.alt_amsl_m
-        )
-        p, q, r = state.rate_frd_rad_s
-        ang = math.sqrt(p * p + q * q + r * r) * dt_s  # negative before the frame's time
-        if ang != 0.0:
-            k = math.sin(ang / 2.0) / (ang / dt_s)
-            dq = (math.cos(ang / 2.0), p * k, q * k, r * k)
-            quat = quat_normalize(quat_multiply(state.q_body_to_ned_wxyz, dq))
-        else:
-            quat = state.q_body_to_ned_wxyz
-        return replace(state, lat_deg=lat, lon_deg=lon, alt_amsl_m=alt, q_body_to_ned_wxyz=quat)
-
-    def _blur_samples(self, state: VehicleState, g: FrameGeometry, exposure_s: float) -> int:
-        """Sub-exposures so that no image point moves more than half a pixel between two."""
-        cam = self.camera
-        rate = math.sqrt(sum(w * w for w in state.rate_frd_rad_s))
-        speed = math.sqrt(sum(v * v for v in state.vel_ned_m_s))
-        corner = math.hypot(cam.width_px, cam.height_px) / 2.0
-        # Rotation moves points up to f * rate (more toward the corners); translation
-        # f * speed / range, the range at least the height over the ground.
-        px_s = rate * (cam.fx_px + corner * corner / cam.fx_px) + cam.fx_px * speed / max(
-            g.height_m, 1.0
-        )
-        return int(min(16, max(1, math.ceil(2.0 * px_s * exposure_s))))
-
-    def _render_effects(
-        self,
-        state: VehicleState,
-        g: FrameGeometry,
-        out: Image,
-        noise: tuple[Image, Image] | None,
-        noise_index: int | None,
-    ) -> Image:
-        """A frame with the camera's effects (geometry, then light, then the sensor noise)."""
-        cam = self.camera
-        fx = cam.effects
-        assert fx is not None and self._pinhole is not None
-        pu, pv = self._pinhole
-        exposure = fx.exposure_time_s if fx.on("blur") else 0.0
-        count = self._blur_samples(state, g, exposure) if exposure > 0 else 1
-        rs = fx.on("rolling-shutter") and fx.line_delay_s > 0
-        half = (cam.height_px - 1) / 2.0
-        rows = (np.arange(cam.height_px, dtype=np.float32) - np.float32(half))[:, None, None]
-        acc = np.zeros((cam.height_px, cam.width_px, 3), dtype=np.float32)
-        for k in range(count):
-            t = exposure * ((k + 0.5) / count - 0.5)
-            if rs:
-                # Rows at their own times: the first, middle and last rows' poses, and a
-                # quadratic through them per row (Lagrange, in units of half the readout).
-                d = fx.line_delay_s * half
-                m0, m1, m2 = (self._pose_maps(self._at_time(state, t + s * d), g.level, pu, pv)
-                              for s in (-1.0, 0.0, 1.0))  # fmt: skip
-                a = rows / np.float32(max(half, 1.0))
-                maps = (
-                    m1
-                    + a * (m2 - m0) * np.float32(0.5)
-                    + a * a * ((m0 + m2) * np.float32(0.5) - m1)
-                )
-            else:
-                maps = self._pose_maps(self._at_time(state, t), g.level, pu, pv)
-            acc += self._sample_maps(g.level, maps, count_nodata=k == 0)
-        img = acc * np.float32(1.0 / count)
-        if fx.on("haze"):
-            img = self._haze(state, g, img, fx)
-        if self._vignette is not None:
-            img *= self._vignette
-        if fx.on("exposure"):
-            lum = float(img.mean())
-            gain = min(fx.exposure_gain_max, max(fx.exposure_gain_min, fx.exposure_target_dn
-                                                 / max(lum, 1e-3)))  # fmt: skip
-            if noise_index is not None and fx.gain_noise > 0:
-                rng = np.random.default_rng(key_of(self.seed, 0x4E03, noise_index))
-                gain *= max(0.0, 1.0 + fx.gain_noise * float(rng.standard_normal()))
-            img *= np.float32(gain)
-        np.clip(np.rint(img), 0, 255, out=img)
-        out[:] = img.astype(np.uint8)
-        if noise is not None:
-            self._owner._noised(out, noise, 0, cam.height_px)
-        return out
-
-    def _sample_maps(
-        self, level: int, maps: npt.NDArray[np.float32], *, count_nodata: bool = False
-    ) -> npt.NDArray[np.float32]:
-        """Colours (float BGR) at absolute level-pixel coordinates, from one mosaic
-        (``count_nodata``: the frame's map nodata, once per frame, sky rays aside)."""
-        ok = maps[:, :, 0] > -1e6
-        if not ok.any():
-            return np.zeros((*maps.shape[:2], 3), dtype=np.float32)
-        xs, ys = maps[:, :, 0][ok], maps[:, :, 1][ok]
-        cx, cy = float(np.median(xs)), float(np.median(ys))
-        lim = MAX_MOSAIC_HALF_PX
-        x0 = math.floor(max(float(xs.min()), cx - lim)) - 1
-        x1 = math.ceil(min(float(xs.max()), cx + lim)) + 1
-        y0 = math.floor(max(float(ys.min()), cy - lim)) - 1
-        y1 = math.ceil(min(float(ys.max()), cy + lim)) + 1
-        mosaic, mx, my = self._owner._mosaic(level, x0, y0, x1, y1)
-        rel = maps - np.array([mx, my], dtype=np.float32)
-        warped = cv2.remap(mosaic, rel, None, cv2.INTER_LINEAR,  # type: ignore[call-overload]
-                           borderMode=cv2.BORDER_CONSTANT, borderValue=FILL_BGRX)  # fmt: skip
-        if count_nodata:
-            self._owner._note_nodata(warped, ~ok)
-        colour: npt.NDArray[np.float32] = warped[:, :, :3].astype(np.float32)
-        return colour
-
-    def _haze(
-        self, state: VehicleState, g: FrameGeometry, img: npt.NDArray[np.float32],
-        fx: fx_mod.CameraEffects,
-    ) -> npt.NDArray[np.float32]:  # fmt: skip
-        """Koschmieder: exp(-beta * range) of the radiance, the rest airlight."""
-        assert self._pinhole is not None
-        pu, pv = self._pinhole
-        r = mul3(quat_rows(state.q_body_to_ned_wxyz), self._owner._c2b_kinv)
-        dn = r[0] * pu + r[1] * pv + r[2]
-        de = r[3] * pu + r[4] * pv + r[5]
-        dd = r[6] * pu + r[7] * pv + r[8]
-        # Range to the plane under the aircraft (relief: its reference plane); beyond the
-        # horizon, a long way.
-        ok = dd > MIN_DOWN
-        rng = np.where(ok, max(g.height_m, 0.0) * np.sqrt(dn * dn + de * de + dd * dd)
-                       / np.where(ok, dd, 1.0), 1e6)  # fmt: skip
-        keep = np.exp(-(3.912 / fx.visibility_m) * rng).astype(np.float32)[:, :, None]
-        air = np.array(fx.airlight_bgr, dtype=np.float32)
-        return img * keep + air * (np.float32(1.0) - keep)
 
 
 def _is_grid(pu: npt.NDArray[np.float64], pv: npt.NDArray[np.float64]) -> bool:

@@ -326,9 +326,15 @@ class Renderer:
             low &= ~sky
         self._local.nodata_px += int(np.count_nonzero(low))
 
+    def _add_nodata(self, px: int) -> None:
+        """Count ``px`` pixels sampled from nodata (the effects' pass counts its own), when
+        this thread's mosaic has any."""
+        if self._local.holes:
+            self._local.nodata_px += px
+
     def nodata_fraction(self) -> float:
         """Share of the last frame this thread rendered that shows the map's nodata or
-        ground off the map (with camera effects: at the first sub-exposure)."""
+        ground off the map (with camera effects: at each pixel's first blur tap)."""
         px: int = getattr(self._local, "nodata_px", 0)
         return px / (self.camera.width_px * self.camera.height_px)
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import sys
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -173,6 +173,89 @@ def _add_estimates(archive: Path, bus: BusHookup) -> None:
         refresh_manifest(archive)
 
 
+@dataclass(slots=True)
+class ArchiveSide:
+    """The parts of a recording that write one archive: its writer, camera and checks."""
+
+    out: Path
+    writer: DatasetWriter | None = None
+    camera: FrameSource | None = None
+    nodata: NodataFrames | None = None
+    dem: DemCoverage | None = None
+    first_frame: int = 0
+    map_info: dict[str, Any] | None = None  # the manifest's map (its dates reach summary.json)
+    done: RecordingResult | None = None  # complete already (--resume): nothing to fly
+    summary: dict[str, Any] = field(default_factory=dict)  # summary.json, once finished
+
+    @property
+    def sinks(self) -> list[Sink]:
+        """The sinks of the archive's checks (the writer and trajectory come after them)."""
+        return [s for s in (self.nodata, self.dem) if s is not None]
+
+    def abort(self) -> None:
+        """Close what was opened, after an error before the flight."""
+        if self.writer is not None:
+            self.writer.close(None)  # type: ignore[arg-type]
+        if self.camera is not None:
+            self.camera.close()
+
+
+def open_archive(setup: FlightSetup, out: Path, *, resuming: bool, io_thread: bool) -> ArchiveSide:
+    """The writer, camera and checks of one camera archive (``setup.camera`` is set)."""
+    assert setup.plan is not None, "record_flight: an archive needs the plan file"
+    side = ArchiveSide(out=out)
+    map_source = open_setup_map(setup)
+    try:
+        info = archive_info_for(setup, map_source, plan_sha256=sha256_file(setup.plan))
+        if isinstance(map_info := info.manifest.get("map"), dict):
+            side.map_info = map_info
+        if resuming:
+            side.done = _already_complete(out, info)
+            if side.done is not None:
+                close_map(map_source)
+                return side
+            side.first_frame = _trim_for_resume(out, info.run_key)
+        side.writer = DatasetWriter(out, info, first_frame=side.first_frame, threaded=io_thread)
+    except BaseException:
+        close_map(map_source)
+        raise
+    side.camera = open_camera(setup, map_source)
+    side.nodata = NodataFrames(map_source.name)
+    if isinstance(side.camera.renderer.surface, DemExtent):
+        assert setup.camera is not None
+        side.dem = DemCoverage(side.camera.renderer.surface, setup.camera)
+    return side
+
+
+def finish_archive(
+    side: ArchiveSide, summary: dict[str, Any], capture_ticks: int
+) -> dict[str, Any]:
+    """Check one archive's frames against the flight's ticks, add its own lines to
+    ``summary`` (a copy), and write its manifest; returns the manifest."""
+    assert side.writer is not None
+    writer, out = side.writer, side.out
+    summary = dict(summary)
+    writer.raise_if_failed()
+    if writer.next_index != capture_ticks:
+        msg = (
+            f"{out}: {writer.next_index} frames written but {capture_ticks} "
+            "capture ticks flown (a camera frame was lost)"
+        )
+        raise DatasetError(msg)
+    summary["frames_written"] = writer.next_index
+    if side.map_info is not None:
+        summary["map"] = date_fields(side.map_info)  # the imagery's date, among the map's
+    if side.first_frame:
+        summary["resumed_from_frame"] = side.first_frame
+    if side.nodata is not None and (record := side.nodata.record()) is not None:
+        summary["frames_with_nodata"] = record
+        print(side.nodata.message(), file=sys.stderr, flush=True)
+    for line in side.dem.messages() if side.dem is not None else []:
+        print(line, file=sys.stderr, flush=True)
+    side.summary = summary
+    return writer.finish(summary)
+
+
 def record_flight(
     request: RecordingRequest,
     *,
@@ -195,37 +278,21 @@ def record_flight(
         prepare_out_dir(out)
 
     sinks: list[Sink] = []
-    camera_source: FrameSource | None = None
-    writer: DatasetWriter | None = None
-    nodata: NodataFrames | None = None
-    dem: DemCoverage | None = None
+    side: ArchiveSide | None = None
     if setup.camera is not None:
-        assert setup.plan is not None, "record_flight: an archive needs the plan file"
-        map_source = open_setup_map(setup)
-        try:
-            info = archive_info_for(setup, map_source, plan_sha256=sha256_file(setup.plan))
-            if resuming:
-                done = _already_complete(out, info)
-                if done is not None:
-                    close_map(map_source)
-                    return done
-                first_frame = _trim_for_resume(out, info.run_key)
-            writer = DatasetWriter(out, info, first_frame=first_frame, threaded=request.io_thread)
-        except BaseException:
-            close_map(map_source)
-            raise
-        camera_source = open_camera(setup, map_source)
-        nodata = NodataFrames(map_source.name)
-        sinks.append(nodata)
-        if isinstance(camera_source.renderer.surface, DemExtent):
-            dem = DemCoverage(camera_source.renderer.surface, setup.camera)
-            sinks.append(dem)
+        side = open_archive(setup, out, resuming=resuming, io_thread=request.io_thread)
+        if side.done is not None:
+            return side.done
+        first_frame = side.first_frame
+        sinks.extend(side.sinks)
     elif resuming:
         msg = f"{out}: --resume needs a camera archive (without --no-camera)"
         raise DatasetError(msg)
     elif options.gps_denied_ns:
         # Without a camera there is no manifest: the windows get a file of their own.
         write_json_atomic(out / GPS_DENIAL_JSON, gps_denial_record(options.gps_denied_ns))
+    camera_source = side.camera if side is not None else None
+    writer = side.writer if side is not None else None
 
     try:
         if request.bus is not None:
@@ -246,10 +313,8 @@ def record_flight(
         if request.bus is not None and flight.nav is not None and options.nav_aid is not None:
             flight.nav.aid_feed = request.bus.nav_aid_feed(options.nav_aid)
     except BaseException:
-        if writer is not None:
-            writer.close(None)  # type: ignore[arg-type]
-        if camera_source is not None:
-            camera_source.close()
+        if side is not None:
+            side.abort()
         raise
     flight.first_frame_to_render = first_frame
     if on_start is not None:
@@ -265,25 +330,9 @@ def record_flight(
     if request.bus is not None:
         summary.update(request.bus.after_flight())
     manifest = None
-    if writer is not None:
-        writer.raise_if_failed()
-        if writer.next_index != flight.counters.capture_ticks:
-            msg = (
-                f"{out}: {writer.next_index} frames written but {flight.counters.capture_ticks} "
-                "capture ticks flown (a camera frame was lost)"
-            )
-            raise DatasetError(msg)
-        summary["frames_written"] = writer.next_index
-        if isinstance(map_info := info.manifest.get("map"), dict):
-            summary["map"] = date_fields(map_info)  # the imagery's date, among the map's
-        if first_frame:
-            summary["resumed_from_frame"] = first_frame
-        if nodata is not None and (record := nodata.record()) is not None:
-            summary["frames_with_nodata"] = record
-            print(nodata.message(), file=sys.stderr, flush=True)
-        for line in dem.messages() if dem is not None else []:
-            print(line, file=sys.stderr, flush=True)
-        manifest = writer.finish(summary)
+    if side is not None:
+        manifest = finish_archive(side, summary, flight.counters.capture_ticks)
+        summary = side.summary
         if request.bus is not None:
             _add_estimates(out, request.bus)
     else:

@@ -42,6 +42,7 @@ __all__ = [
     "print_outcome",
     "run_sweep",
     "run_tasks",
+    "time_parts",
 ]
 
 SWEEP_JSON = "sweep.json"  # what the sweep folder holds: the SPEC, its axes and methods
@@ -127,7 +128,7 @@ class _Progress:
         if row.get("error"):
             result = f"failed: {row['error']}"
         else:
-            parts = [f"{row['wall_s']:.1f} s"]
+            parts = [f"{row['wall_s']:.1f} s{time_parts(row)}"]
             for name, report in (row.get("eval") or {}).items():
                 median = ((report or {}).get("horizontal_error_m") or {}).get("median")
                 parts.append(f"{name} {'-' if median is None else f'{median:.1f} m'}")
@@ -137,6 +138,14 @@ class _Progress:
 
     def close(self) -> None:
         self.bar.close()
+
+
+def time_parts(row: dict[str, Any]) -> str:
+    """`` (fly 40.1 s, localize 3.0 s, eval 0.2 s)``: where a row's wall time went."""
+    times = row.get("time_s") or {}
+    if not times:
+        return ""
+    return " (" + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()) + ")"
 
 
 def _all_measured(task: RunTask) -> bool:

@@ -21,9 +21,11 @@ from air_sitl.sweep.errors import SweepError
 
 RESULTS = "results.jsonl"
 ROW_KEYS = (
-    "id", "options", "summary", "eval", "error", "wall_s", "host", "archive", "reference_date"
+    "id", "options", "summary", "eval", "error", "wall_s", "host", "archive", "reference_date",
+    "time_s",
 )  # fmt: skip
-VOLATILE_KEYS = ("wall_s", "host")  # what differs between two runs of the same SPEC
+# What differs between two runs of the same SPEC (time_s: where the run's wall time went).
+VOLATILE_KEYS = ("wall_s", "host", "time_s")
 
 
 def encode_row(row: dict[str, Any]) -> bytes:

@@ -189,32 +189,42 @@ def _row_summary(summary: dict[str, Any], plan_label: str) -> dict[str, Any]:
 
 
 def _measure(
-    task: RunTask, out: Path, entry: str | ExternalLocalizer
+    task: RunTask, out: Path, entry: str | ExternalLocalizer, times: dict[str, float]
 ) -> tuple[Scored | None, str | None, LocalizeRun | None]:
     """One method over the archive, or one localizer program in lockstep, then its estimate
-    scored: (the score, why it failed, the method's run)."""
+    scored: (the score, why it failed, the method's run); the seconds each took are added
+    to ``times`` (``localize``, ``eval``)."""
     name = entry if isinstance(entry, str) else entry.name
     run = None
-    if isinstance(entry, str):
-        try:
-            run = run_archive(
-                out, entry, name=entry, reference_date=task.reference_date, seed=task.seed
-            )
-        except AirSitlError as err:
-            return None, f"localize {entry}: {_one_line(err)}", None
-    else:
-        why = _run_external(task, out, entry)
-        if why is not None:
-            return None, f"localizer {name}: {why}", None
+    start = time.perf_counter()
+    try:
+        if isinstance(entry, str):
+            try:
+                run = run_archive(
+                    out, entry, name=entry, reference_date=task.reference_date, seed=task.seed
+                )
+            except AirSitlError as err:
+                return None, f"localize {entry}: {_one_line(err)}", None
+        else:
+            why = _run_external(task, out, entry)
+            if why is not None:
+                return None, f"localizer {name}: {why}", None
+    finally:
+        times["localize"] += time.perf_counter() - start
+    start = time.perf_counter()
     try:
         scored = score_sources(out, [name], task.align)[0]
     except AirSitlError as err:
         return None, f"eval: {_one_line(err)}", run
+    finally:
+        times["eval"] += time.perf_counter() - start
     scored.report["archive"] = task.archive_label
     return scored, None, run
 
 
-def _localize(task: RunTask, out: Path) -> tuple[dict[str, Any], str | None]:
+def _localize(
+    task: RunTask, out: Path, times: dict[str, float]
+) -> tuple[dict[str, Any], str | None]:
     """Each entry measured in turn (and saved as it finishes when the task keeps
     measurements; those measured before are not measured again); (reports, first error)."""
     folder = None if task.measurements is None else Path(task.measurements)
@@ -228,7 +238,7 @@ def _localize(task: RunTask, out: Path) -> tuple[dict[str, Any], str | None]:
         if done is not None:  # measured by an earlier, interrupted run
             reports[name] = done.report
             continue
-        scored, why, run = _measure(task, out, entry)
+        scored, why, run = _measure(task, out, entry, times)
         reports[name] = None if scored is None else scored.report
         error = error or why
         if folder is not None:
@@ -302,6 +312,9 @@ def execute(task: RunTask) -> dict[str, Any]:
     summary: dict[str, Any] | None = None
     reports: dict[str, Any] = {}
     error: str | None = None
+    # Where the run's time went, wall seconds: the flight with its camera's rendering (none
+    # over a reused archive), the methods and localizers, the scoring.
+    times = {"fly": 0.0, "localize": 0.0, "eval": 0.0}
     try:
         if task.reuse:
             summary = _row_summary(_read_summary(out), task.plan_label)
@@ -309,10 +322,12 @@ def execute(task: RunTask) -> dict[str, Any]:
             if out.exists():  # what a killed sweep left of this run: done again from the start
                 shutil.rmtree(out)
             out.parent.mkdir(parents=True, exist_ok=True)
+            fly_start = time.perf_counter()
             with _work_folder(task, out) as plan:
                 summary = _row_summary(_fly(task, plan, out), task.plan_label)
+            times["fly"] = time.perf_counter() - fly_start
         if task.methods or task.localizers:
-            reports, error = _localize(task, out)
+            reports, error = _localize(task, out, times)
         _keep(out, task.keep)
     except AirSitlError as err:
         error = _one_line(err)
@@ -326,6 +341,7 @@ def execute(task: RunTask) -> dict[str, Any]:
             "eval": reports,
             "error": error,
             "wall_s": round(time.perf_counter() - start, 3),
+            "time_s": {k: round(v, 3) for k, v in times.items()},
             "host": socket.gethostname(),
             "archive": task.archive_label,
             "reference_date": task.reference_date,

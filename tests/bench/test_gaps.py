@@ -115,6 +115,15 @@ def test_a_bench_over_two_dates_scores_each_gap(tmp_path: Path) -> None:
         )
         assert manifest["map"]["date_index"] == d
         assert (out / f"date{d}" / "leaderboard.md").is_file()
+    # One flight for both dates (made under flights/, then moved): the same samples.
+    assert (out / "flights").is_dir() and not list((out / "flights").glob("UT-200@*"))
+    imu = {
+        json.loads((out / f"date{d}" / "archives" / "UT-200" / "manifest.json").read_text())[
+            "files"
+        ]["imu.csv"]
+        for d in (0, 2)
+    }
+    assert len(imu) == 1
     md = (out / "leaderboard.md").read_text()
     # The gaps by their surveys' dates (the procedural map's DATES)
     assert "| method | 2009-06-20 -> 2009-06-20 | 2009-06-20 -> 2016-04-22 |" in md
