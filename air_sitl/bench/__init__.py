@@ -44,6 +44,7 @@ __all__ = [
     "bench_spec",
     "parse_localizer",
     "parse_methods",
+    "resume_problem",
     "run_bench",
     "run_gaps",
 ]
@@ -202,15 +203,16 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
     for scenario in config.scenarios:  # archives kept from before: the bench's own message
         if (config.archives / scenario / MANIFEST_JSON).is_file():
             check_archive_inputs(config, scenario)
+    data = bench_spec(config)
+    spec_path = config.out / BENCH_SPEC
+    spec = parse_spec(data, spec_path, missions=config.missions)
+    # Written first: an interrupted bench says what it was (air_sitl.outdir, --resume).
+    write_bytes_atomic(spec_path, yaml.safe_dump(data, sort_keys=False).encode("utf-8"))
     make_archives(config)
     missing = [s for s in config.scenarios if not (config.archives / s / MANIFEST_JSON).is_file()]
     if missing:
         msg = f"{config.archives}: no complete archive for {', '.join(missing)}"
         raise DatasetError(msg)
-    data = bench_spec(config)
-    spec_path = config.out / BENCH_SPEC
-    spec = parse_spec(data, spec_path, missions=config.missions)
-    write_bytes_atomic(spec_path, yaml.safe_dump(data, sort_keys=False).encode("utf-8"))
     cells = [(s, e) for s in config.scenarios for e in config.entries]
     measured = {cell for cell in cells if _measured(config, *cell).error is None}
     progress = BenchProgress(len(cells), stream, config.quiet, done=len(measured))
@@ -243,6 +245,32 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
 
         error_boxes(errors, config.entries, config.scenarios, config.out / "error_boxes.png")
     return board
+
+
+def resume_problem(config: BenchConfig, flight_dates: tuple[int, ...]) -> str | None:
+    """None when ``config.out`` holds a bench of these inputs (its ``bench.yaml``, one per
+    flight date: ``--resume`` continues it), else why not (:mod:`air_sitl.outdir`)."""
+    configs = [config]
+    if len(flight_dates) > 1:
+        configs = [
+            replace(config, flight_date=d, out=config.out / f"date{d}") for d in flight_dates
+        ]
+    found = False
+    for one in configs:
+        path = one.out / BENCH_SPEC
+        if not path.is_file():
+            continue
+        found = True
+        try:
+            there = yaml.safe_load(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+            return f"{path} is unreadable"
+        wanted = bench_spec(one)
+        keys = [k for k in {**wanted, **(there if isinstance(there, dict) else {})}]
+        diff = [k for k in keys if not isinstance(there, dict) or there.get(k) != wanted.get(k)]
+        if diff:
+            return f"a bench of other inputs: {', '.join(diff)} differ in {path}"
+    return None if found else f"not a bench folder: no {BENCH_SPEC}"
 
 
 def run_gaps(

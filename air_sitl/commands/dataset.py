@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 from air_sitl.camera.options import add_camera_arguments, camera_from_args
 from air_sitl.errors import DatasetError, OptionError
 from air_sitl.options import MapChoice, add_flight_arguments, flight_options_from_args, int_in_range
+from air_sitl.outdir import add_out_arguments
 
 if TYPE_CHECKING:  # the flights' modules load when they fly, not for --help
     from air_sitl.recording.batch import Job
@@ -57,9 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "folders are ROOT/<scenario>@<date>/",
     )
     parser.add_argument("--zip", action="store_true", help="also pack each folder as ROOT/<n>.zip")
-    parser.add_argument(
-        "--resume", action="store_true", help="continue unfinished folders, skip complete ones"
-    )
+    add_out_arguments(parser, resume="continue unfinished folders, skip complete ones")
     parser.add_argument(
         "--ignore-free-space",
         action="store_true",
@@ -113,9 +112,6 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
             if out.exists() and not out.is_dir():
                 msg = f"{out}: exists and is not a folder (remove it, or choose another --out)"
                 raise DatasetError(msg)
-            if out.exists() and any(out.iterdir()) and not args.resume:
-                msg = f"{out}: folder exists and is not empty (choose another --out, or --resume)"
-                raise DatasetError(msg)
             choice = MapChoice(spec=spec, seed=args.map_seed, date=date, dem=args.dem)
             jobs.append(
                 Job(
@@ -130,12 +126,37 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
         if job.setup.map.spec is not None:
             # A GeoTIFF map missing home fails now, not in an hour.
             close_map(open_setup_map(job.setup))
+        if not args.overwrite:
+            _claim_job_folder(job, resume=bool(args.resume))
     return jobs
+
+
+def _claim_job_folder(job: Job, *, resume: bool) -> None:
+    """The rule of :mod:`air_sitl.outdir` for one scenario's folder, before anything flies:
+    a non-empty one is refused, or continued with ``--resume`` when its inputs are the same
+    (``--overwrite`` empties ROOT as a whole instead)."""
+    from air_sitl.outdir import is_nonempty_folder, refusal
+    from air_sitl.recording import folder_problem
+
+    if not is_nonempty_folder(job.out):
+        return
+    problem = folder_problem(job.setup, job.out)
+    if not resume:
+        raise DatasetError(refusal(job.out, problem, resumable=True))
+    if problem is not None:
+        msg = f"{job.out}: --resume: {problem}; --overwrite replaces ROOT, or another --out"
+        raise DatasetError(msg)
 
 
 def run(args: argparse.Namespace) -> int:
     """Fly every job; exit 0 when all completed, 1 when a mission did not, 2 on errors."""
-    from air_sitl.dataset.scenarios import PAPER_TABLE, ScenarioStats, format_table, stats_table
+    from air_sitl.dataset.scenarios import (
+        PAPER_TABLE,
+        ScenarioStats,
+        format_table,
+        read_stats,
+        stats_table,
+    )
     from air_sitl.files import require_writable_folder, write_bytes_atomic
     from air_sitl.progress import JobsProgress
     from air_sitl.recording.batch import Outcome, run_jobs
@@ -146,6 +167,16 @@ def run(args: argparse.Namespace) -> int:
     # A read-only disk, then too little room: refused before anything flies or is made.
     require_writable_folder(root, "output folder", create=False)
     already = check_disk(jobs, expected, root, args)
+    if args.overwrite:
+        from air_sitl.outdir import claim_folder
+
+        claim_folder(root, overwrite=True)
+    # Scenarios flown into ROOT before, not by this run: their rows stay in the table.
+    earlier = [
+        s
+        for s in read_stats(root / "stats.csv")
+        if s.scenario not in {j.name for j in jobs} and (root / s.scenario).is_dir()
+    ]
     n = min(int_in_range("-j", args.jobs, 1, 64), len(jobs))
     display = JobsProgress(
         [j.name for j in jobs], expected, enabled=not args.quiet, already=already
@@ -175,7 +206,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         display.close()
     wall = time.monotonic() - start
-    stats = [
+    stats = earlier + [
         ScenarioStats(
             scenario=o.name,
             images=o.images,
@@ -200,7 +231,8 @@ def run(args: argparse.Namespace) -> int:
             table_error = f"{root / 'stats.csv'}: cannot write the table: {err.strerror}"
     frames = sum(o.images for o in outcomes)
     sys.stdout.write(
-        f"{len(stats)}/{len(outcomes)} scenarios, {frames} frames in {wall:.0f} s wall "
+        f"{len(stats) - len(earlier)}/{len(outcomes)} scenarios, {frames} frames in "
+        f"{wall:.0f} s wall "
         f"({frames / wall if wall > 0 else 0:.0f} frames/s){table}\n"
     )
     errors = [o for o in outcomes if o.error]

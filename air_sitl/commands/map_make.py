@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from air_sitl.errors import OptionError
+from air_sitl.outdir import add_out_arguments
 from air_sitl.state import GeoPoint
 
 HELP = "make map files (map make {urban,forest} --out FILE.tif)"
@@ -55,12 +56,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     make.add_argument(
         "--lossless", action="store_true", help="DEFLATE instead of JPEG q90 compression"
     )
+    add_out_arguments(make)
     fetch = sub.add_parser(
         "fetch",
         help="mosaic real imagery or elevation from a STAC API or static catalog, one COG per date",
         description="find STAC items over a box and dates, read only the needed windows of "
         "their COG assets, write DIR/<collection>_<YYYY-MM-DD>.tif (elevation: DIR/dem.tif) "
-        "and DIR/fetch.json; again into the same DIR skips what is done. Public collections: "
+        "and DIR/fetch.json; --resume into the same DIR skips what is done. Public collections: "
         "--stac https://planetarycomputer.microsoft.com/api/stac/v1 with --collection naip, "
         "3dep-seamless or cop-dem-glo-30 (needs pystac-client and signed asset URLs)",
     )
@@ -75,6 +77,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     fetch.add_argument("--datetime", default=None, metavar="START/END", help="ISO dates or ..")
     fetch.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    add_out_arguments(
+        fetch,
+        resume="continue a fetch into --out (same catalog, collection, box and dates): "
+        "what is done is kept",
+    )
 
 
 def _parse_origin(text: str | None) -> tuple[float, float]:
@@ -98,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
         return _fetch(args)
     from air_sitl.maps.geotiff import write_geotiff
     from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
+    from air_sitl.outdir import claim_path
     from air_sitl.progress import Progress
 
     lat, lon = _parse_origin(args.origin)
@@ -108,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         msg = f"--out {out}: folder {out.parent} does not exist"
         raise OptionError(msg)
+    claim_path(out, overwrite=args.overwrite)
     gsd = float(args.gsd_m)
     if not (math.isfinite(gsd) and 0.05 <= gsd <= 100.0):
         msg = f"--gsd-m {args.gsd_m}: expected 0.05..100 metres per pixel"
@@ -165,14 +174,29 @@ def run(args: argparse.Namespace) -> int:
 
 def _fetch(args: argparse.Namespace) -> int:
     """``map fetch``: STAC items over a box to one COG per date."""
-    from air_sitl.maps.stac import fetch, parse_bbox, parse_datetime
+    from air_sitl.maps.stac import fetch, parse_bbox, parse_datetime, resume_problem
+    from air_sitl.outdir import claim_folder
 
+    stac, collection = str(args.stac), str(args.collection)
+    inputs: dict[str, object] = {
+        "stac": stac,
+        "collection": collection,
+        "bbox": list(parse_bbox(str(args.bbox))),
+        "datetime": "/".join(parse_datetime(args.datetime)),
+    }
+    out = Path(args.out)
+    claim_folder(
+        out,
+        overwrite=args.overwrite,
+        resume=args.resume,
+        resume_problem=lambda: resume_problem(out, inputs),
+    )
     record = fetch(
-        str(args.stac),
-        str(args.collection),
+        stac,
+        collection,
         parse_bbox(str(args.bbox)),
         parse_datetime(args.datetime),
-        Path(args.out),
+        out,
     )
     for name, ids in sorted(record["outputs"].items()):
         print(f"{Path(args.out) / name}: {len(ids)} item(s)", file=sys.stdout)

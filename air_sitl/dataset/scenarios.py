@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import csv
+import io
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -109,12 +111,41 @@ class ScenarioStats:
         ]
 
 
+def read_stats(path: Path) -> list[ScenarioStats]:
+    """The scenario rows of an earlier ``stats.csv`` (the total left out); none when absent or
+    unreadable (the table is then made of this run's rows alone)."""
+    try:
+        text = path.read_text(encoding="ascii")
+    except (OSError, UnicodeDecodeError):
+        return []
+    rows = list(csv.DictReader(io.StringIO(text)))
+    out = []
+    for row in rows:
+        try:
+            if row["scenario"] == "total":
+                continue
+            out.append(
+                ScenarioStats(
+                    scenario=row["scenario"],
+                    images=int(row["images"]),
+                    distance_m=float(row["distance_m"]),
+                    mission_completed=row["mission_completed"] == "true",
+                    sim_time_s=float(row["sim_time_s"]),
+                )
+            )
+        except (KeyError, TypeError, ValueError):
+            return []
+    return out
+
+
 def stats_table(stats: Sequence[ScenarioStats]) -> list[list[str]]:
     """Rows for stats.csv (header, one per scenario, then the total)."""
     rows = [list(STATS_COLUMNS)]
     rows += [s.row() for s in stats]
     images = sum(s.images for s in stats)
-    dist = sum(s.distance_m for s in stats)
+    # Totals of the rows as written (to 0.1): the same whether a row was flown now or read
+    # back from an earlier stats.csv.
+    dist = sum(round(s.distance_m, 1) for s in stats)
     papers = [PAPER_TABLE.get(s.scenario.split("@")[0].upper()) for s in stats]
     known = [p for p in papers if p is not None]
     p_img = sum(p[0] for p in known) if len(known) == len(stats) else None
@@ -129,7 +160,7 @@ def stats_table(stats: Sequence[ScenarioStats]) -> list[list[str]]:
             "" if not p_img else f"{images / p_img:.3f}",
             "" if not p_dist else f"{dist / p_dist:.3f}",
             str(all(s.mission_completed for s in stats)).lower(),
-            f"{sum(s.sim_time_s for s in stats):.1f}",
+            f"{sum(round(s.sim_time_s, 1) for s in stats):.1f}",
         ]
     )
     return rows

@@ -168,6 +168,19 @@ def _search_api(url: str, collection: str, bbox: BBox, when: tuple[str, str]) ->
     return out
 
 
+def resume_problem(out_dir: Path, inputs: dict[str, object]) -> str | None:
+    """None when ``out_dir`` holds a fetch of ``inputs`` (``fetch.json``'s stac, collection,
+    bbox and datetime: ``--resume`` continues it), else why not (:mod:`air_sitl.outdir`)."""
+    try:
+        record = json.loads((out_dir / "fetch.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return "not a map fetch folder: no readable fetch.json"
+    if not isinstance(record, dict):
+        return "not a map fetch folder: fetch.json is not an object"
+    diff = [k for k, v in inputs.items() if record.get(k) != v]
+    return f"a fetch of other inputs: {', '.join(diff)} differ" if diff else None
+
+
 def fetch(
     stac: str, collection: str, bbox: BBox, when: tuple[str, str], out_dir: Path
 ) -> dict[str, Any]:
