@@ -33,11 +33,11 @@ from air_sitl.dataset.estimates import fill_svo_columns
 from air_sitl.dataset.manifest import read_manifest, refresh_manifest
 from air_sitl.dataset.writer import ArchiveInfo, DatasetWriter, read_run_key, recover_partial
 from air_sitl.errors import DatasetError, OptionError
-from air_sitl.files import sha256_file, write_json_atomic
+from air_sitl.files import TMP_SUFFIX, sha256_file, write_json_atomic
 from air_sitl.flightlog import NavTrajectoryWriter, TrajectoryWriter
 from air_sitl.maps.choose import close_map
 from air_sitl.mission.items import Mission
-from air_sitl.outdir import claim_folder, is_nonempty_folder
+from air_sitl.outdir import claim_folder, empty_folder, is_nonempty_folder
 from air_sitl.recording.inputs import GPS_DENIAL_JSON, archive_info_for, gps_denial_record
 from air_sitl.runner import Flight
 from air_sitl.sinks import FrameSource, Sink
@@ -101,6 +101,11 @@ def _already_complete(out: Path) -> RecordingResult | None:
     )
 
 
+def _only_temporary(out: Path) -> bool:
+    """``out`` holds temporary files only (a recording stopped in its first instants)."""
+    return all(p.name.endswith(TMP_SUFFIX) for p in out.iterdir())
+
+
 def resume_problem(out: Path, info: ArchiveInfo) -> str | None:
     """None when ``out`` holds a recording of the inputs of ``info`` (unfinished: ``--resume``
     continues it; complete: nothing to do), else why not, in a short phrase."""
@@ -109,6 +114,8 @@ def resume_problem(out: Path, info: ArchiveInfo) -> str | None:
         diff = _complete_archive_differences(info, manifest)
         return f"a complete archive of other inputs ({'; '.join(diff)})" if diff else None
     found = read_run_key(out)
+    if found is None and _only_temporary(out):
+        return None  # stopped before its first file was whole: started again
     if found is None:
         return f"not an unfinished recording: no {RECORDING_JSON}"
     if found != info.run_key:
@@ -198,6 +205,9 @@ def record_flight(
                 resume=request.resume,
                 resume_problem=lambda: resume_problem(out, info),
             )
+            if resuming and _only_temporary(out):
+                empty_folder(out)
+                resuming = False
             if resuming:
                 done = _already_complete(out)
                 if done is not None:

@@ -247,7 +247,7 @@ def test_sigkill_at_random_moments_then_check_and_resume(
         landed = _kill_when(out, proc, marker)
         what = f"killed at {marker or 'the folder'!r} (landed: {landed})"
         if out.is_dir() and any(out.iterdir()):
-            assert main(["check", str(out)]) == 0, what
+            assert main(["check", str(out)]) == 3, what  # valid so far, unfinished
             if landed and (out / "metadata.csv").exists():
                 with air_sitl.dataset.open(out) as archive:
                     kept.append(len(archive))
