@@ -151,7 +151,6 @@ def _claim_job_folder(job: Job, *, resume: bool) -> None:
 def run(args: argparse.Namespace) -> int:
     """Fly every job; exit 0 when all completed, 1 when a mission did not, 2 on errors."""
     from air_sitl.dataset.scenarios import (
-        PAPER_TABLE,
         ScenarioStats,
         format_table,
         read_stats,
@@ -163,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
 
     jobs = build_jobs(args)
     root = Path(args.out)
-    expected = {j.name: PAPER_TABLE.get(j.setup.name.upper(), (0, 0))[0] for j in jobs}
+    expected = {j.name: forecast_frames(j) for j in jobs}
     # A read-only disk, then too little room: refused before anything flies or is made.
     require_writable_folder(root, "output folder", create=False)
     already = check_disk(jobs, expected, root, args)
@@ -178,8 +177,15 @@ def run(args: argparse.Namespace) -> int:
         if s.scenario not in {j.name for j in jobs} and (root / s.scenario).is_dir()
     ]
     n = min(int_in_range("-j", args.jobs, 1, 64), len(jobs))
+    from air_sitl.dataset.size import frames_on_disk
+
+    resumed = {j.name: frames_on_disk(j.out) for j in jobs} if args.resume else {}
     display = JobsProgress(
-        [j.name for j in jobs], expected, enabled=not args.quiet, already=already
+        [j.name for j in jobs],
+        expected,
+        enabled=not args.quiet,
+        already=already,
+        resumed=resumed,
     )
 
     def on_progress(name: str, frames: int, sim_s: float) -> None:
@@ -246,13 +252,29 @@ def run(args: argparse.Namespace) -> int:
     return 0 if all(o.mission_completed for o in outcomes) else 1
 
 
+def forecast_frames(job: Job) -> int:
+    """The frames ``job`` will capture, from its plan (:mod:`air_sitl.mission.forecast`: the
+    legs at the plan's speed, cut by ``--max-sim-time``)."""
+    from air_sitl.mission.forecast import capture_forecast
+
+    options = job.setup.options
+    forecast = capture_forecast(
+        job.setup.mission,
+        job.setup.home,
+        air_start=options.air_start,
+        max_sim_time_s=options.max_sim_time_s,
+    )
+    return forecast.frames
+
+
 def check_disk(
     jobs: list[Job], expected: dict[str, int], root: Path, args: argparse.Namespace
 ) -> dict[str, int]:
     """Say how much the recordings will write; DatasetError when ROOT's file system has less
-    free space (unless ``--ignore-free-space``). Estimated from the paper's frame counts and the
-    JPEG quality (:mod:`air_sitl.dataset.size`); a resumed folder counts only what is missing,
-    a complete one nothing. Returns the frames of the complete ones (``--resume``)."""
+    free space (unless ``--ignore-free-space``). Estimated from the plans' frame forecasts and
+    the JPEG quality (:mod:`air_sitl.dataset.size`), twice with ``--zip``; a resumed folder
+    counts only what is missing, a complete one nothing. Returns the frames of the complete
+    ones (``--resume``)."""
     from air_sitl.dataset.size import (
         complete_frames,
         frames_on_disk,
@@ -270,22 +292,25 @@ def check_disk(
         if args.resume and (done := complete_frames(job.out)) is not None:
             complete[job.name] = done
             continue
-        if not expected.get(job.name) or camera is None:
+        if camera is None:
             unknown.append(job.name)
             continue
         missing = expected[job.name] - (frames_on_disk(job.out) if args.resume else 0)
         frames += max(0, missing)
-        total += recording_bytes(
+        size = recording_bytes(
             max(0, missing), camera.jpeg_quality, camera.width_px, camera.height_px
         )
+        # --zip packs each folder beside it (stored, not compressed: JPEGs do not shrink).
+        total += 2 * size if args.zip else size
     free = free_bytes(root)
     quality = jobs[0].setup.camera.jpeg_quality if jobs and jobs[0].setup.camera else None
     note = f" (and {', '.join(unknown)} of unknown size)" if unknown else ""
     kept = f" ({len(complete)} complete already)" if complete else ""
+    zipped = ", folders and zips" if args.zip else ""
     if not args.quiet:
         print(
             f"dataset: {len(jobs)} recording{'' if len(jobs) == 1 else 's'}{kept}, about "
-            f"{frames} frames to write: about {human_bytes(total)} "
+            f"{frames} frames to write: about {human_bytes(total)}{zipped} "
             f"into {root} at JPEG quality {quality}{note}; {human_bytes(free)} free there",
             file=sys.stderr,
             flush=True,

@@ -152,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{out}: compressing, building overviews", file=sys.stderr, flush=True)
         return block
 
+    bar.start()  # the rate counts from here, not from the first block's end
     try:
         write_geotiff(
             out,
