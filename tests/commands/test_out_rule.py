@@ -6,6 +6,7 @@ old run stays). bench and map fetch: tests/bench/test_bench.py, tests/maps/test_
 from __future__ import annotations
 
 import csv
+import re
 from pathlib import Path
 
 import pytest
@@ -144,9 +145,12 @@ def test_map_make_refuses_an_existing_file_and_overwrites_it(
     out = tmp_path / "m.tif"
     argv = ["map", "make", "urban", "--size-m", "60", "60", "--out", str(out)]
     assert main(argv) == 0
+    # Its progress line: a rate from the work's start (the first block's end once gave 1.9T).
+    rate = re.search(r"([\d.]+)([kMGT]?) px/s", capsys.readouterr().err)
+    assert rate is not None
+    assert float(rate[1]) * {"": 1, "k": 1e3, "M": 1e6, "G": 1e9, "T": 1e12}[rate[2]] < 1e9
     made = out.read_bytes()
     out.write_bytes(b"not a map")
-    capsys.readouterr()
     line = one_line_error(argv, capsys)
     assert "exists already (--overwrite replaces it" in line and "--resume" not in line, line
     assert out.read_bytes() == b"not a map"
