@@ -243,7 +243,7 @@ def run_bench(config: BenchConfig, stream: IO[str] | None = None) -> Leaderboard
     if errors:
         from air_sitl.bench.plots import error_boxes  # matplotlib only when there is a plot
 
-        error_boxes(errors, config.entries, config.scenarios, config.out / "error_boxes.png")
+        error_boxes(errors, config.entries, config.scenarios, config.out / "error_boxes.png", dates)
     return board
 
 

@@ -188,7 +188,7 @@ def date_gaps(rows: Sequence[dict[str, Any]]) -> str:
         ref = reference_date_for(flight, row.get("reference_date"))
         gaps[(ref, flight)] = gaps.get((ref, flight), 0) + 1
     text = ", ".join(
-        f"reference date {ref} -> flight date {flight} ({n} runs)"
+        f"reference date {ref} -> flight date {flight} ({n} run{'' if n == 1 else 's'})"
         for (ref, flight), n in sorted(gaps.items())
     )
     return f"Map dates (map-based methods): {text}."
@@ -265,7 +265,11 @@ def plot(
     drawn = [m for m in metrics if m.label not in constant] or list(metrics[:1])
     ncols = max(1, len(axes))
     fig, grid = plt.subplots(
-        len(drawn), ncols, figsize=(3.6 * ncols + 0.6, 2.4 * len(drawn) + 1.0), squeeze=False
+        # At least 7 inches: one axis keeps the title and the footer whole.
+        len(drawn),
+        ncols,
+        figsize=(max(7.0, 3.6 * ncols + 0.6), 2.4 * len(drawn) + 1.0),
+        squeeze=False,
     )
     colours = plt.get_cmap("tab10")
     for col, axis in enumerate(axes):
