@@ -18,7 +18,8 @@ the ports of a real ground station:
   pixels.
 - a SPEC from ``examples/`` is cut to its first value on every axis and 45 simulated seconds.
 - ``serve`` gets ``--max-sim-time 5``, ``--no-video`` and a link on a port the kernel picks;
-  the zenoh bus's default endpoint (tcp/127.0.0.1:7447) is replaced by a free port.
+  the zenoh bus's default endpoint (tcp/127.0.0.1:7447) is replaced by a free port; a flight
+  that waits for a localizer (``--wait-for``) waits up to 120 s for it to start, not 10 s.
 """
 
 from __future__ import annotations
@@ -135,6 +136,8 @@ def as_run(argv: list[str], folder: Path, endpoint: str) -> list[str]:
         if not links:
             args += ["--mavlink", "udpin:127.0.0.1:0"]
         args += ["--max-sim-time", "5", "--no-video"]
+    if "--wait-for" in args and "--wait-timeout" not in args:
+        args += ["--wait-timeout", "120"]  # its partner starts after it, on a loaded machine
     serves = args[0] in ("fly", "serve", "router")
     return [sys.executable, "-m", "air_sitl", *bus_endpoint(args, endpoint, serves=serves)]
 
