@@ -11,7 +11,7 @@ stopped) at the block's end. Lines meant as templates (``PLAN``, ``W,S,E,N``) ar
 What the runner changes, because as written the lines take minutes (CI's budget) or use
 the ports of a real ground station:
 
-- ``missions/`` holds short versions of AIR's 12 plans: the same names, homes and altitudes,
+- ``missions/`` holds short versions of AIR's 12 plans: the same names and homes, 60 m high,
   a 30 m capture leg (about 100 frames) instead of 1-5 km; every flight takes seconds.
 - ``--scenarios all`` flies UC-200 only.
 - ``map make`` writes its window at 5 m pixels (``--gsd-m 5``): the same extent, 1/70 of the
@@ -47,6 +47,7 @@ DOCS = REPO / "docs"
 LINE_TIMEOUT_S = 600.0  # only a hung command gets there
 PLACEHOLDER = re.compile(r"\b(PLAN|SPEC|DIR|HEAD|URL_OR\w*|W,S,E,N|tcp/A:P|127\.0\.0\.1:P)\b")
 OFF_MAP = "nodata or ground off the map"
+SHORT_ALT_M = 60.0  # the short plans' altitude: a climb of seconds
 
 
 def pages() -> list[Path]:
@@ -90,19 +91,19 @@ def test_sh_blocks_hold_commands_not_templates() -> None:
 
 
 def short_missions(folder: Path) -> None:
-    """AIR's 12 plans, short: each one's home and altitude, a 30 m capture leg north."""
+    """AIR's 12 plans, short: each one's home, 60 m high, a 30 m capture leg north."""
     folder.mkdir()
     for plan in sorted((REPO / "missions").glob("*.plan")):
         mission = load_mission(plan)
         home = mission.planned_home
         assert home is not None
-        alt = 300.0 if plan.stem.endswith("300") else 200.0
         write_short_plan(
             folder / plan.name,
             GeoPoint(lat_deg=home.lat_deg, lon_deg=home.lon_deg, alt_amsl_m=home.alt_amsl_m),
             leg_m=30.0,
-            alt_m=alt,
+            alt_m=SHORT_ALT_M,
             leg="north",
+            lead_m=150.0,  # inside the README's map window, away from its southern edge
         )
 
 
