@@ -13,7 +13,8 @@ the ports of a real ground station:
 
 - ``missions/`` holds short versions of AIR's 12 plans: the same names and homes, 60 m high,
   a 30 m capture leg (about 100 frames) instead of 1-5 km; every flight takes seconds.
-- ``--scenarios all`` flies UC-200 only.
+- ``--scenarios all`` flies UC-200 only; ``dataset``, ``bench`` and ``sweep`` get
+  ``--missions missions`` (the short plans, not the checkout's).
 - ``map make`` writes its window at 5 m pixels (``--gsd-m 5``): the same extent, 1/70 of the
   pixels.
 - a SPEC from ``examples/`` is cut to its first value on every axis and 45 simulated seconds.
@@ -124,6 +125,12 @@ def as_run(argv: list[str], folder: Path, endpoint: str) -> list[str]:
     args = argv[1:]
     if "--scenarios" in args and args[args.index("--scenarios") + 1] == "all":
         args[args.index("--scenarios") + 1] = "UC-200"
+    if (
+        args[0] in ("dataset", "bench", "sweep")
+        and args[1] != "report"
+        and "--missions" not in args
+    ):
+        args += ["--missions", "missions"]  # the short plans (else the checkout's own)
     if args[:2] == ["map", "make"] and "--gsd-m" not in args:
         args += ["--gsd-m", "5"]
     if args[0] == "sweep" and args[1].startswith("examples/"):
