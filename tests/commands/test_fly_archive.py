@@ -274,7 +274,8 @@ def test_resume_with_other_inputs_is_refused(
     (out / "manifest.json").unlink()
     (out / ".air-sitl-recording.json").write_text('{"run_key": {"flight": {"seed": 99}}}')
     err = one_line_error([*fly_args(plan, out), "--resume"], capsys)
-    assert "--resume with different inputs" in err
+    assert "--resume: a recording of other inputs (" in err and "flight" in err, err
+    assert "--overwrite replaces it" in err
 
 
 def _limit_file_size() -> None:
