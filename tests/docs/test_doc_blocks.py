@@ -20,7 +20,8 @@ the ports of a real ground station:
 - a SPEC from ``examples/`` is cut to its first value on every axis and 45 simulated seconds.
 - ``serve`` gets ``--max-sim-time 5``, ``--no-video`` and a link on a port the kernel picks;
   the zenoh bus's default endpoint (tcp/127.0.0.1:7447) is replaced by a free port; a flight
-  that waits for a localizer (``--wait-for``) waits up to 120 s for it to start, not 10 s.
+  that waits for a localizer (``--wait-for``) waits up to 120 s for it to start, not 10 s,
+  and a ``bridges/`` client waits up to 120 s for the simulator (``--wait 120``).
 """
 
 from __future__ import annotations
@@ -120,8 +121,11 @@ def one_run_spec(spec_path: Path, folder: Path) -> Path:
 
 def as_run(argv: list[str], folder: Path, endpoint: str) -> list[str]:
     """The command the test runs for one line (see the module docstring)."""
-    if argv[0] == "python":
-        return [sys.executable, *bus_endpoint(argv[1:], endpoint, serves=False)]
+    if argv[0] == "python":  # a bus client of bridges/: on the test's bus, patient
+        args = [*argv[1:], "--wait", "120"] if "--wait" not in argv else argv[1:]
+        if "--zenoh-connect" not in args:
+            args += ["--zenoh-connect", endpoint]
+        return [sys.executable, *args]
     args = argv[1:]
     if "--scenarios" in args and args[args.index("--scenarios") + 1] == "all":
         args[args.index("--scenarios") + 1] = "UC-200"
