@@ -33,7 +33,9 @@ class Progress(Closeable):
 
     ``total`` None: a count without an end (rate, no ETA). ``enabled`` False: silent (--quiet).
     ``tty`` None: a bar when ``stream`` is a terminal, else lines. ``clock``: for tests.
-    ``initial``: what was done before this run (a resumed task): counted, not in the rate.
+    ``initial``: what was done before this run (a resumed task): counted, not in the rate;
+    so is what the first count holds when the work was not started (:meth:`start`) before it.
+    A count past ``total`` raises the total (a forecast ran short): never "3436/3422".
     """
 
     def __init__(
@@ -103,11 +105,11 @@ class Progress(Closeable):
             self.set_total(n)  # flight): tqdm would print '?' and 0 % past its total
         if not self.enabled or self.closed:
             return
-        if not self._started:  # the clock starts with the work (a job may wait for a worker)
-            self._started = True
-            self._start = self._last_line = self.clock()
-            if self.tty:
-                self._start_bar()
+        if not self._started:  # the clock starts with the work (a job may wait for a worker):
+            # what is counted already then (an air start's skipped items, a resumed part)
+            # was done before the clock and is never in the rate.
+            self.initial = max(self.initial, n)
+            self.start()
         if self._bar is not None:
             self._bar.set_postfix_str(postfix, refresh=False)
             self._bar.update(n - self._bar.n)
@@ -119,6 +121,16 @@ class Progress(Closeable):
         if frac >= self._next_step - 1e-9 or now - self._last_line >= LINE_EVERY_S:
             self._next_step = (math.floor(frac / LINE_STEP + 1e-9) + 1) * LINE_STEP
             self._line(now)
+
+    def start(self) -> None:
+        """The work begins now (the clock of the rate starts; on a terminal the bar shows);
+        without it the first count starts it."""
+        if self._started or not self.enabled or self.closed:
+            return
+        self._started = True
+        self._start = self._last_line = self.clock()
+        if self.tty:
+            self._start_bar()
 
     def advance(self, k: float = 1, postfix: str = "") -> None:
         """``k`` more done."""
@@ -190,13 +202,16 @@ class JobsProgress:
         enabled: bool = True,
         tty: bool | None = None,
         already: dict[str, int] | None = None,
+        resumed: dict[str, int] | None = None,
     ) -> None:
         self.stream = sys.stderr if stream is None else stream
         tty = _isatty(self.stream) if tty is None else tty
-        # Frames of jobs complete before this run (a resumed dataset): counted in the
-        # overall figure from the start, never in its rate.
+        # Frames of jobs complete before this run (a resumed dataset), and of unfinished jobs
+        # on disk already (``resumed``: flown again without rendering): counted from the
+        # start, never in a rate.
         already = already or {}
-        self.frames = {n: already.get(n, 0) for n in names}
+        self.resumed = {n: k for n, k in (resumed or {}).items() if n not in already}
+        self.frames = {n: already.get(n, self.resumed.get(n, 0)) for n in names}
         self.finished = 0
         total = sum(expected.get(n, 0) for n in names)
         # Aligned bars on a terminal; lines start with the name.
@@ -220,12 +235,16 @@ class JobsProgress:
                 enabled=enabled,
                 tty=tty,
                 position=i + 1,
+                initial=self.resumed.get(name, 0),
             )
             for i, name in enumerate(names)
         }
 
     def update(self, name: str, frames: int, note: str = "") -> None:
         """Job ``name`` has made ``frames`` so far."""
+        resumed = self.resumed.get(name, 0)
+        if frames < resumed:  # flying again through what is on disk already
+            return
         self.frames[name] = frames
         self.jobs[name].update_to(frames, note)
         self.overall.update_to(sum(self.frames.values()))

@@ -137,6 +137,7 @@ def serve_vehicle(
             video=stream,
         ),
     )
+    started = False  # the vehicle was ready: only then has the video a summary to give
     try:
         addresses = endpoint.open()
         # The onboard estimate's telemetry (and, with --nav-aid mavlink, its aids).
@@ -182,12 +183,13 @@ def serve_vehicle(
                 flush=True,
             )
         crash = CrashResponse(flight, endpoint.sink)
+        started = True
         flight.run(stop=crash.then(stop.is_set), max_sim_time_ns=max_sim_time_ns, inbox=inbox)
     finally:
         endpoint.close()
         if stream is not None:
             stream.close()
-            if not quiet:
+            if not quiet and started:  # a link refused (port in use): its error alone
                 print(video_summary(stream), flush=True)
     return endpoint.counters
 

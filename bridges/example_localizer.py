@@ -17,6 +17,8 @@ drifts. ``air-sitl localize --bus --method vo`` runs the same method with a comp
 (IMU history, capture end, any registered method); this file shows the bus contract in full.
 
 Run: ``python bridges/example_localizer.py --name ex`` next to ``air-sitl fly --zenoh ...``.
+It exits (0) when the vehicle's mission completes (``mission/status``), or on Ctrl-C; a
+flight that never completes (``--max-sim-time``, a crash) leaves it waiting for the next one.
 """
 
 from __future__ import annotations
@@ -57,9 +59,11 @@ class Localizer:
         self.frames = self.published = 0
         self.last_frame = -1
         self._last_answer: bytes | None = None  # the estimate of last_frame, as published
+        self.flight_over = threading.Event()  # the vehicle's mission completed
         self._handlers: dict[str, Callable[[Message], None]] = {
             keys.imu: self._on_imu,
             keys.gps: self._on_gps,
+            keys.mission_status: self._on_status,
         }
         subscribe_in_order(bus, keys, self._handlers)
         info = codec.decode_camera_info(ask(bus, keys.info, wait_s).payload)
@@ -79,6 +83,11 @@ class Localizer:
         imu = codec.decode_imu(message.payload)
         with self._lock:
             self._imu.append((imu.sim_time_ns, imu.q_ahrs_body_to_ned_wxyz))
+
+    def _on_status(self, message: Message) -> None:
+        """The mission completed: every frame came before this status (publishing order)."""
+        if codec.loads(message.payload, message.key).get("mission_completed"):
+            self.flight_over.set()
 
     def _on_gps(self, message: Message) -> None:
         fix = gnss_fix_of(message)
@@ -146,7 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the example localizer until SIGINT/SIGTERM."""
+    """Run the example localizer until the vehicle's mission completes, or SIGINT/SIGTERM."""
     args = build_parser().parse_args(argv)
     try:
         check_chunk("--name", args.name)
@@ -155,10 +164,11 @@ def main(argv: list[str] | None = None) -> int:
             loc = Localizer(bus, keys, args.name, wait_s=args.wait)
             if not args.quiet:
                 print(f"example_localizer: publishing on {loc.key_out}", flush=True)
-            wait_until_signalled()
+            wait_until_signalled(loc.flight_over)
             if not args.quiet:
+                why = "the flight ended" if loc.flight_over.is_set() else "stopped"
                 print(
-                    f"example_localizer: stopped; {loc.frames} frames, {loc.published} estimates, "
+                    f"example_localizer: {why}; {loc.frames} frames, {loc.published} estimates, "
                     f"{loc.vo.lost} lost tracks, {bus.callback_errors[:1] or 'no'} errors",
                     flush=True,
                 )

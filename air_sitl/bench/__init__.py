@@ -47,6 +47,7 @@ __all__ = [
     "bench_spec",
     "parse_localizer",
     "parse_methods",
+    "resume_problem",
     "run_bench",
     "run_gaps",
 ]
@@ -214,6 +215,17 @@ def _executor(config: BenchConfig) -> Executor:
     return PoolExecutor(config.jobs)
 
 
+def write_bench_spec(config: BenchConfig) -> SweepSpec:
+    """Write ``OUT/bench.yaml`` (the bench as a sweep SPEC) and return it parsed. Written before
+    anything flies: an interrupted bench says what it was (:mod:`air_sitl.outdir`, --resume)."""
+    data = bench_spec(config)
+    spec_path = config.out / BENCH_SPEC
+    spec = parse_spec(data, spec_path, missions=config.missions)
+    config.out.mkdir(parents=True, exist_ok=True)
+    write_bytes_atomic(spec_path, yaml.safe_dump(data, sort_keys=False).encode("utf-8"))
+    return spec
+
+
 def run_bench(
     config: BenchConfig, stream: IO[str] | None = None, *, made: bool = False
 ) -> Leaderboard:
@@ -224,6 +236,7 @@ def run_bench(
     for scenario in config.scenarios:  # archives kept from before: the bench's own message
         if (config.archives / scenario / MANIFEST_JSON).is_file():
             check_archive_inputs(config, scenario)
+    spec = write_bench_spec(config)
     start = time.perf_counter()
     if not made:  # the flights and their rendering (dataset): nothing to fly when reused
         make_archives(config)
@@ -233,10 +246,6 @@ def run_bench(
     if missing:
         msg = f"{config.archives}: no complete archive for {', '.join(missing)}"
         raise DatasetError(msg)
-    data = bench_spec(config)
-    spec_path = config.out / BENCH_SPEC
-    spec = parse_spec(data, spec_path, missions=config.missions)
-    write_bytes_atomic(spec_path, yaml.safe_dump(data, sort_keys=False).encode("utf-8"))
     cells = [(s, e) for s in config.scenarios for e in config.entries]
     measured = {cell for cell in cells if _measured(config, *cell).error is None}
     progress = BenchProgress(len(cells), stream, config.quiet, done=len(measured))
@@ -269,7 +278,7 @@ def run_bench(
     if errors:
         from air_sitl.bench.plots import error_boxes  # matplotlib only when there is a plot
 
-        error_boxes(errors, config.entries, config.scenarios, config.out / "error_boxes.png")
+        error_boxes(errors, config.entries, config.scenarios, config.out / "error_boxes.png", dates)
     return board
 
 
@@ -307,6 +316,32 @@ def fly_dates_once(config: BenchConfig, flight_dates: tuple[int, ...], stream: I
     return fresh == config.scenarios
 
 
+def resume_problem(config: BenchConfig, flight_dates: tuple[int, ...]) -> str | None:
+    """None when ``config.out`` holds a bench of these inputs (its ``bench.yaml``, one per
+    flight date: ``--resume`` continues it), else why not (:mod:`air_sitl.outdir`)."""
+    configs = [config]
+    if len(flight_dates) > 1:
+        configs = [
+            replace(config, flight_date=d, out=config.out / f"date{d}") for d in flight_dates
+        ]
+    found = False
+    for one in configs:
+        path = one.out / BENCH_SPEC
+        if not path.is_file():
+            continue
+        found = True
+        try:
+            there = yaml.safe_load(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+            return f"{path} is unreadable"
+        wanted = bench_spec(one)
+        keys = [k for k in {**wanted, **(there if isinstance(there, dict) else {})}]
+        diff = [k for k in keys if not isinstance(there, dict) or there.get(k) != wanted.get(k)]
+        if diff:
+            return f"a bench of other inputs: {', '.join(diff)} differ in {path}"
+    return None if found else f"not a bench folder: no {BENCH_SPEC}"
+
+
 def run_gaps(
     config: BenchConfig, flight_dates: tuple[int, ...], stream: IO[str] | None = None
 ) -> list[Leaderboard]:
@@ -314,6 +349,8 @@ def run_gaps(
     all against the reference date; ``OUT/leaderboard.md`` and ``.json`` compare the gaps.
     The flights are flown once for all dates (:func:`fly_dates_once`)."""
     config.out.mkdir(parents=True, exist_ok=True)
+    for d in flight_dates:  # every date's bench.yaml first: an interruption stays resumable
+        write_bench_spec(replace(config, flight_date=d, out=config.out / f"date{d}"))
     made = fly_dates_once(config, flight_dates, stream if stream is not None else sys.stderr)
     boards = [
         run_bench(replace(config, flight_date=d, out=config.out / f"date{d}"), stream, made=made)

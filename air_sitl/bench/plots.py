@@ -26,12 +26,14 @@ def error_boxes(
     entries: Sequence[str],
     scenarios: Sequence[str],
     out: Path,
+    dates: tuple[int, int] | None = None,
 ) -> Path:
     """Write ``out`` (PNG): log-scale boxes of horizontal error per method per scenario class.
 
-    ``errors[(entry, scenario)]`` are the per-frame errors of the estimated frames.
+    ``errors[(entry, scenario)]`` are the per-frame errors of the estimated frames; ``dates``
+    (reference, flight): the map-date gap, named in the title.
     """
-    fig = draw_error_boxes(errors, entries, scenarios)
+    fig = draw_error_boxes(errors, entries, scenarios, dates)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=120)
     plt.close(fig)
@@ -39,7 +41,10 @@ def error_boxes(
 
 
 def draw_error_boxes(
-    errors: Mapping[tuple[str, str], F64], entries: Sequence[str], scenarios: Sequence[str]
+    errors: Mapping[tuple[str, str], F64],
+    entries: Sequence[str],
+    scenarios: Sequence[str],
+    dates: tuple[int, int] | None = None,
 ) -> Figure:
     """The figure :func:`error_boxes` writes; a method without any estimate is named in the
     legend as such."""
@@ -91,6 +96,7 @@ def draw_error_boxes(
     ax.text(len(classes) - 0.55, 25.0, "25 m", va="bottom", ha="right", color="grey", fontsize=8)
     ax.grid(True, axis="y", which="both", alpha=0.3)
     ax.legend(loc="upper left", fontsize=8, ncols=min(4, len(entries)))
-    ax.set_title("Horizontal error per method and scenario class", fontsize=11)
+    gap = "" if dates is None else f"\nmap dates: reference {dates[0]} -> flight {dates[1]}"
+    ax.set_title(f"Horizontal error per method and scenario class{gap}", fontsize=11)
     fig.tight_layout()
     return fig

@@ -4,7 +4,8 @@ Makes (or reuses) the archives over the flight date, then sweeps them (a preset 
 sweep``: one run per scenario, on ``-j N`` processes or ``--ray``) running each built-in method
 offline and each external localizer command on the bus in lockstep, scores everything with
 ``eval`` and writes ``DIR/leaderboard.md``, ``DIR/leaderboard.json`` and
-``DIR/error_boxes.png``. An interrupted bench resumes from what it had measured.
+``DIR/error_boxes.png``. An interrupted bench continues
+from what it had measured with ``--resume``.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from air_sitl.bus.args import DEFAULT_WAIT_TIMEOUT_S
 from air_sitl.commands.sweep import add_executor_arguments
 from air_sitl.errors import OptionError
 from air_sitl.options import int_in_range, positive_number
+from air_sitl.outdir import add_out_arguments
 
 if TYPE_CHECKING:
     from air_sitl.bench import BenchConfig
@@ -91,6 +93,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--seed", default="0", help="flight and sensor seed (default 0)")
     parser.add_argument("--quiet", action="store_true", help="no progress, only the table")
+    add_out_arguments(
+        parser,
+        resume="continue an interrupted bench in --out (same options): what was measured is kept",
+    )
 
 
 def config_from_args(args: argparse.Namespace) -> BenchConfig:
@@ -140,10 +146,17 @@ def flight_dates(text: str) -> tuple[int, ...]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the bench (one per flight date); 0 when every cell was measured, 1 when some failed."""
-    from air_sitl.bench import run_bench, run_gaps
+    from air_sitl.bench import resume_problem, run_bench, run_gaps
+    from air_sitl.outdir import claim_folder
 
     config = config_from_args(args)
     dates = flight_dates(args.map_date)
+    claim_folder(
+        config.out,
+        overwrite=args.overwrite,
+        resume=args.resume,
+        resume_problem=lambda: resume_problem(config, dates),
+    )
     if len(dates) == 1:
         boards = [run_bench(config)]
         sys.stdout.write(boards[0].to_markdown().split("\n## ", 2)[1].join(["## ", "\n"]))

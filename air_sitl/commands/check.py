@@ -6,7 +6,10 @@ import argparse
 import sys
 from pathlib import Path
 
-HELP = "validate a dataset archive: columns, images, 50 Hz cadence, checksums, geometry"
+HELP = (
+    "validate a dataset archive: columns, images, 50 Hz cadence, checksums, geometry "
+    "(exit 0 valid, 1 invalid, 3 valid so far but unfinished)"
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -18,17 +21,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print the report; exit 0 when the archive is valid, 1 when it is not."""
+    """Print the report and its verdict; exit 0 valid and complete, 1 invalid, 3 valid so far
+    but unfinished (an interrupted recording: ``--resume`` finishes it)."""
     from air_sitl.dataset.air_schema import METADATA_CSV, RECORDING_JSON
-    from air_sitl.dataset.check import check_archive
+    from air_sitl.dataset.check import EXIT_INCOMPLETE, INCOMPLETE_VERDICT, check_archive
     from air_sitl.dataset.reader import open_archive
+    from air_sitl.files import TMP_SUFFIX
 
     folder = Path(args.archive)
-    if (folder / RECORDING_JSON).is_file() and not (folder / METADATA_CSV).exists():
-        # Killed in its first instants: nothing recorded yet, nothing to be wrong.
-        sys.stdout.write(f"{folder}: air-sitl archive, unfinished, no frames yet\nVALID\n")
-        return 0
+    if folder.is_dir() and not (folder / METADATA_CSV).exists():
+        names = [p.name for p in folder.iterdir()]
+        if names and all(n.startswith(RECORDING_JSON) or n.endswith(TMP_SUFFIX) for n in names):
+            # Stopped in its first instants: nothing recorded yet, nothing to be wrong.
+            sys.stdout.write(
+                f"{folder}: air-sitl archive, unfinished, no frames yet\n{INCOMPLETE_VERDICT}\n"
+            )
+            return EXIT_INCOMPLETE
     with open_archive(args.archive) as archive:
         report = check_archive(archive, decode_images=not args.no_images)
     sys.stdout.write(report.text() + "\n")
-    return 0 if report.valid else 1
+    return report.exit_code

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 from air_sitl.camera.options import add_camera_arguments, camera_from_args
 from air_sitl.errors import DatasetError, OptionError
 from air_sitl.options import MapChoice, add_flight_arguments, flight_options_from_args, int_in_range
+from air_sitl.outdir import add_out_arguments
 
 if TYPE_CHECKING:  # the flights' modules load when they fly, not for --help
     from air_sitl.recording.batch import Job
@@ -71,9 +72,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "folders are ROOT/<scenario>@<date>/",
     )
     parser.add_argument("--zip", action="store_true", help="also pack each folder as ROOT/<n>.zip")
-    parser.add_argument(
-        "--resume", action="store_true", help="continue unfinished folders, skip complete ones"
-    )
+    add_out_arguments(parser, resume="continue unfinished folders, skip complete ones")
     parser.add_argument(
         "--ignore-free-space",
         action="store_true",
@@ -129,9 +128,6 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
             if out.exists() and not out.is_dir():
                 msg = f"{out}: exists and is not a folder (remove it, or choose another --out)"
                 raise DatasetError(msg)
-            if out.exists() and any(out.iterdir()) and not args.resume:
-                msg = f"{out}: folder exists and is not empty (choose another --out, or --resume)"
-                raise DatasetError(msg)
             choice = MapChoice(spec=spec, seed=args.map_seed, date=date, dem=args.dem)
             jobs.append(
                 Job(
@@ -146,15 +142,34 @@ def build_jobs(args: argparse.Namespace) -> list[Job]:
         if job.setup.map.spec is not None:
             # A GeoTIFF map missing home fails now, not in an hour.
             close_map(open_setup_map(job.setup))
+        if not args.overwrite:
+            _claim_job_folder(job, resume=bool(args.resume))
     return jobs
+
+
+def _claim_job_folder(job: Job, *, resume: bool) -> None:
+    """The rule of :mod:`air_sitl.outdir` for one scenario's folder, before anything flies:
+    a non-empty one is refused, or continued with ``--resume`` when its inputs are the same
+    (``--overwrite`` empties ROOT as a whole instead)."""
+    from air_sitl.outdir import is_nonempty_folder, refusal
+    from air_sitl.recording import folder_problem
+
+    if not is_nonempty_folder(job.out):
+        return
+    problem = folder_problem(job.setup, job.out)
+    if not resume:
+        raise DatasetError(refusal(job.out, problem, resumable=True))
+    if problem is not None:
+        msg = f"{job.out}: --resume: {problem}; --overwrite replaces ROOT, or another --out"
+        raise DatasetError(msg)
 
 
 def run(args: argparse.Namespace) -> int:
     """Fly every job; exit 0 when all completed, 1 when a mission did not, 2 on errors."""
     from air_sitl.dataset.scenarios import (
         ScenarioStats,
-        expected_images,
         format_table,
+        read_stats,
         stats_table,
     )
     from air_sitl.files import require_writable_folder, write_bytes_atomic
@@ -163,13 +178,30 @@ def run(args: argparse.Namespace) -> int:
 
     jobs = build_jobs(args)
     root = Path(args.out)
-    expected = {j.name: expected_images(j.setup.name) for j in jobs}
+    expected = {j.name: forecast_frames(j) for j in jobs}
     # A read-only disk, then too little room: refused before anything flies or is made.
     require_writable_folder(root, "output folder", create=False)
     already = check_disk(jobs, expected, root, args)
+    if args.overwrite:
+        from air_sitl.outdir import claim_folder
+
+        claim_folder(root, overwrite=True)
+    # Scenarios flown into ROOT before, not by this run: their rows stay in the table.
+    earlier = [
+        s
+        for s in read_stats(root / "stats.csv")
+        if s.scenario not in {j.name for j in jobs} and (root / s.scenario).is_dir()
+    ]
     n = min(int_in_range("-j", args.jobs, 1, 64), len(jobs))
+    from air_sitl.dataset.size import frames_on_disk
+
+    resumed = {j.name: frames_on_disk(j.out) for j in jobs} if args.resume else {}
     display = JobsProgress(
-        [j.name for j in jobs], expected, enabled=not args.quiet, already=already
+        [j.name for j in jobs],
+        expected,
+        enabled=not args.quiet,
+        already=already,
+        resumed=resumed,
     )
 
     def on_progress(name: str, frames: int, sim_s: float) -> None:
@@ -196,7 +228,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         display.close()
     wall = time.monotonic() - start
-    stats = [
+    stats = earlier + [
         ScenarioStats(
             scenario=o.name,
             images=o.images,
@@ -221,7 +253,8 @@ def run(args: argparse.Namespace) -> int:
             table_error = f"{root / 'stats.csv'}: cannot write the table: {err.strerror}"
     frames = sum(o.images for o in outcomes)
     sys.stdout.write(
-        f"{len(stats)}/{len(outcomes)} scenarios, {frames} frames in {wall:.0f} s wall "
+        f"{len(stats) - len(earlier)}/{len(outcomes)} scenarios, {frames} frames in "
+        f"{wall:.0f} s wall "
         f"({frames / wall if wall > 0 else 0:.0f} frames/s){table}\n"
     )
     errors = [o for o in outcomes if o.error]
@@ -235,13 +268,29 @@ def run(args: argparse.Namespace) -> int:
     return 0 if all(o.mission_completed for o in outcomes) else 1
 
 
+def forecast_frames(job: Job) -> int:
+    """The frames ``job`` will capture, from its plan (:mod:`air_sitl.mission.forecast`: the
+    legs at the plan's speed, cut by ``--max-sim-time``)."""
+    from air_sitl.mission.forecast import capture_forecast
+
+    options = job.setup.options
+    forecast = capture_forecast(
+        job.setup.mission,
+        job.setup.home,
+        air_start=options.air_start,
+        max_sim_time_s=options.max_sim_time_s,
+    )
+    return forecast.frames
+
+
 def check_disk(
     jobs: list[Job], expected: dict[str, int], root: Path, args: argparse.Namespace
 ) -> dict[str, int]:
     """Say how much the recordings will write; DatasetError when ROOT's file system has less
-    free space (unless ``--ignore-free-space``). Estimated from the planned frame counts and the
-    JPEG quality (:mod:`air_sitl.dataset.size`); a resumed folder counts only what is missing,
-    a complete one nothing. Returns the frames of the complete ones (``--resume``)."""
+    free space (unless ``--ignore-free-space``). Estimated from the plans' frame forecasts and
+    the JPEG quality (:mod:`air_sitl.dataset.size`), twice with ``--zip``; a resumed folder
+    counts only what is missing, a complete one nothing. Returns the frames of the complete
+    ones (``--resume``)."""
     from air_sitl.dataset.size import (
         complete_frames,
         frames_on_disk,
@@ -259,22 +308,25 @@ def check_disk(
         if args.resume and (done := complete_frames(job.out)) is not None:
             complete[job.name] = done
             continue
-        if not expected.get(job.name) or camera is None:
+        if camera is None:
             unknown.append(job.name)
             continue
         missing = expected[job.name] - (frames_on_disk(job.out) if args.resume else 0)
         frames += max(0, missing)
-        total += recording_bytes(
+        size = recording_bytes(
             max(0, missing), camera.jpeg_quality, camera.width_px, camera.height_px
         )
+        # --zip packs each folder beside it (stored, not compressed: JPEGs do not shrink).
+        total += 2 * size if args.zip else size
     free = free_bytes(root)
     quality = jobs[0].setup.camera.jpeg_quality if jobs and jobs[0].setup.camera else None
     note = f" (and {', '.join(unknown)} of unknown size)" if unknown else ""
     kept = f" ({len(complete)} complete already)" if complete else ""
+    zipped = ", folders and zips" if args.zip else ""
     if not args.quiet:
         print(
             f"dataset: {len(jobs)} recording{'' if len(jobs) == 1 else 's'}{kept}, about "
-            f"{frames} frames to write: about {human_bytes(total)} "
+            f"{frames} frames to write: about {human_bytes(total)}{zipped} "
             f"into {root} at JPEG quality {quality}{note}; {human_bytes(free)} free there",
             file=sys.stderr,
             flush=True,

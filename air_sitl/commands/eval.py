@@ -2,7 +2,8 @@
 
 Prints one screen (a column per estimate); ``--json`` writes the SPEC section 5 report (one
 object, or a list for several estimates), ``--plots`` the figures, and ``--require`` turns the
-run into a gate: exit 1 with one line per failed requirement.
+run into a gate: exit 1 with one line per failed requirement (and one line per requirement
+met when all hold).
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     """Score, print, write; 0 when every requirement holds, 1 otherwise."""
     from air_sitl.eval import score_sources
     from air_sitl.eval.report import table
-    from air_sitl.eval.require import failures, parse
+    from air_sitl.eval.require import failures, met, parse
 
     requirements = [parse(text) for text in args.require]
     scored = score_sources(Path(args.archive), args.estimate, args.align)
@@ -74,4 +75,13 @@ def run(args: argparse.Namespace) -> int:
             sys.stdout.write(f"{path}\n")
     for line in failed:
         sys.stderr.write(f"air-sitl: requirement failed: {line}\n")
+    for line in [] if failed else met(requirements, reports):
+        sys.stderr.write(f"air-sitl: requirement met: {line}\n")
+    for source, report in zip(args.estimate, reports, strict=True):
+        if source == "svo" and not report.get("estimated_frames"):
+            sys.stderr.write(
+                "air-sitl: note: svo: the archive's SvoX..SvoZ are empty: a simulated archive "
+                "has them only when `fly --svo-columns NAME` filled them (score its "
+                "estimates/NAME.csv with --estimate NAME)\n"
+            )
     return 1 if failed else 0

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from air_sitl.errors import OptionError
+from air_sitl.outdir import add_out_arguments
 
 HELP = "export an archive as a rosbag2 (MCAP) folder, a rosbag1 file or a TUM trajectory"
 
@@ -24,18 +25,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="with --tum: write estimates/NAME.csv instead of the ground truth ('svo': SvoX..Z)",
     )
+    add_out_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     """Export; exit 0 on success."""
     from air_sitl.dataset.export import export_rosbag, export_tum
     from air_sitl.dataset.reader import open_archive
+    from air_sitl.outdir import claim_path
     from air_sitl.progress import Progress
 
     if args.estimate is not None and args.tum is None:
         msg = "--estimate: only with --tum"
         raise OptionError(msg)
+    target = Path(next(p for p in (args.tum, args.rosbag1, args.rosbag2) if p is not None))
     with open_archive(args.archive) as archive:
+        claim_path(target, overwrite=args.overwrite, folder=args.rosbag2 is not None)
         if args.tum is not None:
             n = export_tum(archive, Path(args.tum), args.estimate)
             sys.stdout.write(f"{args.tum}: {n} poses\n")

@@ -21,6 +21,7 @@ from air_sitl.mission.geometry import POSITIONED_COMMANDS
 from air_sitl.mission.items import MavCmd, Mission
 from air_sitl.mission.validate import mission_warnings, require_startable
 from air_sitl.options import flight_options_from_args, int_in_range
+from air_sitl.outdir import add_out_arguments
 from air_sitl.state import GeoPoint, SimSample
 
 if TYPE_CHECKING:  # the flight's modules load when it flies, not for --help
@@ -41,13 +42,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out",
         default=None,
-        help="output folder (created; refused if not empty). Default: out/<plan>",
+        help="output folder (created; a non-empty one is refused unless --resume or "
+        "--overwrite). Default: out/<plan>",
     )
     parser.add_argument("--no-camera", action="store_true", help="do not render camera frames")
-    parser.add_argument(
-        "--resume",
-        action="store_true",
-        help="continue an unfinished recording in --out (same plan and options) from its last "
+    add_out_arguments(
+        parser,
+        resume="continue an unfinished recording in --out (same plan and options) from its last "
         "whole frame; the result is byte-identical to an uninterrupted run",
     )
     parser.add_argument(
@@ -116,7 +117,11 @@ def run(args: argparse.Namespace) -> int:
     require_on_map(setup)  # with or without the camera: the flight is on its map
     out = Path(args.out) if args.out else Path("out") / (setup.mission.name or "flight")
     request = RecordingRequest(
-        setup=setup, out=out, resume=bool(args.resume), bus=bus_sinks_from_args(args)
+        setup=setup,
+        out=out,
+        resume=bool(args.resume),
+        overwrite=bool(args.overwrite),
+        bus=bus_sinks_from_args(args),
     )
     bars: list[Progress] = []  # made when the flight starts (the mission as flown)
 

@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from air_sitl.errors import OptionError
+from air_sitl.outdir import add_out_arguments
 from air_sitl.state import GeoPoint
 
 HELP = "make map files (map make {urban,forest,farmland} --out FILE.tif)"
@@ -55,13 +56,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     make.add_argument(
         "--lossless", action="store_true", help="DEFLATE instead of JPEG q90 compression"
     )
+    add_out_arguments(make)
     fetch = sub.add_parser(
         "fetch",
         help="mosaic real imagery or elevation from a STAC API or static catalog, one COG per date",
         description="find STAC items over a box and dates, read only the needed windows of "
         "their COG assets, write one COG per acquisition date, DIR/<collection>_<YYYY-MM-DD>.tif "
         "(dated: TIFFTAG_DATETIME and ACQUISITION_DATE; elevation: DIR/dem.tif) and "
-        "DIR/fetch.json; an interrupted fetch resumes where it stopped. Public collections: "
+        "DIR/fetch.json; --resume into the same DIR continues an interrupted fetch. "
+        "Public collections: "
         "--stac https://planetarycomputer.microsoft.com/api/stac/v1 with --collection naip, "
         "3dep-seamless or cop-dem-glo-30 (asset URLs signed with its SAS tokens)",
     )
@@ -103,6 +106,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "{'msft:expiry', 'token'}) that signs the asset URLs; default: Planetary Computer's "
         "for its own STAC API, none for others; 'none': unsigned",
     )
+    add_out_arguments(
+        fetch,
+        resume="continue a fetch into --out (same catalog, collection, box and dates): "
+        "what is done is kept",
+    )
 
 
 def _parse_origin(text: str | None) -> tuple[float, float]:
@@ -126,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
         return _fetch(args)
     from air_sitl.maps.geotiff import date_tags, write_geotiff
     from air_sitl.maps.procedural import NOMINAL_HALF_PX, ProceduralMap
+    from air_sitl.outdir import claim_path
     from air_sitl.progress import Progress
 
     lat, lon = _parse_origin(args.origin)
@@ -136,6 +145,7 @@ def run(args: argparse.Namespace) -> int:
     if not out.parent.is_dir():
         msg = f"--out {out}: folder {out.parent} does not exist"
         raise OptionError(msg)
+    claim_path(out, overwrite=args.overwrite)
     gsd = float(args.gsd_m)
     if not (math.isfinite(gsd) and 0.05 <= gsd <= 100.0):
         msg = f"--gsd-m {args.gsd_m}: expected 0.05..100 metres per pixel"
@@ -171,6 +181,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{out}: compressing, building overviews", file=sys.stderr, flush=True)
         return block
 
+    bar.start()  # the rate counts from here, not from the first block's end
     try:
         write_geotiff(
             out,
@@ -194,22 +205,35 @@ def run(args: argparse.Namespace) -> int:
 
 def _fetch(args: argparse.Namespace) -> int:
     """``map fetch``: STAC items over a box to one COG per date."""
-    from air_sitl.maps.stac import Source, fetch, parse_bbox, parse_datetime
+    from air_sitl.maps.stac import Source, fetch, parse_bbox, parse_datetime, resume_problem
     from air_sitl.maps.stac_http import Http, default_sas_endpoint, parse_header
+    from air_sitl.outdir import claim_folder
 
+    stac, collection = str(args.stac), str(args.collection)
+    inputs: dict[str, object] = {
+        "stac": stac,
+        "collection": collection,
+        "bbox": list(parse_bbox(str(args.bbox))),
+        "datetime": "/".join(parse_datetime(args.datetime)),
+    }
+    out = Path(args.out)
     headers = [parse_header(str(h)) for h in args.header]
     if args.token:
         headers.append(("Authorization", f"Bearer {args.token}"))
-    sas = args.sas_endpoint or default_sas_endpoint(str(args.stac))
-    source = Source(
-        str(args.stac), Http(tuple(headers)), None if sas in (None, "none") else str(sas)
+    sas = args.sas_endpoint or default_sas_endpoint(stac)
+    source = Source(stac, Http(tuple(headers)), None if sas in (None, "none") else str(sas))
+    claim_folder(
+        out,
+        overwrite=args.overwrite,
+        resume=args.resume,
+        resume_problem=lambda: resume_problem(out, inputs),
     )
     record = fetch(
         source,
-        str(args.collection),
+        collection,
         parse_bbox(str(args.bbox)),
         parse_datetime(args.datetime),
-        Path(args.out),
+        out,
     )
     for name, ids in sorted(record["outputs"].items()):
         when = record["acquired"].get(name)

@@ -3,7 +3,7 @@
 A sweep flies every run of a SPEC (the product of its axes, plus explicit runs), localizes and
 scores each with the SPEC's methods and localizers, and appends one row per run to
 ``DIR/results.jsonl``; run folders go under ``DIR/runs/ID/``. Runs already in results.jsonl
-are skipped (resume); a failed run records its one-line error and the others go on; Ctrl-C
+are skipped with ``--resume``; a failed run records its one-line error and the others go on; Ctrl-C
 stops cleanly. ``report`` writes ``DIR/report.md`` and ``DIR/report.png``.
 """
 
@@ -15,6 +15,7 @@ from pathlib import Path
 
 from air_sitl.errors import OptionError
 from air_sitl.options import int_in_range
+from air_sitl.outdir import add_out_arguments
 
 HELP = "many runs from one SPEC (axes x seeds): fly, localize, eval; on a process pool or Ray"
 
@@ -35,7 +36,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "estimates and summaries, no JPEG images; none: estimates and summary.json only",
     )
     parser.add_argument(
-        "--retry-failed", action="store_true", help="run again the runs recorded as failed"
+        "--retry-failed",
+        action="store_true",
+        help="continue the sweep in --out (as --resume) and run again the runs recorded as failed",
+    )
+    add_out_arguments(
+        parser, resume="continue the sweep in --out (same SPEC): runs with a row are skipped"
     )
     parser.add_argument(
         "--missions", default=None, metavar="DIR", help="folder of the plans 'scenario' names"
@@ -71,7 +77,15 @@ def run(args: argparse.Namespace) -> int:
         msg = "sweep: --out DIR is required (where results.jsonl and the runs go)"
         raise OptionError(msg)
     from air_sitl.dataset.scenarios import missions_dir
-    from air_sitl.sweep import PoolExecutor, RayExecutor, load_spec, print_outcome, run_sweep
+    from air_sitl.outdir import claim_folder
+    from air_sitl.sweep import (
+        PoolExecutor,
+        RayExecutor,
+        load_spec,
+        print_outcome,
+        resume_problem,
+        run_sweep,
+    )
 
     missions = None
     if args.missions is not None:
@@ -80,6 +94,15 @@ def run(args: argparse.Namespace) -> int:
     jobs = int_in_range("-j", args.jobs, 1, 256)
     executor = PoolExecutor(jobs) if args.ray is None else RayExecutor(args.ray or None)
     out = Path(args.out)
+    if args.overwrite and args.retry_failed:
+        msg = "--retry-failed continues a sweep; --overwrite replaces it: choose one"
+        raise OptionError(msg)
+    claim_folder(
+        out,
+        overwrite=args.overwrite,
+        resume=args.resume or args.retry_failed,
+        resume_problem=lambda: resume_problem(spec, out, args.keep),
+    )
     outcome = run_sweep(
         spec,
         out,

@@ -2,8 +2,8 @@
 
 Sealed archives of ours must match their manifest byte for byte. Unfinished ones (a recording
 that was killed) must hold only whole frames: every row's image in place, a torn last line at
-most; they are valid and ``fly --resume`` continues them. Original AIR archives (no manifest,
-no ``frames.csv``) get the checks that apply to what they have.
+most; they are valid so far (exit 3, not 0) and ``--resume`` continues them. Original AIR
+archives (no manifest, no ``frames.csv``) get the checks that apply to what they have.
 """
 
 from __future__ import annotations
@@ -30,6 +30,11 @@ from air_sitl.files import TMP_SUFFIX
 from air_sitl.frames import geodetic2ned, ned2geodetic
 from air_sitl.state import GeoPoint
 
+EXIT_VALID, EXIT_INVALID, EXIT_INCOMPLETE = 0, 1, 3  # check's exit codes (docs/archives.md)
+INCOMPLETE_VERDICT = (
+    "INCOMPLETE: valid so far, but the recording did not finish (--resume with the same "
+    "command and options finishes it)"
+)
 POSITION_TOLERANCE_M = 0.5
 QUAT_NORM_TOLERANCE = 1e-3
 MAX_LISTED = 8  # problems of one kind listed before "... and N more"
@@ -49,10 +54,28 @@ class CheckReport:
     max_position_error_m: float | None = None
     duration_s: float | None = None
 
+    unfinished: bool = False  # a recording that did not finish (valid so far: --resume)
+
     @property
     def valid(self) -> bool:
         """True when no error was found."""
         return not self.errors
+
+    @property
+    def exit_code(self) -> int:
+        """``check``'s exit code: 0 valid and complete, 1 invalid, 3 valid so far but
+        unfinished (the recording was interrupted: ``--resume`` finishes it)."""
+        if not self.valid:
+            return EXIT_INVALID
+        return EXIT_INCOMPLETE if self.unfinished else EXIT_VALID
+
+    def verdict(self) -> str:
+        """The last line of the report: the verdict, one line, matching :attr:`exit_code`."""
+        if not self.valid:
+            return f"INVALID ({len(self.errors)} errors)"
+        if self.unfinished:
+            return INCOMPLETE_VERDICT
+        return "VALID"
 
     def text(self) -> str:
         """The short report ``check`` prints."""
@@ -65,7 +88,7 @@ class CheckReport:
             lines.append(f"  lat/lon vs PoseX/PoseY: max {self.max_position_error_m:.3f} m")
         lines += [f"  note: {n}" for n in self.notes]
         lines += [f"  error: {e}" for e in _listed(self.errors)]
-        lines.append("VALID" if self.valid else f"INVALID ({len(self.errors)} errors)")
+        lines.append(self.verdict())
         return "\n".join(lines)
 
 
@@ -318,7 +341,8 @@ def check_archive(archive: Archive, *, decode_images: bool = True) -> CheckRepor
     if archive.complete:
         report.status = "complete"
     elif unfinished:
-        report.status = "unfinished (continue it with fly --resume)"
+        report.status = "unfinished"
+        report.unfinished = True
     else:
         report.status = "original AIR (no manifest)"
     if archive.manifest is not None and not archive.complete:

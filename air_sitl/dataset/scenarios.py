@@ -10,6 +10,8 @@ figures (the paper has no farmland).
 
 from __future__ import annotations
 
+import csv
+import io
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -142,6 +144,33 @@ def expected_images(scenario: str) -> int:
     return SCENARIO_TABLE.get(scenario.split("@", maxsplit=1)[0].upper(), (0, 0))[0]
 
 
+def read_stats(path: Path) -> list[ScenarioStats]:
+    """The scenario rows of an earlier ``stats.csv`` (the total left out); none when absent or
+    unreadable (the table is then made of this run's rows alone)."""
+    try:
+        text = path.read_text(encoding="ascii")
+    except (OSError, UnicodeDecodeError):
+        return []
+    rows = list(csv.DictReader(io.StringIO(text)))
+    out = []
+    for row in rows:
+        try:
+            if row["scenario"].startswith("total"):
+                continue
+            out.append(
+                ScenarioStats(
+                    scenario=row["scenario"],
+                    images=int(row["images"]),
+                    distance_m=float(row["distance_m"]),
+                    mission_completed=row["mission_completed"] == "true",
+                    sim_time_s=float(row["sim_time_s"]),
+                )
+            )
+        except (KeyError, TypeError, ValueError):
+            return []
+    return out
+
+
 def stats_table(stats: Sequence[ScenarioStats]) -> list[list[str]]:
     """Rows for stats.csv: the header, AIR's scenarios and their ``total`` beside the paper's
     figures, then any other scenarios (farmland) and their ``total farmland``."""
@@ -160,7 +189,9 @@ def stats_table(stats: Sequence[ScenarioStats]) -> list[list[str]]:
 def _total(label: str, stats: Sequence[ScenarioStats]) -> list[str]:
     """The total row of ``stats`` (with the paper's figures when it has them all)."""
     images = sum(s.images for s in stats)
-    dist = sum(s.distance_m for s in stats)
+    # Totals of the rows as written (to 0.1): the same whether a row was flown now or read
+    # back from an earlier stats.csv.
+    dist = sum(round(s.distance_m, 1) for s in stats)
     papers = [PAPER_TABLE.get(s.scenario.split("@")[0].upper()) for s in stats]
     known = [p for p in papers if p is not None]
     p_img = sum(p[0] for p in known) if len(known) == len(stats) else None
@@ -174,7 +205,7 @@ def _total(label: str, stats: Sequence[ScenarioStats]) -> list[str]:
         "" if not p_img else f"{images / p_img:.3f}",
         "" if not p_dist else f"{dist / p_dist:.3f}",
         str(all(s.mission_completed for s in stats)).lower(),
-        f"{sum(s.sim_time_s for s in stats):.1f}",
+        f"{sum(round(s.sim_time_s, 1) for s in stats):.1f}",
     ]
 
 

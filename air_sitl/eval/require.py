@@ -41,7 +41,10 @@ class Requirement:
         try:
             figure = lookup(report, self.path)
         except KeyError as err:
-            msg = f"--require {self.text!r}: the report has no key {err.args[0]!r} ({self.path})"
+            msg = (
+                f"--require {self.text!r}: the report has no key {err.args[0]!r} ({self.path}); "
+                f"the keys: {', '.join(numeric_keys(report))}"
+            )
             raise OptionError(msg) from None
         if isinstance(figure, (dict, str, bool)):
             msg = f"--require {self.text!r}: {self.path} is not a number"
@@ -54,6 +57,19 @@ class Requirement:
         if _OPS[self.op](float(figure), self.value):
             return None
         return f"{name}: {self.path} = {float(figure):.6g}, required {self.op} {self.value:g}"
+
+
+def numeric_keys(report: dict[str, Any], prefix: str = "") -> list[str]:
+    """The dotted paths of a report's figures (numbers or null), what ``--require`` takes."""
+    keys = []
+    for key, value in report.items():
+        if isinstance(value, dict):
+            keys += numeric_keys(value, f"{prefix}{key}.")
+        elif key == "v" and not prefix:
+            continue  # the contract's version, not a figure
+        elif value is None or (isinstance(value, int | float) and not isinstance(value, bool)):
+            keys.append(f"{prefix}{key}")
+    return keys
 
 
 def parse(text: str) -> Requirement:
@@ -85,3 +101,14 @@ def failures(requirements: Sequence[Requirement], reports: Sequence[dict[str, An
             if line is not None:
                 out.append(line)
     return out
+
+
+def met(requirements: Sequence[Requirement], reports: Sequence[dict[str, Any]]) -> list[str]:
+    """One line per (report, requirement) that holds, with its figure: the gate's confirmation."""
+    return [
+        f"{report.get('estimate')}: {req.path} = {float(lookup(report, req.path)):.6g}, "
+        f"required {req.op} {req.value:g}"
+        for report in reports
+        for req in requirements
+        if req.check(report) is None
+    ]

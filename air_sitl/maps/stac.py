@@ -14,6 +14,7 @@ stopped: dates written and parts read are not fetched again.
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import sys
@@ -259,6 +260,23 @@ def _search_api(src: Source, collection: str, bbox: BBox, when: tuple[str, str])
 
 def _output_name(item: StacItem) -> str:
     return "dem.tif" if is_elevation(item.collection) else f"{item.collection}_{item.date}.tif"
+
+
+def resume_problem(out_dir: Path, inputs: dict[str, object]) -> str | None:
+    """None when ``out_dir`` holds a fetch of ``inputs`` (``fetch.json``'s stac, collection,
+    bbox and datetime: ``--resume`` continues it), else why not (:mod:`air_sitl.outdir`).
+    A folder holding only the parts of a first date that was interrupted resumes too."""
+    record_path = out_dir / "fetch.json"
+    if not record_path.exists() and [p.name for p in out_dir.iterdir()] == [PARTS_DIR]:
+        return None
+    try:
+        record = json.loads(record_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return "not a map fetch folder: no readable fetch.json"
+    if not isinstance(record, dict):
+        return "not a map fetch folder: fetch.json is not an object"
+    diff = [k for k, v in inputs.items() if record.get(k) != v]
+    return f"a fetch of other inputs: {', '.join(diff)} differ" if diff else None
 
 
 @dataclass

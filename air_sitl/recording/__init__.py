@@ -7,8 +7,9 @@ from __future__ import annotations
 from air_sitl.recording.archive import (
     RecordingRequest,
     RecordingResult,
-    prepare_out_dir,
+    folder_problem,
     record_flight,
+    resume_problem,
 )
 from air_sitl.recording.capture import CaptureRecorder
 from air_sitl.recording.inputs import manifest_inputs
@@ -17,7 +18,8 @@ __all__ = [
     "CaptureRecorder",
     "RecordingRequest",
     "RecordingResult",
+    "folder_problem",
     "manifest_inputs",
-    "prepare_out_dir",
     "record_flight",
+    "resume_problem",
 ]

@@ -33,11 +33,12 @@ from air_sitl.dataset.estimates import fill_svo_columns
 from air_sitl.dataset.manifest import read_manifest, refresh_manifest
 from air_sitl.dataset.writer import ArchiveInfo, DatasetWriter, read_run_key, recover_partial
 from air_sitl.errors import DatasetError, OptionError
-from air_sitl.files import sha256_file, write_json_atomic
+from air_sitl.files import TMP_SUFFIX, sha256_file, write_json_atomic
 from air_sitl.flightlog import NavTrajectoryWriter, TrajectoryWriter
 from air_sitl.maps.choose import close_map
 from air_sitl.maps.dates import date_fields
 from air_sitl.mission.items import Mission
+from air_sitl.outdir import claim_folder, empty_folder, is_nonempty_folder
 from air_sitl.recording.inputs import GPS_DENIAL_JSON, archive_info_for, gps_denial_record
 from air_sitl.runner import Flight
 from air_sitl.sinks import FrameSource, Sink
@@ -53,6 +54,7 @@ class RecordingRequest:
     setup: FlightSetup
     out: Path
     resume: bool = False
+    overwrite: bool = False  # the one rule of air_sitl.outdir: an old run is removed first
     bus: BusHookup | None = None  # the zenoh bus side of the flight (air_sitl.bus.hookup)
     # False: the archive's files are written on the simulation thread, not on an I/O thread of
     # their own (a sweep worker is one core: a second thread only competes with it for the
@@ -79,40 +81,15 @@ class RecordingResult:
         return bool(self.summary.get("mission_completed"))
 
 
-def prepare_out_dir(path: Path) -> Path:
-    """Create ``path``; refuse an existing non-empty folder or a file in the way."""
-    if path.exists():
-        if not path.is_dir():
-            msg = f"{path}: exists and is not a folder"
-            raise DatasetError(msg)
-        if any(path.iterdir()):
-            msg = f"{path}: folder exists and is not empty (choose another --out, or --resume)"
-            raise DatasetError(msg)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        msg = f"{path}: cannot create the output folder: {err.strerror}"
-        raise DatasetError(msg) from None
-    return path
-
-
-def _already_complete(out: Path, info: ArchiveInfo) -> RecordingResult | None:
-    """The result of a complete archive of the same inputs in ``out``; None when it is not
-    complete; DatasetError naming what differs when it is a complete archive of other inputs
-    (another plan, map, camera or flight options): never "nothing to do" for the wrong data."""
+def _already_complete(out: Path) -> RecordingResult | None:
+    """The result of the complete archive in ``out`` (its inputs checked already by
+    :func:`resume_problem`); None when it is not complete."""
     manifest_path = out / MANIFEST_JSON
     if not manifest_path.exists() or (out / RECORDING_JSON).exists():
         return None
     manifest = read_manifest(out)
     if not manifest or manifest.get("complete") is not True:
         return None
-    diff = _complete_archive_differences(info, manifest)
-    if diff:
-        msg = (
-            f"{out}: --resume: the complete archive there was recorded from other inputs "
-            f"({'; '.join(diff)}); choose another --out"
-        )
-        raise DatasetError(msg)
     summary: dict[str, Any] = {}
     if (out / SUMMARY_JSON).exists():
         summary = json.loads((out / SUMMARY_JSON).read_text(encoding="utf-8"))
@@ -123,6 +100,43 @@ def _already_complete(out: Path, info: ArchiveInfo) -> RecordingResult | None:
         resumed_from_frame=int(manifest.get("frame_count", 0)),
         already_complete=True,
     )
+
+
+def _only_temporary(out: Path) -> bool:
+    """``out`` holds temporary files only (a recording stopped in its first instants)."""
+    return all(p.name.endswith(TMP_SUFFIX) for p in out.iterdir())
+
+
+def resume_problem(out: Path, info: ArchiveInfo) -> str | None:
+    """None when ``out`` holds a recording of the inputs of ``info`` (unfinished: ``--resume``
+    continues it; complete: nothing to do), else why not, in a short phrase."""
+    manifest = read_manifest(out) if (out / MANIFEST_JSON).exists() else None
+    if manifest and manifest.get("complete") is True and not (out / RECORDING_JSON).exists():
+        diff = _complete_archive_differences(info, manifest)
+        return f"a complete archive of other inputs ({'; '.join(diff)})" if diff else None
+    found = read_run_key(out)
+    if found is None and _only_temporary(out):
+        return None  # stopped before its first file was whole: started again
+    if found is None:
+        return f"not an unfinished recording: no {RECORDING_JSON}"
+    if found != info.run_key:
+        keys = set(info.run_key) | set(found)
+        diff = sorted(k for k in keys if info.run_key.get(k) != found.get(k))
+        return f"a recording of other inputs ({', '.join(diff)} differ)"
+    return None
+
+
+def folder_problem(setup: FlightSetup, out: Path) -> str | None:
+    """:func:`resume_problem` of ``out`` for the recording ``setup`` would make (its map
+    opened and closed again): what ``dataset`` asks of every folder before anything flies."""
+    if setup.camera is None or setup.plan is None:
+        return "a recording without camera, which --resume cannot continue"
+    map_source = open_setup_map(setup)
+    try:
+        info = archive_info_for(setup, map_source, plan_sha256=sha256_file(setup.plan))
+    finally:
+        close_map(map_source)
+    return resume_problem(out, info)
 
 
 # The manifest fields of a complete archive that hold the inputs deciding its bytes (its
@@ -145,22 +159,6 @@ def _complete_archive_differences(info: ArchiveInfo, manifest: Mapping[str, Any]
         else:
             out.append(f"{key} differs")
     return out
-
-
-def _trim_for_resume(out: Path, run_key: Mapping[str, Any]) -> int:
-    """Check that ``out`` is an unfinished recording of the same inputs; trim it; frames kept."""
-    found = read_run_key(out)
-    if found is None:
-        msg = f"{out}: not an unfinished recording (no {RECORDING_JSON}); cannot --resume it"
-        raise DatasetError(msg)
-    if found != run_key:
-        diff = sorted(k for k in set(run_key) | set(found) if run_key.get(k) != found.get(k))
-        msg = (
-            f"{out}: --resume with different inputs than the recording "
-            f"({', '.join(diff)} differ); use the same plan and options"
-        )
-        raise DatasetError(msg)
-    return recover_partial(out).frames_kept
 
 
 def _add_estimates(archive: Path, bus: BusHookup) -> None:
@@ -200,8 +198,11 @@ class ArchiveSide:
             self.camera.close()
 
 
-def open_archive(setup: FlightSetup, out: Path, *, resuming: bool, io_thread: bool) -> ArchiveSide:
-    """The writer, camera and checks of one camera archive (``setup.camera`` is set)."""
+def open_archive(
+    setup: FlightSetup, out: Path, *, resume: bool, overwrite: bool, io_thread: bool
+) -> ArchiveSide:
+    """The writer, camera and checks of one camera archive (``setup.camera`` is set), its
+    folder claimed by the one rule of :mod:`air_sitl.outdir` (``resume``, ``overwrite``)."""
     assert setup.plan is not None, "record_flight: an archive needs the plan file"
     side = ArchiveSide(out=out)
     map_source = open_setup_map(setup)
@@ -209,12 +210,21 @@ def open_archive(setup: FlightSetup, out: Path, *, resuming: bool, io_thread: bo
         info = archive_info_for(setup, map_source, plan_sha256=sha256_file(setup.plan))
         if isinstance(map_info := info.manifest.get("map"), dict):
             side.map_info = map_info
+        resuming = claim_folder(
+            out,
+            overwrite=overwrite,
+            resume=resume,
+            resume_problem=lambda: resume_problem(out, info),
+        )
+        if resuming and _only_temporary(out):
+            empty_folder(out)
+            resuming = False
         if resuming:
-            side.done = _already_complete(out, info)
+            side.done = _already_complete(out)
             if side.done is not None:
                 close_map(map_source)
                 return side
-            side.first_frame = _trim_for_resume(out, info.run_key)
+            side.first_frame = recover_partial(out).frames_kept
         side.writer = DatasetWriter(out, info, first_frame=side.first_frame, threaded=io_thread)
     except BaseException:
         close_map(map_source)
@@ -273,24 +283,29 @@ def record_flight(
         msg = "--nav-aid mavlink: MAVLink aids come over serve's links; fly takes a bus name"
         raise OptionError(msg)
     first_frame = 0
-    resuming = request.resume and out.is_dir() and any(out.iterdir())
-    if not resuming:
-        prepare_out_dir(out)
 
     sinks: list[Sink] = []
     side: ArchiveSide | None = None
     if setup.camera is not None:
-        side = open_archive(setup, out, resuming=resuming, io_thread=request.io_thread)
+        side = open_archive(
+            setup,
+            out,
+            resume=request.resume,
+            overwrite=request.overwrite,
+            io_thread=request.io_thread,
+        )
         if side.done is not None:
             return side.done
         first_frame = side.first_frame
         sinks.extend(side.sinks)
-    elif resuming:
-        msg = f"{out}: --resume needs a camera archive (without --no-camera)"
-        raise DatasetError(msg)
-    elif options.gps_denied_ns:
-        # Without a camera there is no manifest: the windows get a file of their own.
-        write_json_atomic(out / GPS_DENIAL_JSON, gps_denial_record(options.gps_denied_ns))
+    else:
+        if request.resume and is_nonempty_folder(out) and not request.overwrite:
+            msg = f"{out}: --resume needs a camera archive (without --no-camera)"
+            raise DatasetError(msg)
+        claim_folder(out, overwrite=request.overwrite)
+        if options.gps_denied_ns:
+            # Without a camera there is no manifest: the windows get a file of their own.
+            write_json_atomic(out / GPS_DENIAL_JSON, gps_denial_record(options.gps_denied_ns))
     camera_source = side.camera if side is not None else None
     writer = side.writer if side is not None else None
 

@@ -26,7 +26,6 @@ from air_sitl.recording.archive import (
     RecordingResult,
     finish_archive,
     open_archive,
-    prepare_out_dir,
 )
 from air_sitl.sinks import FlightResult, FrameSource, Sink
 from air_sitl.state import CameraFrame, SimSample
@@ -111,8 +110,9 @@ def record_dates(
     routers: list[Sink] = []
     try:
         for slot, r in enumerate(requests):
-            prepare_out_dir(r.out)
-            side = open_archive(r.setup, r.out, resuming=False, io_thread=r.io_thread)
+            side = open_archive(
+                r.setup, r.out, resume=False, overwrite=r.overwrite, io_thread=r.io_thread
+            )
             sides.append(side)
             kind = NavTrajectoryWriter if options.nav == "ekf" else TrajectoryWriter
             trajectories.append(kind(r.out / TRAJECTORY_CSV))

@@ -16,6 +16,7 @@ pointing at the archives ``dataset`` made, each entry's measurement kept
 from __future__ import annotations
 
 import contextlib
+import json
 import socket
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -40,6 +41,7 @@ __all__ = [
     "load_spec",
     "make_tasks",
     "print_outcome",
+    "resume_problem",
     "run_sweep",
     "run_tasks",
     "time_parts",
@@ -171,6 +173,30 @@ def _is_done(task: RunTask, row: dict[str, Any] | None, retry_failed: bool) -> b
     return row.get("error") is not None or wanted <= set(row.get("eval") or {})
 
 
+def _sweep_record(spec: SweepSpec, tasks: Sequence[RunTask]) -> dict[str, Any]:
+    """What ``sweep.json`` holds: the SPEC, its axes, methods and runs."""
+    return {
+        "spec": str(spec.path.resolve()),
+        "axes": list(spec.axes),
+        "methods": list(spec.methods),
+        "localizers": [loc.name for loc in spec.localizers],
+        "align": spec.align,
+        "runs": [t.id for t in tasks],
+    }
+
+
+def resume_problem(spec: SweepSpec, out: Path, keep: str = "all") -> str | None:
+    """None when ``out`` holds a sweep of ``spec`` (``--resume`` continues it), else why not
+    (:mod:`air_sitl.outdir`)."""
+    try:
+        found = json.loads((out / SWEEP_JSON).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return f"not a sweep folder: no readable {SWEEP_JSON}"
+    wanted = _sweep_record(spec, make_tasks(spec, out, keep))
+    diff = [k for k in wanted if not isinstance(found, dict) or found.get(k) != wanted[k]]
+    return f"a sweep of other inputs: {', '.join(diff)} differ" if diff else None
+
+
 def run_sweep(
     spec: SweepSpec,
     out: Path,
@@ -207,17 +233,7 @@ def run_tasks(
     results_path = out / RESULTS
     rows = latest_rows(results_path)
     todo = [t for t in tasks if not _is_done(t, rows.get(t.id), retry_failed)]
-    write_json_atomic(
-        out / SWEEP_JSON,
-        {
-            "spec": str(spec.path.resolve()),
-            "axes": list(spec.axes),
-            "methods": list(spec.methods),
-            "localizers": [loc.name for loc in spec.localizers],
-            "align": spec.align,
-            "runs": [t.id for t in tasks],
-        },
-    )
+    write_json_atomic(out / SWEEP_JSON, _sweep_record(spec, tasks))
     by_id = {run.id: run for run in spec.runs}
     task_of = {t.id: t for t in tasks}
     progress = _Progress(len(tasks), len(tasks) - len(todo), stream, spec.axes)
@@ -273,6 +289,6 @@ def print_outcome(outcome: SweepOutcome, out: Path, stream: IO[str]) -> None:
     for host, n in sorted(others.items()):
         print(f"  {n} run folder(s) written on {host} (rows: host, archive)", file=stream)
     if outcome.interrupted:
-        print("  run the same command again to resume", file=stream)
+        print("  run the same command with --resume to continue", file=stream)
     else:
         print(f"  report: air-sitl sweep report {out}", file=stream)

@@ -198,7 +198,9 @@ def date_gaps(rows: Sequence[dict[str, Any]]) -> str:
         ref = reference_date_for(flight, row.get("reference_date"))
         gaps[(ref, flight)] = gaps.get((ref, flight), 0) + 1
         named.setdefault((ref, flight), gap_name(ref, flight, block.get("dates") or ()))
-    text = ", ".join(f"{named[gap]} ({n} runs)" for gap, n in sorted(gaps.items()))
+    text = ", ".join(
+        f"{named[gap]} ({n} run{'' if n == 1 else 's'})" for gap, n in sorted(gaps.items())
+    )
     return f"Map dates (map-based methods): {text}."
 
 
@@ -277,7 +279,11 @@ def plot(
     drawn = [m for m in known if m.label not in constant] or list(metrics[:1])
     ncols = max(1, len(axes))
     fig, grid = plt.subplots(
-        len(drawn), ncols, figsize=(3.6 * ncols + 0.6, 2.4 * len(drawn) + 1.0), squeeze=False
+        # At least 7 inches: one axis keeps the title and the footer whole.
+        len(drawn),
+        ncols,
+        figsize=(max(7.0, 3.6 * ncols + 0.6), 2.4 * len(drawn) + 1.0),
+        squeeze=False,
     )
     colours = plt.get_cmap("tab10")
     for col, axis in enumerate(axes):

@@ -41,13 +41,13 @@ def bench(missions: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def _run_bench(missions: Path, out: Path, example_options: str) -> int:
+def _run_bench(missions: Path, out: Path, example_options: str, *extra: str) -> int:
     """``air-sitl bench`` of UT-200: two methods and the example localizer as ``ex``."""
     example = f"{sys.executable} {ROOT / 'bridges' / 'example_localizer.py'} {example_options}"
     argv = [
         "bench", "--scenarios", "UT-200", "--methods", "deadreckon,vo", "--missions",
         str(missions), "--map-date", "1", "--localizer", f"ex={example}", "--out", str(out),
-        "--quiet",
+        "--quiet", *extra,
     ]  # fmt: skip
     return main(argv)
 
@@ -73,10 +73,18 @@ def test_leaderboard_has_every_method_and_the_external_localizer(bench: Path) ->
     assert png.startswith(b"\x89PNG") and len(png) > 10_000
 
 
-def test_a_second_run_resumes_without_measuring_again(bench: Path, missions: Path) -> None:
+def test_a_second_run_resumes_without_measuring_again(
+    bench: Path, missions: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     reports = sorted((bench / "reports").rglob("*.json"))
     before = {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in reports}
-    assert _run_bench(missions, bench, "--name ex") == 0
+    files = {p: p.read_bytes() for p in bench.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    # Without --resume: refused, naming it (the same bench), nothing changed.
+    assert _run_bench(missions, bench, "--name ex --quiet") == 2
+    assert "--resume continues it, --overwrite replaces it" in capsys.readouterr().err
+    assert {p: p.read_bytes() for p in bench.rglob("*") if p.is_file()} == files
+    assert _run_bench(missions, bench, "--name ex --quiet", "--resume") == 0
     assert {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in reports} == before
 
 
@@ -123,9 +131,30 @@ def test_archives_of_another_flight_are_refused_not_reused(
         "bench", "--scenarios", "UT-200", "--methods", "deadreckon", "--missions",
         str(missions), "--map-date", "1", "--out", str(bench), "--seed", "1", "--quiet",
     ]  # fmt: skip
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip().splitlines()[-1]
-    assert "manifest.json: seed 0, but this bench flies seed 1" in err, err
+    files = {p: p.read_bytes() for p in bench.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    assert main(argv) == 2  # another bench: refused, and --resume is not offered
+    err = capsys.readouterr().err.strip()
+    assert "a bench of other inputs: runs, methods, localizers differ" in err, err
+    assert "--resume" not in err and "--overwrite replaces it" in err
+    assert main([*argv, "--resume"]) == 2
+    assert "--resume: a bench of other inputs" in capsys.readouterr().err
+    assert {p: p.read_bytes() for p in bench.rglob("*") if p.is_file()} == files
+
+
+def test_overwrite_replaces_an_earlier_bench(missions: Path, tmp_path: Path) -> None:
+    out = tmp_path / "b"
+    (out / "archives").mkdir(parents=True)
+    (out / "archives" / "stray.txt").write_text("from before")
+    (out / "bench.yaml").write_text("runs: []\n")
+    argv = [
+        "bench", "--scenarios", "UT-200", "--methods", "deadreckon", "--missions",
+        str(missions), "--map-date", "1", "--out", str(out), "--quiet", "--overwrite",
+    ]  # fmt: skip
+    assert main(argv) == 0
+    assert not (out / "archives" / "stray.txt").exists()
+    board = json.loads((out / "leaderboard.json").read_text())
+    assert board["methods"] == ["deadreckon"]
 
 
 def test_a_bench_is_a_sweep_with_its_spec_and_rows(bench: Path) -> None:

@@ -14,9 +14,10 @@ def test_a_method_without_estimates_is_named_and_the_boxes_sit_over_their_class(
     errors = {("deadreckon", "UT-200"): np.linspace(0.5, 3.0, 200)}
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # e.g. "Tight layout not applied"
-        fig = draw_error_boxes(errors, ["deadreckon", "silent"], ["UT-200"])
+        fig = draw_error_boxes(errors, ["deadreckon", "silent"], ["UT-200"], (0, 2))
     try:
         ax = fig.axes[0]
+        assert ax.get_title().endswith("map dates: reference 0 -> flight 2")  # which gap
         legend = ax.get_legend()
         assert legend is not None
         assert [t.get_text() for t in legend.get_texts()] == [

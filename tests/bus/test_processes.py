@@ -7,6 +7,7 @@ stopped with a signal and its exit code checked.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
 import json
@@ -76,10 +77,14 @@ def fly_with_example_localizer(plan: Path, out: Path) -> str:
     try:
         wait = ("--wait-for", "ex", *WAIT_SAFETY)
         run = fly(plan, out, "--zenoh-connect", endpoint, *wait, "--svo-columns", "ex")
+        # The mission completed: the localizer exits by itself (a signal only if it does not).
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            loc.wait(timeout=60)
     finally:
         code, stdout, stderr = stop(loc)
     assert run.returncode == 0, run.stderr
     assert code == 0, stderr
+    assert "example_localizer: the flight ended;" in stdout, stdout
     return stdout
 
 

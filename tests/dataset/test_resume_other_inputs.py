@@ -42,8 +42,8 @@ def test_fly_resume_refuses_a_complete_archive_of_another_plan(
     other = ["fly", str(missions / "UC-300.plan"), "--air-start", "--resume", "--out", str(out)]
     line = one_line_error(other, capsys)
     assert line == (
-        f"air-sitl: error: {out}: --resume: the complete archive there was recorded from other "
-        "inputs (plan: archive UC-200, this run UC-300); choose another --out"
+        f"air-sitl: error: {out}: --resume: a complete archive of other inputs (plan: archive "
+        "UC-200, this run UC-300); --overwrite replaces it, or another --out"
     )
     options = [*again, "--wind", "5@270"]
     assert "(flight differs)" in one_line_error(options, capsys)

@@ -88,7 +88,9 @@ def test_require_passes_and_fails(line: Path, capsys: pytest.CaptureFixture[str]
     noisy(line, "bad", sigma_m=30.0, drop=0.0)
     ok = ("--require", "horizontal_error_m.rmse<=20", "--require", "recall.25m>=0.9")
     assert run(str(line), "--estimate", "good", *ok) == 0
-    capsys.readouterr()
+    met = capsys.readouterr().err.strip().splitlines()  # a passing gate says so
+    assert met[0].startswith("air-sitl: requirement met: good: horizontal_error_m.rmse = ")
+    assert met[1].startswith("air-sitl: requirement met: good: recall.25m = ") and len(met) == 2
     assert run(str(line), "--estimate", "good", "--estimate", "bad", *ok) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2
@@ -112,13 +114,19 @@ def test_a_bad_requirement_is_a_user_error(
     assert run(str(line), "--estimate", "svo", "--require", expr) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and says in err[0], err
+    if "no key" in says:  # the line lists the keys it takes
+        assert "; the keys: frames, estimated_frames, availability, " in err[0], err
+        assert "horizontal_error_m.rmse" in err[0] and "recall.25m" in err[0]
 
 
 def test_a_null_figure_fails_its_requirement(
     line: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     assert run(str(line), "--estimate", "svo", "--require", "horizontal_error_m.max<=5") == 1
-    assert "svo: horizontal_error_m.max is null" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "svo: horizontal_error_m.max is null" in err
+    # A simulated archive's SvoX..Z are empty: eval says why it scores nothing.
+    assert "note: svo: the archive's SvoX..SvoZ are empty" in err, err
 
 
 def test_svo_columns_of_a_folder_and_of_an_original_air_zip(line: Path, tmp_path: Path) -> None:

@@ -72,7 +72,9 @@ def catalog(tmp_path: Path) -> Path:
     return root / "catalog.json"
 
 
-def test_fetch_mosaics_one_cog_per_date_without_resampling(catalog: Path, tmp_path: Path) -> None:
+def test_fetch_mosaics_one_cog_per_date_without_resampling(
+    catalog: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "maps"
     w, s, e, n = _bbox_of(E0 + 10, E0 + 110, N0 - 50, N0 - 10)
     bbox = f"{w},{s},{e},{n}"
@@ -90,12 +92,22 @@ def test_fetch_mosaics_one_cog_per_date_without_resampling(catalog: Path, tmp_pa
     record = json.loads((out / "fetch.json").read_text())
     assert record["outputs"] == {"naip_2020-06-01.tif": ["a", "b"]}
     assert not (out / "naip_2022-07-01.tif").exists()
-    # Again: skipped; all dates; the DEM as dem.tif.
-    assert main([*args, "--out", str(out)]) == 0
+    # --resume: skipped; other dates into the same folder: refused, nothing changed, then
+    # replaced with --overwrite; the DEM as dem.tif in a folder of its own.
+    files = {p.name: p.read_bytes() for p in out.iterdir()}
+    mtime = (out / "naip_2020-06-01.tif").stat().st_mtime_ns
+    assert main([*args, "--datetime", "2020-01-01/2020-12-31", "--out", str(out), "--resume"]) == 0
+    assert (out / "naip_2020-06-01.tif").stat().st_mtime_ns == mtime
+    capsys.readouterr()
+    assert main([*args, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "a fetch of other inputs: datetime differ" in err and "--resume" not in err, err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == files
+    assert main([*args, "--out", str(out), "--overwrite"]) == 0
     assert (out / "naip_2022-07-01.tif").exists()
     args[5] = "cop-dem-glo-30"
-    assert main([*args, "--out", str(out)]) == 0
-    assert (out / "dem.tif").exists()
+    assert main([*args, "--out", str(tmp_path / "dem")]) == 0
+    assert (tmp_path / "dem" / "dem.tif").exists()
 
 
 def test_boxes_dates_and_filters(catalog: Path) -> None:

@@ -7,6 +7,9 @@ from pathlib import Path
 
 import pytest
 from cli_errors import one_line_error
+from ports import free_port
+
+from air_sitl.cli import main
 
 
 @pytest.mark.parametrize(
@@ -29,12 +32,22 @@ def test_bad_options_exit_2_with_one_line(
     assert expected in err, err
 
 
-def test_a_port_in_use_is_a_one_line_error(capsys: pytest.CaptureFixture[str]) -> None:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+@pytest.mark.parametrize("kind", ["udpin", "tcpin"])
+def test_a_port_in_use_is_a_one_line_error(kind: str, capsys: pytest.CaptureFixture[str]) -> None:
+    udp = kind == "udpin"
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM if udp else socket.SOCK_STREAM) as taken:
         taken.bind(("127.0.0.1", 0))
+        if not udp:
+            taken.listen()
         port = taken.getsockname()[1]
-        err = one_line_error(["serve", "--mavlink", f"udpin:127.0.0.1:{port}"], capsys)
-    assert f"udpin:127.0.0.1:{port}: cannot open the UDP socket" in err
+        video = f"udp://127.0.0.1:{free_port(socket.SOCK_DGRAM)}"  # never sent to: no vehicle
+        argv = ["serve", "--mavlink", f"{kind}:127.0.0.1:{port}", "--video", video]
+        assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert err.startswith("air-sitl: error: ") and err.count("\n") == 1, err
+    assert f"{kind}:127.0.0.1:{port}: cannot " in err and "in use" in err, err
+    # The error alone: no "video: 0 frames sent" summary of a stream that never ran.
+    assert out == "", out
 
 
 def test_signing_key_file_is_read(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -1,6 +1,6 @@
 """Sweeps of short flights end to end: a 2x2x2 SPEC on the pool (-j 1, -j 2) and on a local Ray
 give the same rows; a failing run is recorded and the others go on; a killed sweep resumes
-without redoing its finished runs; the report."""
+(--resume) without redoing its finished runs; the report."""
 
 from __future__ import annotations
 
@@ -114,7 +114,7 @@ def test_the_same_rows_on_a_local_ray(on_ray: Path, pool2: Path) -> None:
 
 def test_a_second_run_skips_every_done_run(spec: Path, pool2: Path) -> None:
     before = (pool2 / RESULTS).read_bytes()
-    assert sweep(spec, pool2, "-j", "2") == 1  # nothing run; the failed run stays failed
+    assert sweep(spec, pool2, "-j", "2", "--resume") == 1  # nothing run; the failed one stays
     assert (pool2 / RESULTS).read_bytes() == before
 
 
@@ -136,7 +136,7 @@ def test_a_killed_sweep_resumes_without_redoing_finished_runs(small: Path, tmp_p
     first = (out / RESULTS).read_bytes()
     done = [r["id"] for r in read_rows(out / RESULTS)]
     assert 1 <= len(done) < 3
-    assert sweep(small, out, "-j", "2") == 0
+    assert sweep(small, out, "-j", "2", "--resume") == 0
     after = (out / RESULTS).read_bytes()
     assert after.startswith(first)  # the finished rows kept as they were
     ids = [r["id"] for r in read_rows(out / RESULTS)]
