@@ -91,6 +91,7 @@ def test_a_client_sees_the_flight_and_a_late_one_gets_calibration_and_mission(
     client = FoxgloveClient("127.0.0.1", live.port)
     assert client.protocol == SUBPROTOCOL
     kind, info = client.recv()
+    assert kind == "json"
     assert info["op"] == "serverInfo", info
     # Everything phase 1 made is advertised; subscribe to all, then wait for the latched ones.
     while not {V + "log", V + "camera/image", "/tf", V + "estimates/vpr/fix"} <= client.topics():
