@@ -15,6 +15,7 @@ if TYPE_CHECKING:
     from air_sitl.bus.hookup import BusHookup
     from air_sitl.camera.model import CameraModel
     from air_sitl.foxglove.live import FoxgloveLive
+    from air_sitl.mavlink.vehicle import VehicleEndpoint
     from air_sitl.mission.items import Mission
 
 
@@ -59,7 +60,7 @@ def add_live_arguments(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_IMAGE_HZ,
         metavar="HZ",
         help="camera images sent to Foxglove per second of simulation "
-        f"(default {DEFAULT_IMAGE_HZ:g})",
+        f"(default {DEFAULT_IMAGE_HZ:g}; 0: none, and serve renders no camera for the view)",
     )
     g.add_argument(
         "--foxglove-mcap",
@@ -95,8 +96,8 @@ def open_live(
     if args.foxglove is None and args.foxglove_mcap is None:
         return None
     option = "--foxglove" if args.foxglove is not None else "--foxglove-mcap"
-    if not args.foxglove_image_hz > 0:
-        msg = f"--foxglove-image-hz: {args.foxglove_image_hz:g} (must be above 0)"
+    if not args.foxglove_image_hz >= 0:
+        msg = f"--foxglove-image-hz: {args.foxglove_image_hz:g} (must be 0 or more)"
         raise OptionError(msg)
     require_sdk(option)
     from air_sitl.foxglove.live import FoxgloveLive, LiveOptions
@@ -114,10 +115,18 @@ def open_live(
     return FoxgloveLive(options, vehicle=vehicle, home=home, camera=camera)
 
 
-def attach_live(live: FoxgloveLive | None, mission: Mission, hookup: BusHookup | None) -> None:
-    """Once the flight is assembled: the mission as flown, and the bus's estimates."""
+def attach_live(
+    live: FoxgloveLive | None,
+    mission: Mission,
+    hookup: BusHookup | None,
+    endpoint: VehicleEndpoint | None = None,
+) -> None:
+    """Once the flight is assembled: the mission as flown, the bus's estimates and (serve)
+    the STATUSTEXT the vehicle sends."""
     if live is None:
         return
     live.start(mission)
     if hookup is not None and hookup.log is not None:
         hookup.log.listeners.append(live.on_estimate)
+    if endpoint is not None:
+        endpoint.text_listeners.append(live.on_statustext)

@@ -109,6 +109,7 @@ class FoxgloveLive(NullSink):
         self._truth: OrderedDict[int, tuple[float, float, float]] = OrderedDict()
         self._estimators: dict[str, int] = {}
         self._closed = False
+        self._now_ns = 0  # the latest sample's simulation time
         self._thread = threading.Thread(target=self._work, name="foxglove", daemon=True)
         self._thread.start()
 
@@ -143,6 +144,7 @@ class FoxgloveLive(NullSink):
 
     def on_sample(self, sample: SimSample) -> None:
         t = sample.state.sim_time_ns
+        self._now_ns = t
         if sample.gps is not None:
             self._put(("gnss", sample.gps))
         if t >= self._next_state_ns:
@@ -170,6 +172,11 @@ class FoxgloveLive(NullSink):
     def statustext(self, sim_time_ns: int, text: str, severity: int) -> None:
         """A STATUSTEXT the vehicle sends (MAVLink severity 0 emergency .. 7 debug)."""
         self._put(("text", sim_time_ns, text, severity))
+
+    def on_statustext(self, severity: int, text: str) -> None:
+        """A STATUSTEXT the vehicle broadcasts (the endpoint's listener, its I/O thread),
+        stamped with the latest simulation time."""
+        self.statustext(self._now_ns, text, severity)
 
     def close(self, result: FlightResult | None = None) -> None:
         """Drain the queue, stop the server, report what was dropped (once)."""

@@ -119,6 +119,8 @@ class VehicleEndpoint:
         self.heartbeats_sent = 0
         self.io_errors = 0
         self._text_id = 0
+        # Called with (severity, text) of every STATUSTEXT broadcast (I/O thread): a live view.
+        self.text_listeners: list[Callable[[int, str], None]] = []
         self.commands = Commands(self)
         self.param_protocol = ParamProtocol(self)
         self.handlers: dict[str, Handler] = {}
@@ -209,6 +211,8 @@ class VehicleEndpoint:
 
     def broadcast_text(self, severity: int, text: str) -> None:
         """STATUSTEXT to every client now (I/O thread)."""
+        for listener in self.text_listeners:
+            listener(severity, text)
         for msg in self.statustext(severity, text):
             self.broadcast(msg)
 
