@@ -6,6 +6,9 @@ import csv
 import dataclasses
 import json
 import math
+import os
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +26,8 @@ from tests.dataset.test_writer import _info
 from .decode import Decoder
 
 FRAMES = 20
-MISSIONS = Path(__file__).resolve().parents[2] / "missions"
+ROOT = Path(__file__).resolve().parents[2]
+MISSIONS = ROOT / "missions"
 V = "/air/uav0/"
 
 
@@ -122,3 +126,28 @@ def test_mcap_refuses_to_overwrite(archive_dir: Path, tmp_path: Path) -> None:
     out.write_bytes(b"keep")
     assert main(["export", str(archive_dir), "--mcap", str(out)]) == 2
     assert out.read_bytes() == b"keep"
+
+
+def test_without_the_sdk_one_line_names_the_install(tmp_path: Path) -> None:
+    """A ``foxglove`` that cannot be imported (as where the extra is not installed)."""
+    fake = tmp_path / "site" / "foxglove"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("raise ImportError('No module named foxglove')\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(fake.parent), str(ROOT)]))
+    out = tmp_path / "x.mcap"
+    for argv in (
+        ["export", str(tmp_path), "--mcap", str(out)],
+        ["fly", str(MISSIONS / "FL-200.plan"), "--out", str(tmp_path / "o"), "--foxglove"],
+    ):
+        proc = subprocess.run(
+            [sys.executable, "-m", "air_sitl", *argv],
+            capture_output=True,
+            text=True,
+            env=env,
+            cwd=tmp_path,
+            check=False,
+        )
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.count("\n") == 1, proc.stderr
+        assert "pip install 'air-sitl[foxglove]'" in proc.stderr
+    assert not out.exists() and not (tmp_path / "o").exists()
