@@ -119,6 +119,27 @@ def test_mcap_has_the_archive_frames_fixes_and_estimates(archive_dir: Path, tmp_
     ring = footprint["features"][0]["geometry"]["coordinates"][0]
     lon, lat = ring[0]
     assert len(ring) == 5 and abs(lat - HOME.lat_deg) < 0.05 and abs(lon - HOME.lon_deg) < 0.05
+    _layout_names_these_topics(set(topics))
+
+
+def _strings(value: Any) -> list[str]:
+    if isinstance(value, dict):
+        return [*value.keys(), *(s for v in value.values() for s in _strings(v))]
+    if isinstance(value, list):
+        return [s for v in value for s in _strings(v)]
+    return [value] if isinstance(value, str) else []
+
+
+def _layout_names_these_topics(topics: set[str]) -> None:
+    """docs/foxglove/air-sitl-layout.json: every topic it names is one the export wrote (a
+    message path's filter and field cut off), every panel of its mosaic is configured."""
+    layout = json.loads((ROOT / "docs" / "foxglove" / "air-sitl-layout.json").read_text())
+    named = {s.split("{")[0].split(".")[0] for s in _strings(layout) if s.startswith("/air/")}
+    # The scripted flight has no onboard filter (--nav ekf): its topics are the live view's.
+    nav = {V + "nav/fix", V + "nav/pose"}
+    assert named and named <= topics | nav, named - topics - nav
+    panels = [s for s in _strings(layout["layout"]) if "!" in s]
+    assert len(panels) == len(layout["configById"]) and set(panels) == set(layout["configById"])
 
 
 def test_mcap_refuses_to_overwrite(archive_dir: Path, tmp_path: Path) -> None:
