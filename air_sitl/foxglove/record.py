@@ -23,6 +23,7 @@ from air_sitl.bus.keys import DEFAULT_VEHICLE
 from air_sitl.camera.model import CameraModel
 from air_sitl.dataset.air_schema import ESTIMATES_DIR
 from air_sitl.dataset.estimates import parse_estimates
+from air_sitl.dataset.export import check_out
 from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive
 from air_sitl.errors import DatasetError, PlanError
@@ -207,12 +208,7 @@ def export_mcap(
 ) -> dict[str, int]:
     """Write the archive's topics to the MCAP file ``out``; returns messages per topic.
     ``progress(frames written, frames)`` hears every 50th frame and the last."""
-    if out.exists():
-        msg = f"{out}: exists already (choose another output; nothing is overwritten)"
-        raise DatasetError(msg)
-    if not out.parent.is_dir():
-        msg = f"{out.parent}: no such folder for the output"
-        raise DatasetError(msg)
+    check_out(out)
     context = foxglove.Context()
     try:
         writer: Any = foxglove.open_mcap(out, context=context)

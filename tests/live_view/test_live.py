@@ -34,18 +34,10 @@ FIRST = CAPTURE_START_NS  # the first phase ends with the first frame
 def _collect(client: FoxgloveClient, until: str) -> dict[str, list[tuple[int, object]]]:
     """Every message until the log line ``until``; subscribes to each channel advertised."""
     got: dict[str, list[tuple[int, object]]] = {}
-    subscribed = set(client.subscriptions.values())
     while True:
-        item = client.recv()
-        if item[0] == "json":
-            new = [c["topic"] for i, c in client.channels.items() if i not in subscribed]
-            if new:
-                client.subscribe(new)
-                subscribed = set(client.subscriptions.values())
-            continue
-        _, topic, t_ns, value = item
+        topic, t_ns, value = client.next_message()
         got.setdefault(topic, []).append((t_ns, value))
-        if topic == V + "log" and value.message == until:  # type: ignore[attr-defined]
+        if topic == V + "log" and value.message == until:
             return got
 
 

@@ -130,6 +130,18 @@ class FoxgloveClient:
                 subs.append({"id": sid, "channelId": ch["id"]})
         self.send_json({"op": "subscribe", "subscriptions": subs})
 
+    def next_message(self) -> tuple[str, int, Any]:
+        """The next message (topic, log time, value); subscribes to every channel as it is
+        advertised (the JSON operations in between are taken in)."""
+        while True:
+            item = self.recv()
+            if item[0] == "message":
+                return item[1], item[2], item[3]
+            subscribed = set(self.subscriptions.values())
+            new = [c["topic"] for i, c in self.channels.items() if i not in subscribed]
+            if new:
+                self.subscribe(new)
+
     def channels_by_topic(self, topic: str) -> dict[str, Any]:
         return next(c for c in self.channels.values() if c["topic"] == topic)
 
