@@ -90,7 +90,7 @@ def parse_endpoint(text: str, instance: int) -> tuple[str, int]:
 
 
 def open_live(
-    args: argparse.Namespace, *, vehicle: str, home: GeoPoint, camera: CameraModel | None
+    args: argparse.Namespace, *, vehicle: str, home: GeoPoint | None, camera: CameraModel | None
 ) -> FoxgloveLive | None:
     """The live view the options ask for (None without ``--foxglove``/``--foxglove-mcap``)."""
     if args.foxglove is None and args.foxglove_mcap is None:

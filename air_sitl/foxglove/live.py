@@ -76,7 +76,7 @@ class FoxgloveLive(NullSink):
         options: LiveOptions,
         *,
         vehicle: str,
-        home: GeoPoint,
+        home: GeoPoint | None,
         camera: CameraModel | None,
         out: IO[str] = sys.stderr,
     ) -> None:
@@ -162,6 +162,12 @@ class FoxgloveLive(NullSink):
             self._next_image_ns = frame.sim_time_ns + self._image_period_ns
             self._put(("image", frame.sim_time_ns, frame.jpeg, frame.sample.state))
 
+    def on_image(self, sim_time_ns: int, jpeg: bytes) -> None:
+        """A frame without its sample (camera-bridge: rendered from the bus's truth)."""
+        if self._image_period_ns and sim_time_ns >= self._next_image_ns:
+            self._next_image_ns = sim_time_ns + self._image_period_ns
+            self._put(("image", sim_time_ns, jpeg, None))
+
     def on_estimate(
         self, name: str, frame: int | None, sim_time_ns: int | None, est: Estimate | None
     ) -> None:
@@ -237,6 +243,7 @@ class FoxgloveLive(NullSink):
             ch.log(tp.IMAGE, t, tp.image(t, jpeg))
             if self.camera is not None:
                 ch.log(tp.CALIBRATION, t, tp.calibration(t, self.camera))
+            if self.camera is not None and state is not None and self.home is not None:
                 enu, q = _enu_q(state)
                 corners = tp.footprint_lonlat(self.camera, enu, q, state.alt_agl_m, self.home)
                 if corners is not None:
@@ -299,6 +306,8 @@ class FoxgloveLive(NullSink):
         self.channels.log(f"{tp.GNSS}/fix", fix.sim_time_ns, msg)
 
     def _estimate(self, name: str, t: int, est: Estimate) -> None:
+        if self.home is None:
+            return
         index = self._estimators.setdefault(name, len(self._estimators))
         source = tp.estimate_source(name)
         h = self.home
