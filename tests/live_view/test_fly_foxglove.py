@@ -1,20 +1,20 @@
-"""``fly --foxglove 127.0.0.1:0 --foxglove-mcap FILE``: a real short flight (JSBSim, camera)
-serves the view and records the same topics; the recording is checked against the archive."""
+"""``fly --foxglove 127.0.0.1:0 --foxglove-mcap FILE``: a real short flight (JSBSim, camera,
+onboard EKF) with a localizer answering every frame over the zenoh bus serves the view and
+records the same topics; the recording is checked against the archive and the estimates."""
 
 from __future__ import annotations
 
 import csv
 import json
-import re
 from pathlib import Path
 
 import pytest
 import short_plans
+from bus.helpers import fly_with_bus_localizer
 from cli_errors import one_line_error
 from mcap.reader import make_reader
 
 import air_sitl.dataset
-from air_sitl.cli import main
 from air_sitl.state import GeoPoint
 
 from .decode import Decoder
@@ -25,16 +25,14 @@ HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
 V = "/air/uav0/"
 
 
-def test_fly_serves_and_records_the_flight(
-    tmp_path: Path, capfd: pytest.CaptureFixture[str]
-) -> None:
+def test_fly_serves_and_records_the_flight_and_the_bus_estimates(tmp_path: Path) -> None:
     plan = short_plans.write_short_plan(tmp_path / "p.plan", HOME, leg_m=30.0)
     out, rec = tmp_path / "out", tmp_path / "live.mcap"
-    args = ["fly", str(plan), "--out", str(out), "--air-start", "--quiet"]
-    code = main([*args, "--foxglove", "127.0.0.1:0", "--foxglove-mcap", str(rec)])
-    assert code == 0
-    err = capfd.readouterr().err
-    assert re.search(r"foxglove: ws://127\.0\.0\.1:\d+ \(uav0\)", err), err
+    fly_with_bus_localizer(
+        ["--method", "vo", "--name", "vo"],
+        [str(plan), "--air-start", "--quiet", "--out", str(out), "--zenoh", "--wait-for", "vo",
+         "--foxglove", "127.0.0.1:0", "--foxglove-mcap", str(rec)],
+    )  # fmt: skip
     decoder = Decoder()
     got: dict[str, list[tuple[int, object]]] = {}
     with rec.open("rb") as f:
@@ -62,6 +60,16 @@ def test_fly_serves_and_records_the_flight(
     doc = json.loads(got[V + "mission"][0][1].geojson)  # type: ignore[attr-defined]
     assert any(f["properties"]["name"] == "route" for f in doc["features"])
     assert got[V + "gnss/fix"] and got[V + "log"]
+    # The onboard filter and the estimates the bus brought, each its own topic.
+    assert got[V + "nav/fix"] and got[V + "nav/pose"]
+    rows = list(csv.DictReader((out / "estimates" / "vo.csv").open()))
+    poses = {t: p for t, p in got[V + "estimates/vo/pose"]}
+    assert len(got[V + "estimates/vo/fix"]) >= len(rows) > 50
+    for r in rows:
+        p = poses[int(r["sim_time_ns"])].pose.position  # type: ignore[attr-defined]
+        assert abs(p.x - float(r["east_m"])) < 1e-3 and abs(p.y - float(r["north_m"])) < 1e-3
+    sources = {e["source"] for _, e in got[V + "errors"]}  # type: ignore[index]
+    assert sources == {"nav", "estimates/vo"}
 
 
 def test_a_bad_endpoint_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
