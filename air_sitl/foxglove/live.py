@@ -79,6 +79,7 @@ class FoxgloveLive(NullSink):
         home: GeoPoint | None,
         camera: CameraModel | None,
         out: IO[str] = sys.stderr,
+        queue_depth: int = QUEUE_DEPTH,
     ) -> None:
         self.options = options
         self.home = home
@@ -97,8 +98,9 @@ class FoxgloveLive(NullSink):
         self.port: int | None = None
         if options.port is not None:
             self._serve(options.host, options.port, vehicle)
-        self._queue: queue.Queue[tuple[Any, ...] | None] = queue.Queue(maxsize=QUEUE_DEPTH)
+        self._queue: queue.Queue[tuple[Any, ...] | None] = queue.Queue(maxsize=queue_depth)
         self.dropped = 0
+        self.handled = 0  # updates the worker took
         self.failed: str | None = None
         self._mission: Mission | None = None
         self._image_period_ns = int(NS_PER_S / options.image_hz) if options.image_hz > 0 else 0
@@ -221,6 +223,7 @@ class FoxgloveLive(NullSink):
                 return
             if not item or self.failed is not None:
                 continue
+            self.handled += 1
             try:
                 self._handle(item)
             except Exception as err:  # a view fault must never stop the flight

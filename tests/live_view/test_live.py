@@ -156,3 +156,25 @@ def test_a_client_sees_the_flight_and_a_late_one_gets_calibration_and_mission(
     doc = json.loads(seen[V + "mission"].geojson)  # type: ignore[attr-defined]
     assert any(f["properties"]["name"] == "route" for f in doc["features"])
     late.close()
+
+
+def test_a_view_behind_the_flight_drops_counts_and_says_so() -> None:
+    """The simulation side never waits: with room for 4 updates, a burst of 12000 frames
+    overruns the worker; what it dropped is counted and printed when the view closes."""
+    out = io.StringIO()
+    view = FoxgloveLive(
+        LiveOptions(host="127.0.0.1", port=None, image_hz=50.0),
+        vehicle="uav0",
+        home=HOME,
+        camera=CameraModel(width_px=W, height_px=H),
+        out=out,
+        queue_depth=4,
+    )
+    frames = [f for _, f in samples(FRAMES) if f is not None]
+    for _ in range(400):
+        for frame in frames:
+            view.on_frame(frame)
+    view.close()
+    assert view.dropped > 0 and view.handled > 0
+    assert f"foxglove: {view.dropped} updates dropped" in out.getvalue()
+    assert view.port is None and "ws://" not in out.getvalue()
