@@ -79,12 +79,12 @@ def fly(plan: Path, out: Path, foxglove: bool) -> tuple[float, dict[str, int], s
     return _children_cpu_s() - before, counts, "".join(x for x in lines if "foxglove" in x)
 
 
-def serve_pace(seconds: float, foxglove: bool) -> float:
+def serve_pace(seconds: float, foxglove: bool, image_hz: float = 10.0) -> float:
     """``serve --speed 10`` for ``seconds`` of simulation: simulated s per wall s."""
     cmd = [sys.executable, "-m", "air_sitl", "serve", "--mavlink", "udpin:127.0.0.1:0"]
     cmd += ["--no-video", "--speed", "10", "--max-sim-time", f"{seconds:g}"]
     if foxglove:
-        cmd += ["--foxglove", "127.0.0.1:0"]
+        cmd += ["--foxglove", "127.0.0.1:0", "--foxglove-image-hz", f"{image_hz:g}"]
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen(
         cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT
@@ -133,9 +133,11 @@ def main() -> None:
     for line in said.splitlines():
         print(f"  {line.strip()}")
     paces = {view: serve_pace(args.serve_s, view) for view in (False, True)}
+    no_images = serve_pace(args.serve_s, True, image_hz=0.0)
     print(f"serve --speed 10, {args.serve_s:g} s simulated from the ready line to the exit:")
     print(f"  without --foxglove   {paces[False]:6.2f}x (no camera rendered)")
     print(f"  with --foxglove      {paces[True]:6.2f}x, camera on, a client reading every topic")
+    print(f"  with, image-hz 0     {no_images:6.2f}x, no camera, a client reading every topic")
     print(f"  with / without       {paces[True] / paces[False]:6.3f} (target: 9.5x or more)")
 
 
