@@ -122,7 +122,7 @@ def attach_live(
     endpoint: VehicleEndpoint | None = None,
 ) -> None:
     """Once the flight is assembled: the mission as flown, the bus's estimates and (serve)
-    the STATUSTEXT the vehicle sends."""
+    the STATUSTEXT the vehicle sends and each mission a client uploads."""
     if live is None:
         return
     live.start(mission)
@@ -130,3 +130,4 @@ def attach_live(
         hookup.log.listeners.append(live.on_estimate)
     if endpoint is not None:
         endpoint.text_listeners.append(live.on_statustext)
+        endpoint.mission_listeners.append(live.start)

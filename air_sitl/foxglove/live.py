@@ -141,7 +141,8 @@ class FoxgloveLive(NullSink):
             self.dropped += 1
 
     def start(self, mission: Mission) -> None:
-        """The mission as flown (the ``mission`` topic; latched for late clients)."""
+        """The mission as flown, or as a client uploaded it (the ``mission`` topic; latched
+        for late clients)."""
         self._put(("mission", mission))
 
     def on_sample(self, sample: SimSample) -> None:

@@ -121,6 +121,8 @@ class VehicleEndpoint:
         self._text_id = 0
         # Called with (severity, text) of every STATUSTEXT broadcast (I/O thread): a live view.
         self.text_listeners: list[Callable[[int, str], None]] = []
+        # Called with every mission a client uploads (I/O thread): a live view's plan.
+        self.mission_listeners: list[Callable[[Mission], None]] = []
         self.commands = Commands(self)
         self.param_protocol = ParamProtocol(self)
         self.handlers: dict[str, Handler] = {}
@@ -390,3 +392,5 @@ class VehicleEndpoint:
             ap.set_mission(mission, current_seq)
 
         self.on_sim(load)
+        for listener in self.mission_listeners:
+            listener(mission)
