@@ -28,7 +28,7 @@ from air_sitl.camera.model import CameraModel
 from air_sitl.clock import NS_PER_S
 from air_sitl.errors import OptionError
 from air_sitl.foxglove import topics as tp
-from air_sitl.frames import ned2enu, ned2geodetic, q_frd_ned_to_flu_enu
+from air_sitl.frames import geodetic2ned, ned2enu, ned2geodetic, q_frd_ned_to_flu_enu
 from air_sitl.mission.items import Mission
 from air_sitl.sinks import FlightResult, NullSink
 from air_sitl.state import (
@@ -318,8 +318,6 @@ class FoxgloveLive(NullSink):
         if est.enu_m is not None:
             enu = est.enu_m
         elif est.geo is not None:
-            from air_sitl.frames import geodetic2ned
-
             enu = ned2enu(
                 geodetic2ned(
                     est.geo.lat_deg,
