@@ -108,12 +108,18 @@ def serve_vehicle(
     system_id: int = 1,
     video: VideoOptions | None = None,
     home_note: str = "",
+    view: Sink | None = None,
+    view_frames: bool = False,
+    on_attached: Callable[[BusHookup, VehicleEndpoint], None] | None = None,
 ) -> ParseCounters:
     """Fly ``setup`` for MAVLink clients until ``stop`` is set; what the links received.
 
     ``system_id``: MAV_SYS_ID (instance N of several is N+1). ``video``: stream the camera
     (ignored without a camera); what it sent and dropped is printed when it stops.
-    ``home_note``: where the home came from, said in the ready line (a default home)."""
+    ``home_note``: where the home came from, said in the ready line (a default home).
+    ``view``: one more sink (the Foxglove live view; ``view_frames``: it wants camera frames,
+    rendered when the vehicle has a camera); ``on_attached(bus, endpoint)`` once both are up
+    (the view's estimates and STATUSTEXT)."""
     inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
 
     def post(job: Job) -> None:
@@ -147,7 +153,7 @@ def serve_vehicle(
             sinks.append(stream)
         camera: FrameSource | None = None
         recorder = None
-        if out is not None or bus.needs_camera:
+        if out is not None or bus.needs_camera or (view_frames and setup.camera is not None):
             camera = open_camera(setup, open_setup_map(setup))
         if out is not None:
             recorder = CaptureRecorder(out, setup)
@@ -160,6 +166,10 @@ def serve_vehicle(
             frame_source=camera,
         )
         sinks.extend(bus_sinks)
+        if view is not None:
+            sinks.append(view)
+        if on_attached is not None:
+            on_attached(bus, endpoint)
         flight = build_flight(setup, sinks=sinks, camera=camera, auto_start=False)
         if flight.nav is not None and setup.options.nav_aid not in (None, "mavlink"):
             flight.nav.aid_feed = bus.nav_aid_feed(str(setup.options.nav_aid))

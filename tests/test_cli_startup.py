@@ -111,7 +111,10 @@ def test_an_unknown_option_names_the_command_and_its_help(
         (["map", "make", "urbann", "--out", "a.tif"], "map make: argument kind: invalid choice"),
         (["map", "make", "urban"], "map make: the following arguments are required: --out"),
         (["sweep", "s.yaml", "--keep", "most"], "sweep: argument --keep: invalid choice: 'most'"),
-        (["export", "DIR"], "export: one of the arguments --rosbag2 --rosbag1 --tum is required"),
+        (
+            ["export", "DIR"],
+            "export: one of the arguments --rosbag2 --rosbag1 --tum --mcap is required",
+        ),
         (["serve", "--camera", "far"], "serve: argument --camera: invalid choice: 'far'"),
     ],
 )

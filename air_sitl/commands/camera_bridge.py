@@ -25,6 +25,7 @@ from air_sitl.camera.options import (
     open_chosen_renderer,
 )
 from air_sitl.errors import BusError
+from air_sitl.foxglove.commands import add_live_arguments, open_live
 from air_sitl.options import MapChoice
 from air_sitl.state import GeoPoint, VehicleState
 
@@ -50,6 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--quiet", action="store_true", help="print only errors")
     add_ros2_arguments(parser)
+    add_live_arguments(parser)
     add_connection_arguments(parser, serves=False)
 
 
@@ -74,10 +76,13 @@ def run(args: argparse.Namespace) -> int:
     def free_settings(home: GeoPoint) -> RenderSettings:
         return RenderSettings(home=home, camera=camera.settings(), seed=args.seed)
 
+    live = open_live(args, vehicle=args.vehicle, home=None, camera=camera)
     with open_bus(config if ros2 is None else ros2_config(config)) as bus:
         on_published: Callable[[int, int, bytes], None] | None = None
         if ros2 is not None:
             on_published = _ros2_camera(bus, ros2, keys, camera).publish
+        if live is not None:
+            on_published = _also_to(live.on_image, on_published)
         server = CameraBridgeServer(
             bus, keys, factory, free_settings=free_settings, on_published=on_published
         )
@@ -94,9 +99,24 @@ def run(args: argparse.Namespace) -> int:
                 f"{server.published} published from truth",
                 flush=True,
             )
+    if live is not None:
+        live.close()
     for source in maps:
         close_map(source)
     return 0
+
+
+def _also_to(
+    on_image: Callable[[int, bytes], None], then: Callable[[int, int, bytes], None] | None
+) -> Callable[[int, int, bytes], None]:
+    """A frame published from truth goes to the Foxglove view, then to ``then``."""
+
+    def publish(index: int, sim_time_ns: int, jpeg: bytes) -> None:
+        on_image(sim_time_ns, jpeg)
+        if then is not None:
+            then(index, sim_time_ns, jpeg)
+
+    return publish
 
 
 def _ros2_camera(bus: Bus, ros2: Ros2Options, keys: KeySpace, camera: CameraModel) -> Ros2Camera:

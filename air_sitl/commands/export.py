@@ -19,6 +19,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     what.add_argument("--rosbag2", metavar="OUT", help="rosbag2 folder to create (MCAP storage)")
     what.add_argument("--rosbag1", metavar="OUT.bag", help="rosbag1 file to create")
     what.add_argument("--tum", metavar="OUT.txt", help="TUM trajectory file (ground truth)")
+    what.add_argument(
+        "--mcap",
+        metavar="FILE",
+        help="MCAP file of the Foxglove topics (those of fly --foxglove; extra air-sitl[foxglove])",
+    )
     parser.add_argument(
         "--estimate",
         metavar="NAME",
@@ -38,6 +43,10 @@ def run(args: argparse.Namespace) -> int:
     if args.estimate is not None and args.tum is None:
         msg = "--estimate: only with --tum"
         raise OptionError(msg)
+    if args.mcap is not None:
+        from air_sitl.foxglove.commands import export_mcap_command
+
+        return export_mcap_command(args.archive, Path(args.mcap), overwrite=args.overwrite)
     target = Path(next(p for p in (args.tum, args.rosbag1, args.rosbag2) if p is not None))
     with open_archive(args.archive) as archive:
         claim_path(target, overwrite=args.overwrite, folder=args.rosbag2 is not None)

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import MapError
+from air_sitl.foxglove.commands import add_live_arguments, attach_live, open_live
 from air_sitl.mission.geometry import POSITIONED_COMMANDS
 from air_sitl.mission.items import MavCmd, Mission
 from air_sitl.mission.validate import mission_warnings, require_startable
@@ -58,6 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="camera rendering threads (default 2; 0 renders on the simulation thread)",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress bar or summary")
+    add_live_arguments(parser)
     add_vehicle_arguments(parser, default_speed=0.0)
 
 
@@ -116,12 +118,14 @@ def run(args: argparse.Namespace) -> int:
     require_startable(setup.mission)  # PX4 would refuse to start it: so do we
     require_on_map(setup)  # with or without the camera: the flight is on its map
     out = Path(args.out) if args.out else Path("out") / (setup.mission.name or "flight")
+    live = open_live(args, vehicle=args.vehicle, home=setup.home, camera=setup.camera)
     request = RecordingRequest(
         setup=setup,
         out=out,
         resume=bool(args.resume),
         overwrite=bool(args.overwrite),
         bus=bus_sinks_from_args(args),
+        sinks=() if live is None else (live,),
     )
     bars: list[Progress] = []  # made when the flight starts (the mission as flown)
 
@@ -133,6 +137,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"resuming {out} from frame {first_frame}", file=sys.stderr)
         total = max(1, len(mission.items))
         bars.append(Progress(mission.name or "flight", total, unit="items", enabled=not args.quiet))
+        attach_live(live, mission, request.bus)
 
     def progress(sample: SimSample, flight: Flight) -> None:
         if bars:
@@ -150,6 +155,8 @@ def run(args: argparse.Namespace) -> int:
     finally:
         for bar in bars:
             bar.close()
+        if live is not None:
+            live.close()
     if result.already_complete:
         if not args.quiet:
             print(f"{out}: already complete ({result.resumed_from_frame} frames); nothing to do")

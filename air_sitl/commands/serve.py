@@ -20,6 +20,7 @@ from air_sitl.bus.keys import DEFAULT_VEHICLE
 from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.commands.flying import add_vehicle_arguments
 from air_sitl.errors import OptionError
+from air_sitl.foxglove.commands import add_live_arguments, attach_live, open_live
 from air_sitl.instance import HOME_SPACING_M, Instance, add_instance_arguments, instance_from_args
 from air_sitl.mavlink.links import parse_link
 from air_sitl.options import OPEN_END_NS, FlightOptions, flight_options_from_args
@@ -57,6 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quiet", action="store_true", help="print only errors")
     add_video_arguments(parser)
     add_instance_arguments(parser)
+    add_live_arguments(parser)
     add_vehicle_arguments(parser, default_speed=1.0)
     # A vehicle serves until stopped: no time limit unless one is given.
     for action in parser._actions:
@@ -112,6 +114,7 @@ def run(args: argparse.Namespace) -> int:
 
         # Refused now, not after "Capture started" was told to the ground station.
         require_writable_folder(Path(args.out), "--out folder")
+    live = open_live(args, vehicle=args.vehicle, home=setup.home, camera=setup.camera)
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: FrameType | None) -> None:
@@ -132,10 +135,15 @@ def run(args: argparse.Namespace) -> int:
                 system_id=instance.system_id,
                 video=video,
                 home_note=_home_note(args, instance),
+                view=live,
+                view_frames=live is not None and live.options.image_hz > 0,
+                on_attached=lambda bus, ep: attach_live(live, setup.mission, bus, ep),
             )
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
+        if live is not None:
+            live.close()
     if not args.quiet:
         kernel = (
             f"{c.kernel_dropped} datagrams dropped by the kernel (socket buffer full)"

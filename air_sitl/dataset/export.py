@@ -258,7 +258,8 @@ class _Builder:
         )
 
 
-def _check_out(out: Path) -> None:
+def check_out(out: Path) -> None:
+    """DatasetError unless ``out`` is new and its folder exists (nothing is overwritten)."""
     if out.exists():
         msg = f"{out}: exists already (choose another output; nothing is overwritten)"
         raise DatasetError(msg)
@@ -276,7 +277,7 @@ def export_rosbag(
 ) -> dict[str, int]:
     """Write every message of ``archive`` to a rosbag2 (MCAP) folder or a rosbag1 file;
     ``progress(frames written, frames)`` hears every 50th frame and the last."""
-    _check_out(out)
+    check_out(out)
     total = len(archive.rows)
     builder = _Builder(ros1)
     counts: dict[str, int] = {}

@@ -119,6 +119,10 @@ class VehicleEndpoint:
         self.heartbeats_sent = 0
         self.io_errors = 0
         self._text_id = 0
+        # Called with (severity, text) of every STATUSTEXT broadcast (I/O thread): a live view.
+        self.text_listeners: list[Callable[[int, str], None]] = []
+        # Called with every mission a client uploads (I/O thread): a live view's plan.
+        self.mission_listeners: list[Callable[[Mission], None]] = []
         self.commands = Commands(self)
         self.param_protocol = ParamProtocol(self)
         self.handlers: dict[str, Handler] = {}
@@ -209,6 +213,8 @@ class VehicleEndpoint:
 
     def broadcast_text(self, severity: int, text: str) -> None:
         """STATUSTEXT to every client now (I/O thread)."""
+        for listener in self.text_listeners:
+            listener(severity, text)
         for msg in self.statustext(severity, text):
             self.broadcast(msg)
 
@@ -386,3 +392,5 @@ class VehicleEndpoint:
             ap.set_mission(mission, current_seq)
 
         self.on_sim(load)
+        for listener in self.mission_listeners:
+            listener(mission)

@@ -56,6 +56,7 @@ class RecordingRequest:
     resume: bool = False
     overwrite: bool = False  # the one rule of air_sitl.outdir: an old run is removed first
     bus: BusHookup | None = None  # the zenoh bus side of the flight (air_sitl.bus.hookup)
+    sinks: tuple[Sink, ...] = ()  # more sinks of the flight (the Foxglove live view)
     # False: the archive's files are written on the simulation thread, not on an I/O thread of
     # their own (a sweep worker is one core: a second thread only competes with it for the
     # GIL). The bytes are the same.
@@ -319,6 +320,7 @@ def record_flight(
                 frame_source=camera_source,
             )
             sinks.extend(bus_sinks)
+        sinks.extend(request.sinks)
         trajectory_kind = NavTrajectoryWriter if options.nav == "ekf" else TrajectoryWriter
         trajectory = trajectory_kind(out / TRAJECTORY_CSV)
         sinks.append(trajectory)

@@ -48,6 +48,11 @@ CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 TF = "tf2_msgs/msg/TFMessage"
 
 
+def q_optical_to_flu_wxyz(camera: CameraModel) -> Quat:
+    """The camera mount as a rotation: camera_optical_frame to base_link (FLU), scalar first."""
+    return quat_multiply(Q_FLU_TO_FRD, q_cam_to_body_wxyz(camera))
+
+
 def typestore(distro: str) -> Typestore:
     """The rosbags type store of a distro (its message definitions and type hashes)."""
     return get_typestore(DISTROS[distro])
@@ -194,7 +199,7 @@ class Messages:
 
     def camera_mount(self, sim_time_ns: int, camera: CameraModel) -> Any:
         """tf2_msgs/TFMessage: base_link -> camera_optical_frame (the mounting, no offset)."""
-        q_opt_to_flu = quat_multiply(Q_FLU_TO_FRD, q_cam_to_body_wxyz(camera))
+        q_opt_to_flu = q_optical_to_flu_wxyz(camera)
         stamped = self._t["geometry_msgs/msg/TransformStamped"]
         transform = self._t["geometry_msgs/msg/Transform"]
         tf = stamped(
