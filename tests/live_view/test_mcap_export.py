@@ -147,6 +147,8 @@ def test_mcap_refuses_to_overwrite(archive_dir: Path, tmp_path: Path) -> None:
     out.write_bytes(b"keep")
     assert main(["export", str(archive_dir), "--mcap", str(out)]) == 2
     assert out.read_bytes() == b"keep"
+    assert main(["export", str(archive_dir), "--mcap", str(out), "--overwrite"]) == 0
+    assert out.read_bytes()[:8] == b"\x89MCAP0\r\n"  # replaced by a recording
 
 
 def test_without_the_sdk_one_line_names_the_install(tmp_path: Path) -> None:
