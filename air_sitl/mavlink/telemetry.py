@@ -277,7 +277,9 @@ def mission_current(sample: SimSample | None, total: int) -> Message:
             state = MISSION_STATE_PAUSED
         else:
             state = MISSION_STATE_NOT_STARTED
-    return mav.MAVLink_mission_current_message(min(seq, 65535), min(total, 65535), state, 0)
+    # common.xml: total is UINT16_MAX when the vehicle has no mission (0 means "not supported").
+    count = min(total, 65535) if total > 0 else 65535
+    return mav.MAVLink_mission_current_message(min(seq, 65535), count, state, 0)
 
 
 def autopilot_version() -> Message:
