@@ -229,7 +229,7 @@ class TelemetrySink:
         self._next_event_ns = 0
         self._next_fence_ns = 0
         self._last_key: tuple[FlightMode, bool] | None = None
-        self._last_seq = -2
+        self._last_mission_state = (-2, -1)  # current item, mission_state last sent
         self._last_completed = False
         self._last_reached = -1
         self._fence_latched = False
@@ -267,7 +267,7 @@ class TelemetrySink:
             self._streams(sample, t)
 
     def _mission_events(self, sample: SimSample) -> None:
-        """MISSION_CURRENT when the current item or the mission state changed, then
+        """MISSION_CURRENT when the current item or the mission_state changed, then
         MISSION_ITEM_REACHED, in one job (one burst on the wire).
 
         The order is PX4's (MavlinkMissionManager::send: MISSION_CURRENT, then
@@ -279,17 +279,19 @@ class TelemetrySink:
         "not finished" (issue 33).
         """
         ep, ap = self._ep, sample.autopilot
-        changed = ap.current_seq != self._last_seq or ap.mission_completed != self._last_completed
+        total = len(ep.protocol.items(MissionType.MISSION))
+        state = (ap.current_seq, tm.mission_state(sample, total))
+        changed = state != self._last_mission_state
         reached: list[int] = []
         if ap.reached_seq >= 0:
             reached.append(ap.reached_seq)
-        if changed and ap.mission_completed and not self._last_completed:
+        if ap.mission_completed and not self._last_completed:
             # MAVSDK counts a mission done when the last item is reached, DO items included.
-            last = len(ep.protocol.items(MissionType.MISSION)) - 1
+            last = total - 1
             latest = reached[-1] if reached else self._last_reached
             if last >= 0 and latest != last:
                 reached.append(last)
-        self._last_seq, self._last_completed = ap.current_seq, ap.mission_completed
+        self._last_mission_state, self._last_completed = state, ap.mission_completed
         self._last_reached = reached[-1] if reached else self._last_reached
         if not changed and not reached:
             return
