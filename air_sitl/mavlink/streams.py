@@ -274,9 +274,9 @@ class TelemetrySink:
         MISSION_ITEM_REACHED, for one mission result) and it matters at the end: MAVSDK reports
         progress (total, total) on the last MISSION_ITEM_REACHED and answers
         ``is_mission_finished`` from the last MISSION_CURRENT's mission_state, so the state
-        COMPLETE must be on the wire first. Sent the other way round (and on a loaded machine
-        often in two bursts), a client asking the moment progress reached its total was told
-        "not finished" (issue 33).
+        COMPLETE must be on the wire first. Sent the other way round (as two jobs, which the I/O
+        thread could send in two bursts), a client asking the moment progress reached its total
+        could be told "not finished" on a loaded machine (issue 33).
         """
         ep, ap = self._ep, sample.autopilot
         total = len(ep.protocol.items(MissionType.MISSION))
