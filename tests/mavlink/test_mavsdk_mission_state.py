@@ -33,7 +33,8 @@ HOME = GeoPoint(lat_deg=38.5125, lon_deg=-121.4935, alt_amsl_m=7.0)
 MISSIONS = 20
 SPEED = "100"
 POLL_S = 0.1  # how often the script asks, in wall seconds
-AFTER_FINISH_SIM_S = 10.0  # simulated time of RTL loiter watched after each finish
+AFTER_FINISH_SIM_S = 5.0  # simulated time of RTL loiter watched after each finish
+CLOCK_HZ = 2.0  # attitude messages per simulated second: the clock the watch reads
 pytestmark = pytest.mark.integration
 
 
@@ -69,6 +70,7 @@ class Watch:
             async for state in self._telemetry.subscribe_landed_state():
                 self.landed = state
 
+        await self._telemetry.set_rate_attitude_euler(CLOCK_HZ)  # the clock, cheaply
         tasks = [asyncio.create_task(clock()), asyncio.create_task(landed())]
         try:
             yield self
