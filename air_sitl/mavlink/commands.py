@@ -26,6 +26,7 @@ from air_sitl.mavlink.interfaces import (
 )
 from air_sitl.mavlink.links import Channel
 from air_sitl.mission.items import MissionType
+from air_sitl.state import FlightMode
 
 SimCommand = Callable[[AutopilotLike], tuple[int, str]]  # -> (MAV_RESULT, STATUSTEXT or "")
 
@@ -127,6 +128,9 @@ class Commands(EndpointPart):
             simple(lambda ap: ap.takeoff(alt), "Takeoff denied: ")
         elif cmd == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             simple(lambda ap: ap.return_to_launch(), "RTL denied: ")
+        elif cmd == mav.MAV_CMD_NAV_LAND:
+            # PX4: Land mode, straight ahead of where the aircraft is (MAVSDK's action.land()).
+            simple(lambda ap: ap.set_mode(FlightMode.LAND), "Land denied: ")
         elif cmd == mav.MAV_CMD_DO_SET_MISSION_CURRENT:
             self._set_mission_current(ch, msg, whole(p1), p2 >= 0.5, simple)
         elif cmd == mav.MAV_CMD_DO_REPOSITION:

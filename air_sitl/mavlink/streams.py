@@ -229,7 +229,7 @@ class TelemetrySink:
         self._next_event_ns = 0
         self._next_fence_ns = 0
         self._last_key: tuple[FlightMode, bool] | None = None
-        self._last_seq = -2
+        self._last_mission_state = (-2, -1)  # current item, mission_state last sent
         self._last_completed = False
         self._last_reached = -1
         self._fence_latched = False
@@ -249,23 +249,11 @@ class TelemetrySink:
             self.last_fix = sample.gps
         ap = sample.autopilot
         t = sample.state.sim_time_ns
-        if ap.reached_seq >= 0:
-            seq = self._last_reached = ap.reached_seq
-            self._send(lambda: ep.broadcast(mav.MAVLink_mission_item_reached_message(seq)))
         key = (ap.mode, ap.armed)
         if key != self._last_key:
             self._last_key = key
             self._send(ep.send_heartbeat)
-        if ap.current_seq != self._last_seq or ap.mission_completed != self._last_completed:
-            if ap.mission_completed and not self._last_completed:
-                # MAVSDK counts a mission done when the last item is reached, DO items included.
-                last = len(ep.protocol.items(MissionType.MISSION)) - 1
-                if last >= 0 and self._last_reached != last:
-                    self._last_reached = last
-                    self._send(lambda: ep.broadcast(mav.MAVLink_mission_item_reached_message(last)))
-            self._last_seq, self._last_completed = ap.current_seq, ap.mission_completed
-            ids = [mav.MAVLINK_MSG_ID_MISSION_CURRENT]
-            self._send(lambda: self._message_streams.send(ids, sample, None))
+        self._mission_events(sample)
         if t >= self._next_event_ns:
             self._next_event_ns = t + EVENT_PERIOD_NS
             self._poll_events()
@@ -277,6 +265,45 @@ class TelemetrySink:
             self._check_battery(sample)
         if t >= self._next_any_due_ns:
             self._streams(sample, t)
+
+    def _mission_events(self, sample: SimSample) -> None:
+        """MISSION_CURRENT when the current item or the mission_state changed, then
+        MISSION_ITEM_REACHED, in one job (one burst on the wire).
+
+        The order is PX4's (MavlinkMissionManager::send: MISSION_CURRENT, then
+        MISSION_ITEM_REACHED, for one mission result) and it matters at the end: MAVSDK reports
+        progress (total, total) on the last MISSION_ITEM_REACHED and answers
+        ``is_mission_finished`` from the last MISSION_CURRENT's mission_state, so the state
+        COMPLETE must be on the wire first. Sent the other way round (as two jobs, which the I/O
+        thread could send in two bursts), a client asking the moment progress reached its total
+        could be told "not finished" on a loaded machine (issue 33).
+        """
+        ep, ap = self._ep, sample.autopilot
+        total = len(ep.protocol.items(MissionType.MISSION))
+        state = (ap.current_seq, tm.mission_state(sample, total))
+        changed = state != self._last_mission_state
+        reached: list[int] = []
+        if ap.reached_seq >= 0:
+            reached.append(ap.reached_seq)
+        if ap.mission_completed and not self._last_completed:
+            # MAVSDK counts a mission done when the last item is reached, DO items included.
+            last = total - 1
+            latest = reached[-1] if reached else self._last_reached
+            if last >= 0 and latest != last:
+                reached.append(last)
+        self._last_mission_state, self._last_completed = state, ap.mission_completed
+        self._last_reached = reached[-1] if reached else self._last_reached
+        if not changed and not reached:
+            return
+        streams = self._message_streams
+
+        def send() -> None:
+            if changed:
+                streams.send([mav.MAVLINK_MSG_ID_MISSION_CURRENT], sample, None)
+            for seq in reached:
+                ep.broadcast(mav.MAVLink_mission_item_reached_message(seq))
+
+        self._send(send)
 
     def _poll_events(self) -> None:
         ap = self._ep.autopilot

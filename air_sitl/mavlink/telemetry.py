@@ -260,24 +260,30 @@ def home_position(home: GeoPoint, sim_time_ns: int) -> Message:
     )  # fmt: skip
 
 
+def mission_state(sample: SimSample | None, total: int) -> int:
+    """MISSION_CURRENT.mission_state: COMPLETE from the last item on, whatever the mode (RTL,
+    landing, disarmed), until the mission is uploaded or started again."""
+    if total == 0:
+        return MISSION_STATE_NO_MISSION
+    if sample is None:
+        return MISSION_STATE_NOT_STARTED
+    ap = sample.autopilot
+    if ap.mission_completed:
+        return MISSION_STATE_COMPLETE
+    if ap.armed and ap.mode in _MISSION_MODES:
+        return MISSION_STATE_ACTIVE
+    if ap.current_seq > 0:
+        return MISSION_STATE_PAUSED
+    return MISSION_STATE_NOT_STARTED
+
+
 def mission_current(sample: SimSample | None, total: int) -> Message:
     """MISSION_CURRENT with the mission state PX4 reports."""
-    if sample is None:
-        seq, state = 0, MISSION_STATE_NO_MISSION if total == 0 else MISSION_STATE_NOT_STARTED
-    else:
-        ap = sample.autopilot
-        seq = max(ap.current_seq, 0)
-        if total == 0:
-            state = MISSION_STATE_NO_MISSION
-        elif ap.mission_completed:
-            state = MISSION_STATE_COMPLETE
-        elif ap.armed and ap.mode in _MISSION_MODES:
-            state = MISSION_STATE_ACTIVE
-        elif ap.current_seq > 0:
-            state = MISSION_STATE_PAUSED
-        else:
-            state = MISSION_STATE_NOT_STARTED
-    return mav.MAVLink_mission_current_message(min(seq, 65535), min(total, 65535), state, 0)
+    seq = max(sample.autopilot.current_seq, 0) if sample is not None else 0
+    # common.xml: total is UINT16_MAX when the vehicle has no mission (0 means "not supported").
+    count = min(total, 65535) if total > 0 else 65535
+    state = mission_state(sample, total)
+    return mav.MAVLink_mission_current_message(min(seq, 65535), count, state, 0)
 
 
 def autopilot_version() -> Message:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from air_sitl.mavlink.telemetry import statustext
+from air_sitl.mavlink.telemetry import MISSION_STATE_NO_MISSION, mission_current, statustext
 
 
 def _text(msg: object) -> str:
@@ -30,3 +30,9 @@ def test_statustext_chunks_follow_common_xml(length: int) -> None:
 def test_statustext_chunks_need_an_id() -> None:
     with pytest.raises(ValueError, match="id"):
         statustext(4, "x" * 60, text_id=0)
+
+
+def test_mission_current_without_a_mission_says_so_as_common_xml() -> None:
+    msg = mission_current(None, 0)
+    assert (msg.total, msg.mission_state) == (65535, MISSION_STATE_NO_MISSION)
+    assert mission_current(None, 8).total == 8
