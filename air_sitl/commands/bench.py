@@ -151,12 +151,16 @@ def run(args: argparse.Namespace) -> int:
 
     config = config_from_args(args)
     dates = flight_dates(args.map_date)
-    claim_folder(
-        config.out,
-        overwrite=args.overwrite,
-        resume=args.resume,
-        resume_problem=lambda: resume_problem(config, dates),
-    )
+    # A folder holding only archives/ is no run: archives placed there for this bench to
+    # reuse (each checked against its inputs before it is measured).
+    prepared = config.out.is_dir() and {p.name for p in config.out.iterdir()} == {"archives"}
+    if not prepared or args.overwrite:
+        claim_folder(
+            config.out,
+            overwrite=args.overwrite,
+            resume=args.resume,
+            resume_problem=lambda: resume_problem(config, dates),
+        )
     if len(dates) == 1:
         boards = [run_bench(config)]
         sys.stdout.write(boards[0].to_markdown().split("\n## ", 2)[1].join(["## ", "\n"]))

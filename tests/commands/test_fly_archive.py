@@ -341,7 +341,7 @@ def _stopped_in_one_line_then_resumes(
     ("argv", "expected"),
     [
         (["fly", "{missing}", "--out", "{tmp}/x"], "no_such.plan"),
-        (["fly", "{plan}", "--out", "{tmp}/nonempty"], "is not empty"),
+        (["fly", "{plan}", "--out", "{tmp}/nonempty"], "holds another run"),
         (["fly", "{plan}", "--out", "{tmp}/y", "--render-workers", "many"], "--render-workers"),
         (["fly", "{plan}", "--out", "{tmp}/z", "--map", "moon"], "--map"),
         (["check", "{tmp}/nothing"], "no such archive"),
