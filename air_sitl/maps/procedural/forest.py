@@ -43,8 +43,10 @@ _DECIDUOUS = {"summer": (44, 104, 70), "autumn": (46, 104, 104), "spring": (70, 
 _DECIDUOUS_ALT = {"summer": (56, 118, 86), "autumn": (40, 96, 146), "spring": (84, 132, 120)}
 # Autumn broadleaves, each tree its own: still green, yellow, orange, brown (BGR).
 _AUTUMN_LEAVES = ((52, 108, 66), (48, 150, 170), (38, 100, 168), (50, 82, 112))
-_BARE: Color = (78, 96, 118)  # leafless broadleaf crowns: grey-brown branches
-_LITTER: Color = (50, 78, 108)  # last year's leaves on the forest floor
+# Leafless broadleaf crowns: grey-brown branches; green close to red, so that the spring
+# survey's cool white balance and bluish haze leave them brown, not mauve.
+_BARE: Color = (66, 98, 112)
+_LITTER: Color = (46, 84, 106)  # last year's leaves on the forest floor
 _REGROWTH: Color = (64, 120, 104)  # young growth on clear-cuts a few years old
 _BOAT: Color = (214, 218, 222)  # white hulls
 BOAT_CELL_M = 45.0  # one boat at most per cell of open water
