@@ -40,8 +40,8 @@ FEATHER_M = 6.0  # a changed patch blends into its neighbours over this
 WARP_PATCH_M = 45.0  # feature size of the bends of the patches' borders
 # Share of the ground whose tone changed after `years`: 1 - exp(-years / TONE_YEARS).
 TONE_YEARS = 5.0
-TONE_AMPLITUDE = 58.0  # grey levels of the curve's swing
-TONE_PERIOD = 150.0  # grey levels of one period of the curve (slope 1 +- 2.4)
+TONE_AMPLITUDE = 80.0  # grey levels of the curve's swing
+TONE_PERIOD = 200.0  # grey levels of one period of the curve (slope 1 +- 2.5)
 WATER_LEVEL = 0.09  # largest threshold offset of a water body (noise units), by 7 years
 WATER_CELL_M = 900.0  # water bodies of one region rise and fall together
 POND_CELL_M = 70.0  # feature size of small ponds
@@ -135,16 +135,8 @@ def ponds(seed: int, date: DateLook, x0: int, y0: int, size: int, gsd_m: float) 
     year; how many hold water is the year's (wet years fill more, dry years leave mud)."""
     k = key_of(seed, 0x7A4)
     hollow = value_noise(k, x0 + 0.5, y0 + 0.5, size, POND_CELL_M / gsd_m)
-    wet = value_noise(key_of(seed, 0x7A5, date.index), x0 + 0.5, y0 + 0.5, size, 4.0 * POND_CELL_M / gsd_m)
-    thr = np.float32(POND_THRESHOLD) - np.float32(POND_SWING) * np.clip(wet / np.float32(NOISE_STD), -1.5, 1.5)
-    out: FloatImage = np.clip((hollow - thr) * np.float32(12.0), 0.0, 1.0)
-    return out
-
-
-def pond_bed(seed: int, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
-    """0..1: the hollows that hold water in the wettest year (mud or reeds when dry)."""
-    k = key_of(seed, 0x7A4)
-    hollow = value_noise(k, x0 + 0.5, y0 + 0.5, size, POND_CELL_M / gsd_m)
-    thr = np.float32(POND_THRESHOLD - 1.5 * POND_SWING)
+    k_wet = key_of(seed, 0x7A5, date.index)
+    wet = value_noise(k_wet, x0 + 0.5, y0 + 0.5, size, 4.0 * POND_CELL_M / gsd_m) / NOISE_STD
+    thr = np.float32(POND_THRESHOLD) - np.float32(POND_SWING) * np.clip(wet, -1.5, 1.5)
     out: FloatImage = np.clip((hollow - thr) * np.float32(12.0), 0.0, 1.0)
     return out
