@@ -391,10 +391,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--map-seed", type=int, default=0, help="seed of the maps (default 0)")
     p.add_argument("--maps", default=",".join(KINDS), help="procedural maps (default: all)")
     p.add_argument("--real", nargs=2, metavar=("A_DIR", "B_DIR"), type=Path)
-    p.add_argument("--real-tifs", nargs=2, metavar=("A_TIF", "B_TIF"), type=Path,
-                   help="matcher figure on two real GeoTIFFs of one place (A the reference)")  # fmt: skip
-    p.add_argument("--frames", type=int, default=20,
-                   help="matcher frames per world, date and height (default 20; 0: none)")  # fmt: skip
+    tifs_help = "matcher figure on two real GeoTIFFs of one place (A the reference)"
+    p.add_argument("--real-tifs", nargs=2, metavar=("A_TIF", "B_TIF"), type=Path, help=tifs_help)
+    frames_help = "matcher frames per world, date and height (default 20; 0: none)"
+    p.add_argument("--frames", type=int, default=20, help=frames_help)
     p.add_argument("--sheet", type=Path, help="save crops side by side as this PNG")
     args = p.parse_args(argv)
     for kind in [k for k in args.maps.split(",") if k]:

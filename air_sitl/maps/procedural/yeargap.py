@@ -132,11 +132,13 @@ def water_level(seed: int, date: DateLook, x0: int, y0: int, size: int, gsd_m: f
 
 def ponds(seed: int, date: DateLook, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
     """0..1: small ponds standing on open land during this survey. The same hollows every
-    year; how many hold water is the year's (wet years fill more, dry years leave mud)."""
+    year; how many hold water is the year's (wet years fill more, dry years leave them dry),
+    departing from the reference survey's more the more years lie between."""
     k = key_of(seed, 0x7A4)
     hollow = value_noise(k, x0 + 0.5, y0 + 0.5, size, POND_CELL_M / gsd_m)
+    swing = POND_SWING * min(1.0, years_since_reference(date) / 7.0)
     k_wet = key_of(seed, 0x7A5, date.index)
     wet = value_noise(k_wet, x0 + 0.5, y0 + 0.5, size, 4.0 * POND_CELL_M / gsd_m) / NOISE_STD
-    thr = np.float32(POND_THRESHOLD) - np.float32(POND_SWING) * np.clip(wet, -1.5, 1.5)
+    thr = np.float32(POND_THRESHOLD) - np.float32(swing) * np.clip(wet, -1.5, 1.5)
     out: FloatImage = np.clip((hollow - thr) * np.float32(12.0), 0.0, 1.0)
     return out
