@@ -274,7 +274,7 @@ def real_tif_rows(
     a = GeoTiffMap(a_path, ground_elevation_m=0.0)
     b = GeoTiffMap(b_path, ground_elevation_m=0.0)
     w, h = a.georef.width_px or 0, a.georef.height_px or 0
-    cx, cy = a.px_to_crs(w / 2.0, h / 2.0)
+    cx, cy = a.georef.px_to_crs(w / 2.0, h / 2.0)
     lon, lat = transform(a.georef.crs, "EPSG:4326", [cx], [cy])
     home = GeoPoint(lat_deg=float(lat[0]), lon_deg=float(lon[0]), alt_amsl_m=0.0)
     half_m = 0.5 * min(w, h) * a.georef.gsd_m
