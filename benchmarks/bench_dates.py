@@ -1,7 +1,7 @@
 """How different the dates of a procedural map are, against real imagery of different years.
 
     python benchmarks/bench_dates.py [--crops 48] [--seed 0] [--maps urban,forest]
-        [--real A_DIR B_DIR] [--sheet OUT.png]
+        [--real A_DIR B_DIR] [--real-tifs A.tif B.tif] [--frames 20] [--sheet OUT.png]
 
 For each procedural map, random 256 x 256 crops at 0.5 m per pixel of date 0 against the same
 place at date 1 and date 2 (and date 0 against itself: the same-date check), in grey:
@@ -10,13 +10,24 @@ place at date 1 and date 2 (and date 0 against itself: the same-date check), in 
 - ``reg``: template registration success: the central 128 x 128 of B moved by a known random
   offset of up to 40 px is found in A with OpenCV ``matchTemplate`` (TM_CCOEFF_NORMED);
   success = the peak within 3 px of the truth;
+- ``reg8``, ``peak``: the same registration within 8 px (the surveys' misregistration is
+  tolerated) and its median peak correlation;
+- ``oc1``, ``oc2``, ``flip``: at 2 m pixels, the single- and doubled-angle gradient
+  orientation agreement of A and B, and the share of textured 32 m windows whose single-angle
+  agreement is below 0 (contrast inverted, or unrelated content);
 - ``sat``: mean HSV saturation (OpenCV's 0..255) of the B crops;
 - ``slope``: radially averaged power-spectrum slope of the B crops (grey, Hann window, 4-100
   cycles per 256 px, least squares in log-log), the median over crops.
 
 ``--real A_DIR B_DIR``: the same figures for pairs of images with the same file names in two
 folders (public change-detection samples: A the earlier year, B the later); images larger than
-256 px give several crops. Targets (issue 24) are printed beside. ``--sheet`` saves crops of
+256 px give several crops. Targets (issues 24 and 32) are printed beside.
+
+Matcher figure (``--frames N``, default 20; 0 skips it): N frames per world, date and height
+(200, 300, 3000 m; random places, headings, roll and pitch up to 5 degrees) rendered from date
+k and matched against date 0 by the mapmatch baseline's matcher from a prior 10-30 m off:
+share accepted within 5 m and the median response. ``--real-tifs A.tif B.tif``: the same for
+two real GeoTIFFs of one place (frames of B against A; and A against itself). ``--sheet`` saves crops of
 dates 0/1/2 of each map side by side with real pairs, to look at. Deterministic with ``--seed``.
 """
 
