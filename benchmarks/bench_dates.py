@@ -27,8 +27,9 @@ Matcher figure (``--frames N``, default 20; 0 skips it): N frames per world, dat
 (200, 300, 3000 m; random places, headings, roll and pitch up to 5 degrees) rendered from date
 k and matched against date 0 by the mapmatch baseline's matcher from a prior 10-30 m off:
 share accepted within 5 m and the median response. ``--real-tifs A.tif B.tif``: the same for
-two real GeoTIFFs of one place (frames of B against A; and A against itself). ``--sheet`` saves crops of
-dates 0/1/2 of each map side by side with real pairs, to look at. Deterministic with ``--seed``.
+two real GeoTIFFs of one place (frames of B against A; and A against itself).
+``--sheet`` saves crops of dates 0/1/2 of each map side by side with real pairs, to look
+at. Deterministic with ``--seed``.
 """
 
 from __future__ import annotations
