@@ -189,17 +189,34 @@ def test_bench_dates_figures_within_targets() -> None:
             )
 
 
-def test_bench_dates_matcher_figures_within_targets() -> None:
+@pytest.mark.parametrize(
+    "kind",
+    [
+        pytest.param(
+            "urban",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="issue 32 target not met yet: urban 0-2 accepted 100 % at 300 m "
+                "(response 0.29; real urban pairs 41 %, 0.14)",
+            ),
+        ),
+        "forest",
+    ],
+)
+def test_bench_dates_matcher_figures_within_targets(kind: str) -> None:
     """The mapmatch baseline's matcher on frames of each date at 300 m against date 0 (a small
-    sample: 6 frames): the same date always, date 0 -> 2 sometimes, 0 -> 1 more often."""
+    sample: 8 frames a date): the same date always, date 0 -> 2 within the target, 0 -> 1 at
+    least as often, the response falling with the gap."""
     bench = _bench()
     t = bench.TARGETS
-    for kind in ("urban", "forest"):
-        rows = dict(bench.matcher_rows(kind, 6, 0, 0, heights=(300.0,)))
-        same, one, two = (rows[f"{kind} 0-{d} @300 m"]["accept"] for d in (0, 1, 2))
-        assert same >= t["accept_same"][0], f"{kind}: same date {same:.0%}"
-        assert t["accept_low"][0] <= two <= t["accept_low"][1], f"{kind}: 0-2 {two:.0%}"
-        assert one >= two, f"{kind}: 0-1 {one:.0%} < 0-2 {two:.0%}"
+    rows = dict(bench.matcher_rows(kind, 8, 0, 0, heights=(300.0,)))
+    same, one, two = (rows[f"{kind} 0-{d} @300 m"] for d in (0, 1, 2))
+    assert same["accept"] >= t["accept_same"][0], f"{kind}: same date {same['accept']:.0%}"
+    assert same["response"] > one["response"] > two["response"]
+    assert one["accept"] >= two["accept"], f"{kind}: 0-1 {one['accept']:.0%} < 0-2"
+    assert t["accept_low"][0] <= two["accept"] <= t["accept_low"][1], (
+        f"{kind}: 0-2 accepted {two['accept']:.0%}, response {two['response']:.2f}"
+    )
 
 
 def test_contrast_inversion_and_water_grow_with_the_gap() -> None:
