@@ -18,8 +18,10 @@ the ports of a real ground station:
   a 30 m capture leg (about 100 frames) instead of 1-5 km; every flight takes seconds.
 - ``--scenarios all`` flies UC-200 only; ``dataset``, ``bench`` and ``sweep`` get
   ``--missions missions`` (the short plans, not the checkout's).
-- ``map make`` writes its window at 5 m pixels (``--gsd-m 5``): the same extent, 1/70 of the
-  pixels.
+- ``map make`` writes at 5 m pixels (``--gsd-m 5``), and a ``--size-m`` window becomes 800 m
+  square around the short flight from the nearest plan's home (a procedural map's cost grows
+  with its area, whatever its pixels: 1300 x 3800 m took a minute of CPU at any pixel size).
+  tests/docs/test_readme_tour.py checks the full window against the full plan.
 - a SPEC from ``examples/`` is cut to its first value on every axis and 45 simulated seconds.
 - ``serve`` gets ``--max-sim-time 5``, ``--no-video`` and a link on a port the kernel picks;
   the zenoh bus's default endpoint (tcp/127.0.0.1:7447) is replaced by a free port; a flight
@@ -42,6 +44,7 @@ import pytest
 import yaml
 from short_plans import write_short_plan
 
+from air_sitl.frames import ned2geodetic
 from air_sitl.mission.plan_file import load_mission
 from air_sitl.state import GeoPoint
 
@@ -53,6 +56,7 @@ LINE_TIMEOUT_S = 600.0  # only a hung command gets there
 PLACEHOLDER = re.compile(r"\b(PLAN|SPEC|DIR|HEAD|URL_OR\w*|W,S,E,N|tcp/A:P|127\.0\.0\.1:P)\b")
 OFF_MAP = "nodata or ground off the map"
 SHORT_ALT_M = 60.0  # the short plans' altitude: a climb of seconds
+SHORT_WINDOW_M = 800  # map make's window around a short flight (its cost grows with the area)
 # Pages whose lines need the internet (CI and this machine have none): each is run elsewhere.
 ONLINE_PAGES = {
     "real-naip.md": "tests/maps/test_real_years.py runs its lines against a local STAC API",
@@ -112,8 +116,22 @@ def short_missions(folder: Path) -> None:
             leg_m=30.0,
             alt_m=SHORT_ALT_M,
             leg="north",
-            lead_m=150.0,  # inside the README's map window, away from its southern edge
+            lead_m=150.0,
         )
+
+
+def short_flight_area(origin: str) -> str:
+    """LAT,LON of the middle of the short flight from the home of AIR's plan nearest ``origin``:
+    300 m east of home, 100 m north (the short plans fly there, see ``write_short_plan``)."""
+    lat0, lon0 = (float(v) for v in origin.split(","))
+    homes = []
+    for plan in sorted((REPO / "missions").glob("*.plan")):
+        home = load_mission(plan).planned_home
+        assert home is not None
+        homes.append((abs(home.lat_deg - lat0) + abs(home.lon_deg - lon0), home))
+    home = min(homes, key=lambda item: item[0])[1]
+    lat, lon, _ = ned2geodetic(100.0, 300.0, 0.0, home.lat_deg, home.lon_deg, 0.0)
+    return f"{lat:.6f},{lon:.6f}"
 
 
 def one_run_spec(spec_path: Path, folder: Path) -> Path:
@@ -144,6 +162,11 @@ def as_run(argv: list[str], folder: Path, endpoint: str) -> list[str]:
         args += ["--missions", "missions"]  # the short plans (else the checkout's own)
     if args[:2] == ["map", "make"] and "--gsd-m" not in args:
         args += ["--gsd-m", "5"]
+    if args[:2] == ["map", "make"] and "--size-m" in args and "--origin" in args:
+        at = args.index("--origin") + 1
+        args[at] = short_flight_area(args[at])
+        size = args.index("--size-m") + 1
+        args[size : size + 2] = [str(SHORT_WINDOW_M), str(SHORT_WINDOW_M)]
     if args[0] == "sweep" and args[1].startswith("examples/"):
         args[1] = str(one_run_spec(folder / args[1], folder))
     if args[0] == "serve":
@@ -235,3 +258,14 @@ def test_every_sh_block_runs_in_order_in_one_folder(tmp_path: Path) -> None:
         for k, block in enumerate(sh_blocks(page)):
             costs[f"{page.name}#{k}"] = run_block(block, tmp_path, endpoint, page.name)
     print(json.dumps({k: round(v, 1) for k, v in costs.items()}, indent=1))
+    # What Getting started (README's tour) says its lines write.
+    out = tmp_path / "out"
+    made = [
+        "uc200/manifest.json", "uc200-bag/metadata.yaml", "uc200/estimates/mapmatch.csv",
+        "fl200-wind/summary.json", "urban-2009.tif", "urban-2016.tif", "uc200-tif/manifest.json",
+        "frame.jpg", "air/UC-200.zip", "air/FC-200.zip", "bench/leaderboard.md",
+        "bench/date2/leaderboard.md", "sweep/results.jsonl", "sweep/report.md",
+    ]  # fmt: skip
+    missing = [name for name in made if not (out / name).exists()]
+    assert not missing, missing
+    assert list((out / "plots").glob("*.png"))

@@ -86,7 +86,8 @@ def test_a_client_sees_the_flight_and_a_late_one_gets_calibration_and_mission(
     assert kind == "json"
     assert info["op"] == "serverInfo", info
     # Everything phase 1 made is advertised; subscribe to all, then wait for the latched ones.
-    while not {V + "log", V + "camera/image", "/tf", V + "estimates/vpr/fix"} <= client.topics():
+    phase1 = {V + "log", V + "camera/image", "/tf", V + "estimates/vpr/fix", V + "errors"}
+    while not phase1 <= client.topics():
         client.recv()
     client.subscribe(sorted(client.topics()))
     latched: set[str] = set()
