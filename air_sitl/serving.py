@@ -12,9 +12,11 @@ component's video protocol.
 from __future__ import annotations
 
 import queue
+import sys
 import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 import numpy.typing as npt
@@ -22,6 +24,7 @@ import numpy.typing as npt
 from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
 from air_sitl.bus.hookup import BusHookup
 from air_sitl.camera.options import open_chosen_renderer
+from air_sitl.camera.process import ProcessCamera
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S
 from air_sitl.maps.choose import close_map
 from air_sitl.mavlink.codec import ParseCounters
@@ -68,34 +71,58 @@ def open_video(setup: FlightSetup, options: VideoOptions) -> VideoStream:
     )
 
 
-class ViewFrames:
-    """The camera when only the live view takes its frames: a tick is rendered only when the
-    view's next image is due (``image_hz`` a second of simulation, the view's own rule), not at
-    every 50 Hz tick (a FrameSource)."""
+def open_process_camera(setup: FlightSetup) -> ProcessCamera:
+    """``setup``'s camera rendering in a process of its own (its map opened there)."""
+    assert setup.camera is not None, "open_process_camera: the setup flies without a camera"
+    return ProcessCamera(setup.map, setup.home, setup.name, setup.camera, setup.options.seed)
 
-    def __init__(self, source: FrameSource, image_hz: float) -> None:
-        self.source = source
+
+class ViewFrames:
+    """The camera when only the live view takes its frames (a FrameSource), rendered in a
+    process of its own (:class:`~air_sitl.camera.process.ProcessCamera`: its Python never holds
+    the lock the paced simulation needs): a tick is rendered only when the view's next image is
+    due (``image_hz`` a second of simulation, the view's own rule), not at every 50 Hz tick,
+    and only when the previous one is back. A due image the camera is too busy for is skipped
+    and counted (said at exit): the view never makes the served simulation wait for it."""
+
+    def __init__(self, camera: ProcessCamera, image_hz: float, out: IO[str] = sys.stderr) -> None:
+        self.camera = camera
         self._period_ns = int(NS_PER_S / image_hz)
         self._next_ns = 0
+        self.skipped = 0
+        self._out = out
 
     def submit(self, sample: SimSample, index: int) -> None:
-        """Render the tick if the view's image is due, else nothing."""
+        """Render the tick if the view's image is due and the camera free, else nothing."""
         t = sample.state.sim_time_ns
-        if t >= self._next_ns:
-            self._next_ns = t + self._period_ns
-            self.source.submit(sample, index)
+        if t < self._next_ns:
+            return
+        self._next_ns = t + self._period_ns
+        if self.camera.in_flight:
+            self.skipped += 1
+            return
+        self.camera.submit(sample, index)
 
     def ready(self) -> list[CameraFrame]:
-        """The source's frames completed so far."""
-        return self.source.ready()
+        """The frames rendered so far."""
+        return self.camera.ready()
 
     def flush(self) -> list[CameraFrame]:
-        """The source's remaining frames."""
-        return self.source.flush()
+        """The remaining frames."""
+        return self.camera.flush()
 
     def close(self) -> None:
-        """Close the source."""
-        self.source.close()
+        """Stop the camera's process; say how many images were skipped."""
+        self.camera.close()
+        if self.skipped:
+            print(
+                f"foxglove: {self.skipped} camera images skipped (the camera was behind the "
+                "flight)",
+                file=self._out,
+                flush=True,
+            )
+        if self.camera.failed:
+            print("foxglove: the camera's process stopped (no more images)", file=self._out)
 
 
 class CrashResponse:
@@ -187,7 +214,7 @@ def serve_vehicle(
         if out is not None or bus.needs_camera:
             camera = open_camera(setup, open_setup_map(setup))
         elif view_image_hz > 0 and setup.camera is not None:
-            camera = ViewFrames(open_camera(setup, open_setup_map(setup)), view_image_hz)
+            camera = ViewFrames(open_process_camera(setup), view_image_hz)
         if out is not None:
             recorder = CaptureRecorder(out, setup)
             sinks.append(recorder)
