@@ -14,8 +14,9 @@ Run: ``python benchmarks/bench_foxglove.py [--leg-m M] [--pairs N] [--serve-leg-
    from pymavlink sets the mission mode and arms), without and with the view and its reading
    client: the pace (simulated seconds a wall second, from the ``time_boot_ms`` of the
    ATTITUDE the station receives) climbing out before the capture, and while capturing (the
-   camera rendered for the view's images, nothing rendered without it). Target: with the view
-   within 5 % of 10x.
+   camera rendered for the view's images, nothing rendered without it), median and spread, and
+   serve's CPU (its camera process's too) a simulated second. Target: with the view within 5 %
+   of 10x.
 """
 
 from __future__ import annotations
@@ -197,9 +198,8 @@ def bench_fly(leg_m: float, pairs: int, tmp: Path) -> None:
     parts = {key: statistics.median(o.get(key, 0.0) for o in own) for key in own[0]}
     total = sum(parts.values())
     detail = ", ".join(f"{key} {value:.2f}" for key, value in parts.items())
-    print(
-        f"  the view's own CPU  {total:6.2f} s = {100 * total / floor:.1f} % of the floor ({detail})"
-    )
+    share = 100 * total / floor
+    print(f"  the view's own CPU  {total:6.2f} s = {share:.1f} % of the floor ({detail})")
     if last is not None:
         n = sum(last.counts.values())
         print(f"  client read         {n} messages on {len(last.counts)} topics (last run)")
@@ -219,6 +219,7 @@ def serve_pace(plan: Path, view: str) -> dict[str, float]:
     if view != "no":
         args += ["--foxglove", "127.0.0.1:0", "--foxglove-image-hz", view]
     # Not the --child: its accounting would cost the simulation thread time at 2000 steps/s.
+    before = _children_cpu_s()
     run = Watched([sys.executable, "-m", "air_sitl", *args], stdout=subprocess.PIPE)
     assert run.proc.stdout is not None
     banner = ""
@@ -246,6 +247,7 @@ def serve_pace(plan: Path, view: str) -> dict[str, float]:
                     marks["stop"] = now
             seen = len(gcs.texts)
     finally:
+        simulated_s = gcs.sim_ms / 1000.0
         gcs.close()
         run.proc.terminate()
         run.proc.communicate(timeout=60)
@@ -258,6 +260,8 @@ def serve_pace(plan: Path, view: str) -> dict[str, float]:
         "climb": pace("armed", "start"),
         "capture": pace("start", "stop"),
         "capture_s": marks["stop"][1] - marks["start"][1],
+        # serve's CPU (its camera process's too) a simulated second, start-up included
+        "cpu": (_children_cpu_s() - before) / simulated_s,
         "images": run.counts.get("/air/uav0/camera/image", 0),
     }
 
@@ -288,6 +292,12 @@ def bench_serve(leg_m: float, pairs: int, tmp: Path) -> None:
             paces = [r[phase] for r in runs[view]]
             ratio = statistics.median(paces) / floor
             print(f"    {names[view]:32s} {spread(paces)}x  ratio {ratio:.3f}")
+    print("  CPU s (user + system, with the camera's process) per simulated s, start-up included:")
+    floor = statistics.median(r["cpu"] for r in runs["no"])
+    for view in views:
+        cpu = [r["cpu"] for r in runs[view]]
+        ratio = statistics.median(cpu) / floor
+        print(f"    {names[view]:32s} {spread(cpu)}  ratio {ratio:.3f}")
     images = statistics.median(r["images"] for r in runs["10"])
     print(f"  camera images the client read (images 10 Hz): {images:g} (median of the runs)")
     print("  target: with --foxglove 9.5x or more")
@@ -300,7 +310,7 @@ def main() -> None:
     parser.add_argument("--leg-m", type=float, default=1000.0, help="fly's capture leg")
     parser.add_argument("--pairs", type=int, default=3, help="interleaved pairs of runs")
     parser.add_argument("--serve-leg-m", type=float, default=1500.0, help="serve's capture leg")
-    parser.add_argument("--serve-pairs", type=int, default=2)
+    parser.add_argument("--serve-pairs", type=int, default=3)
     parser.add_argument("--only", choices=("fly", "serve"), default=None)
     args = parser.parse_args()
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores at the start")

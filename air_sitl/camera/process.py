@@ -5,13 +5,15 @@ tiles, the warps' set-up) never holds the interpreter lock the simulation thread
 the simulation's process takes the lock for milliseconds at a time and the paced simulation,
 which must step every half millisecond, falls behind. The process is spawned (the simulation
 process runs threads: no fork), opens the same map, camera and seed, and answers each
-``(sample, index)`` with its CameraFrame, in order.
+``(sample, index)`` with its CameraFrame, in order. It runs at the lowest priority: where the
+cores are short it gets what the simulation leaves, and the caller skips what it cannot take.
 """
 
 from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import os
 from multiprocessing.connection import Connection
 
 from air_sitl.camera.model import CameraModel
@@ -19,12 +21,16 @@ from air_sitl.options import MapChoice
 from air_sitl.state import CameraFrame, GeoPoint, SimSample
 
 STOP_TIMEOUT_S = 10.0
+NICE = 19  # the process's priority: the lowest (a best-effort camera)
 
 
 def _render_loop(
     conn: Connection, choice: MapChoice, home: GeoPoint, name: str, camera: CameraModel, seed: int
 ) -> None:
-    """The child: render each (sample, index) received, send the frame back; None stops."""
+    """The child: render each (sample, index) received, send the frame back; None stops.
+    At the lowest priority: where the cores are short, the simulation runs first."""
+    with contextlib.suppress(OSError):
+        os.nice(NICE)
     from air_sitl.camera.options import open_chosen_renderer
     from air_sitl.camera.render import render_camera_frame
     from air_sitl.maps.choose import close_map, open_chosen_map
