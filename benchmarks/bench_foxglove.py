@@ -169,8 +169,9 @@ def fly(plan: Path, out: Path, view: bool) -> tuple[float, Watched]:
     return _children_cpu_s() - before, run
 
 
-def spread(values: list[float]) -> str:
-    return f"median {statistics.median(values):6.2f} (min {min(values):.2f}, max {max(values):.2f})"
+def spread(values: list[float], digits: int = 2) -> str:
+    m, lo, hi = statistics.median(values), min(values), max(values)
+    return f"median {m:6.{digits}f} (min {lo:.{digits}f}, max {hi:.{digits}f})"
 
 
 def bench_fly(leg_m: float, pairs: int, tmp: Path) -> None:
@@ -297,7 +298,7 @@ def bench_serve(leg_m: float, pairs: int, tmp: Path) -> None:
     for view in views:
         cpu = [r["cpu"] for r in runs[view]]
         ratio = statistics.median(cpu) / floor
-        print(f"    {names[view]:32s} {spread(cpu)}  ratio {ratio:.3f}")
+        print(f"    {names[view]:32s} {spread(cpu, 3)}  ratio {ratio:.3f}")
     images = statistics.median(r["images"] for r in runs["10"])
     print(f"  camera images the client read (images 10 Hz): {images:g} (median of the runs)")
     print("  target: with --foxglove 9.5x or more")
