@@ -16,6 +16,7 @@ import contextlib
 import queue
 import sys
 import threading
+import time
 from collections import OrderedDict, deque
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,6 +49,9 @@ QUEUE_DEPTH = 2048  # items between the simulation and the worker (a minute of a
 STATE_RATE_HZ = 10.0  # truth/nav fixes, poses and /tf
 TRUTH_KEPT = 4096  # truth positions kept by time for the estimates' errors (80 s at 50 Hz)
 STOP_TIMEOUT_S = 10.0
+# The server calls on_subscribe before the subscription may take effect: the latched messages
+# go at once and again this long after (a client may get them twice, never not at all).
+LATCH_AGAIN_S = 0.2
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -90,6 +94,7 @@ class FoxgloveLive(NullSink):
         self.context = foxglove.Context()
         self.channels = tp.Channels(self.context, vehicle)
         self._due = threading.Event()
+        self._latch_again_s = 0.0  # monotonic time of the second latched pass (0: none due)
         self._writer: Any = None
         if options.mcap is not None:
             if options.mcap.exists():
@@ -225,6 +230,10 @@ class FoxgloveLive(NullSink):
                 item = ()
             if self._due.is_set():
                 self._due.clear()
+                self._latched()
+                self._latch_again_s = time.monotonic() + LATCH_AGAIN_S
+            elif self._latch_again_s and time.monotonic() >= self._latch_again_s:
+                self._latch_again_s = 0.0
                 self._latched()
             if item is None:
                 return
