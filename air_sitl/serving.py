@@ -12,9 +12,11 @@ component's video protocol.
 from __future__ import annotations
 
 import queue
+import sys
 import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 import numpy.typing as npt
@@ -22,7 +24,8 @@ import numpy.typing as npt
 from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
 from air_sitl.bus.hookup import BusHookup
 from air_sitl.camera.options import open_chosen_renderer
-from air_sitl.clock import CAMERA_PERIOD_NS
+from air_sitl.camera.process import ProcessCamera
+from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S
 from air_sitl.maps.choose import close_map
 from air_sitl.mavlink.codec import ParseCounters
 from air_sitl.mavlink.interfaces import SEVERITY_CRITICAL, SEVERITY_ERROR
@@ -34,7 +37,7 @@ from air_sitl.mavlink.vehicle import EndpointOptions, Job, VehicleEndpoint
 from air_sitl.recording import CaptureRecorder
 from air_sitl.runner import Flight, InboxItem
 from air_sitl.sinks import FrameSource, Sink
-from air_sitl.state import SimSample
+from air_sitl.state import CameraFrame, SimSample
 from air_sitl.video.options import VideoOptions
 from air_sitl.video.stream import VideoCamera, VideoStream
 
@@ -66,6 +69,60 @@ def open_video(setup: FlightSetup, options: VideoOptions) -> VideoStream:
         render,
         on_close=lambda: close_map(renderer.map),
     )
+
+
+def open_process_camera(setup: FlightSetup) -> ProcessCamera:
+    """``setup``'s camera rendering in a process of its own (its map opened there)."""
+    assert setup.camera is not None, "open_process_camera: the setup flies without a camera"
+    return ProcessCamera(setup.map, setup.home, setup.name, setup.camera, setup.options.seed)
+
+
+class ViewFrames:
+    """The camera when only the live view takes its frames (a FrameSource), rendered in a
+    process of its own (:class:`~air_sitl.camera.process.ProcessCamera`: its Python never holds
+    the lock the paced simulation needs): a tick is rendered only when the view's next image is
+    due (``image_hz`` a second of simulation, the view's own rule), not at every 50 Hz tick,
+    and only when the previous one is back. A due image the camera is too busy for is skipped
+    and counted (said at exit): the view never makes the served simulation wait for it."""
+
+    def __init__(self, camera: ProcessCamera, image_hz: float, out: IO[str] = sys.stderr) -> None:
+        self.camera = camera
+        self._period_ns = int(NS_PER_S / image_hz)
+        self._next_ns = 0
+        self.skipped = 0
+        self._out = out
+
+    def submit(self, sample: SimSample, index: int) -> None:
+        """Render the tick if the view's image is due and the camera free, else nothing."""
+        t = sample.state.sim_time_ns
+        if t < self._next_ns:
+            return
+        self._next_ns = t + self._period_ns
+        if self.camera.in_flight:
+            self.skipped += 1
+            return
+        self.camera.submit(sample, index)
+
+    def ready(self) -> list[CameraFrame]:
+        """The frames rendered so far."""
+        return self.camera.ready()
+
+    def flush(self) -> list[CameraFrame]:
+        """The remaining frames."""
+        return self.camera.flush()
+
+    def close(self) -> None:
+        """Stop the camera's process; say how many images were skipped."""
+        self.camera.close()
+        if self.skipped:
+            print(
+                f"foxglove: {self.skipped} camera images skipped (the camera was behind the "
+                "flight)",
+                file=self._out,
+                flush=True,
+            )
+        if self.camera.failed:
+            print("foxglove: the camera's process stopped (no more images)", file=self._out)
 
 
 class CrashResponse:
@@ -109,7 +166,7 @@ def serve_vehicle(
     video: VideoOptions | None = None,
     home_note: str = "",
     view: Sink | None = None,
-    view_frames: bool = False,
+    view_image_hz: float = 0.0,
     on_attached: Callable[[BusHookup, VehicleEndpoint], None] | None = None,
 ) -> ParseCounters:
     """Fly ``setup`` for MAVLink clients until ``stop`` is set; what the links received.
@@ -117,8 +174,9 @@ def serve_vehicle(
     ``system_id``: MAV_SYS_ID (instance N of several is N+1). ``video``: stream the camera
     (ignored without a camera); what it sent and dropped is printed when it stops.
     ``home_note``: where the home came from, said in the ready line (a default home).
-    ``view``: one more sink (the Foxglove live view; ``view_frames``: it wants camera frames,
-    rendered when the vehicle has a camera); ``on_attached(bus, endpoint)`` once both are up
+    ``view``: one more sink (the Foxglove live view; ``view_image_hz`` > 0: it wants camera
+    frames at that rate of simulation time, rendered when the vehicle has a camera, only at
+    that rate when nothing else takes them); ``on_attached(bus, endpoint)`` once both are up
     (the view's estimates and STATUSTEXT)."""
     inbox: queue.SimpleQueue[InboxItem] = queue.SimpleQueue()
 
@@ -153,8 +211,10 @@ def serve_vehicle(
             sinks.append(stream)
         camera: FrameSource | None = None
         recorder = None
-        if out is not None or bus.needs_camera or (view_frames and setup.camera is not None):
+        if out is not None or bus.needs_camera:
             camera = open_camera(setup, open_setup_map(setup))
+        elif view_image_hz > 0 and setup.camera is not None:
+            camera = ViewFrames(open_process_camera(setup), view_image_hz)
         if out is not None:
             recorder = CaptureRecorder(out, setup)
             sinks.append(recorder)

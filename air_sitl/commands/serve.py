@@ -136,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
                 video=video,
                 home_note=_home_note(args, instance),
                 view=live,
-                view_frames=live is not None and live.options.image_hz > 0,
+                view_image_hz=live.options.image_hz if live is not None else 0.0,
                 on_attached=lambda bus, ep: attach_live(live, setup.mission, bus, ep),
             )
     finally:

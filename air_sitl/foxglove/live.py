@@ -1,7 +1,9 @@
 """The live view (``--foxglove``): a Sink that hands the flight to a Foxglove WebSocket server.
 
 The simulation thread only copies references into a bounded queue (``put_nowait``; a full queue
-drops the item and counts it, never waits); a worker thread builds the messages with
+drops the item and counts it, never waits), and only at the rates the view sends (the state at
+``STATE_RATE_HZ``, images at ``--foxglove-image-hz``; each frame's truth position goes into a
+ring the worker reads for the estimates' errors); a worker thread builds the messages with
 :mod:`air_sitl.foxglove.topics` and logs them on a Context served by the SDK's server (and
 written by its MCAP writer with ``--foxglove-mcap``). The SDK keeps a backlog per client and
 drops the oldest for a slow one. A client subscribing later is sent the calibration, the
@@ -14,7 +16,8 @@ import contextlib
 import queue
 import sys
 import threading
-from collections import OrderedDict
+import time
+from collections import OrderedDict, deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -42,10 +45,13 @@ from air_sitl.state import (
     VehicleState,
 )
 
-QUEUE_DEPTH = 2048  # items between the simulation and the worker (about 10 s of a flight)
+QUEUE_DEPTH = 2048  # items between the simulation and the worker (a minute of a flight)
 STATE_RATE_HZ = 10.0  # truth/nav fixes, poses and /tf
 TRUTH_KEPT = 4096  # truth positions kept by time for the estimates' errors (80 s at 50 Hz)
 STOP_TIMEOUT_S = 10.0
+# The server calls on_subscribe before the subscription may take effect: the latched messages
+# go at once and again this long after (a client may get them twice, never not at all).
+LATCH_AGAIN_S = 0.2
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -88,6 +94,7 @@ class FoxgloveLive(NullSink):
         self.context = foxglove.Context()
         self.channels = tp.Channels(self.context, vehicle)
         self._due = threading.Event()
+        self._latch_again_s = 0.0  # monotonic time of the second latched pass (0: none due)
         self._writer: Any = None
         if options.mcap is not None:
             if options.mcap.exists():
@@ -108,7 +115,10 @@ class FoxgloveLive(NullSink):
         self._next_image_ns = 0
         self._next_state_ns = 0
         self._last_status: tuple[Any, ...] | None = None
-        self._truth: OrderedDict[int, tuple[float, float, float]] = OrderedDict()
+        # Each frame's truth (time, NED position) from the simulation thread (an atomic append,
+        # no lock); the worker moves them into _truth when it needs them.
+        self._truth_in: deque[tuple[int, Vec3]] = deque(maxlen=TRUTH_KEPT)
+        self._truth: OrderedDict[int, Vec3] = OrderedDict()
         self._estimators: dict[str, int] = {}
         self._closed = False
         self._now_ns = 0  # the latest sample's simulation time
@@ -160,7 +170,8 @@ class FoxgloveLive(NullSink):
             self._put(("status", t, status))
 
     def on_frame(self, frame: CameraFrame) -> None:
-        self._put(("truth", frame.sample.state))  # the estimates' times are frames' times
+        state = frame.sample.state  # the estimates' times are frames' times
+        self._truth_in.append((state.sim_time_ns, state.pos_ned_m))
         if self._image_period_ns and frame.sim_time_ns >= self._next_image_ns:
             self._next_image_ns = frame.sim_time_ns + self._image_period_ns
             self._put(("image", frame.sim_time_ns, frame.jpeg, frame.sample.state))
@@ -220,6 +231,10 @@ class FoxgloveLive(NullSink):
             if self._due.is_set():
                 self._due.clear()
                 self._latched()
+                self._latch_again_s = time.monotonic() + LATCH_AGAIN_S
+            elif self._latch_again_s and time.monotonic() >= self._latch_again_s:
+                self._latch_again_s = 0.0
+                self._latched()
             if item is None:
                 return
             if not item or self.failed is not None:
@@ -230,7 +245,17 @@ class FoxgloveLive(NullSink):
             except Exception as err:  # a view fault must never stop the flight
                 self.failed = f"{type(err).__name__}: {err}"
 
+    def _take_truth(self) -> None:
+        """Move the frames' truth from the simulation's ring into ``_truth`` (ENU by time)."""
+        truth, ring = self._truth, self._truth_in
+        while ring:
+            t, pos_ned_m = ring.popleft()
+            truth[t] = ned2enu(pos_ned_m)
+        while len(truth) > TRUTH_KEPT:
+            truth.popitem(last=False)
+
     def _latched(self) -> None:
+        self._take_truth()
         t = next(reversed(self._truth), 0) if self._truth else 0
         if self.camera is not None:
             self.channels.log(tp.CALIBRATION, t, tp.calibration(t, self.camera))
@@ -252,11 +277,6 @@ class FoxgloveLive(NullSink):
                 corners = tp.footprint_lonlat(self.camera, enu, q, state.alt_agl_m, self.home)
                 if corners is not None:
                     ch.log(tp.FOOTPRINT, t, tp.footprint(corners))
-        elif kind == "truth":
-            state = item[1]
-            self._truth[state.sim_time_ns] = ned2enu(state.pos_ned_m)
-            while len(self._truth) > TRUTH_KEPT:
-                self._truth.popitem(last=False)
         elif kind == "state":
             self._state(item[1], item[2])
         elif kind == "gnss":
@@ -344,6 +364,7 @@ class FoxgloveLive(NullSink):
             f"{source}/fix", t, tp.location_fix(t, geo, colour, cov_enu_m2=est.cov_enu_m2)
         )
         self.channels.log(f"{source}/pose", t, tp.pose(t, enu, q))
+        self._take_truth()
         truth = self._truth.get(t)
         if truth is not None:
             self.channels.log(tp.ERRORS, t, tp.errors(t, source, truth, enu))

@@ -12,6 +12,7 @@ an MCAP writer or both).
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections.abc import Sequence
@@ -19,6 +20,7 @@ from typing import Any
 
 import foxglove
 import numpy as np
+import numpy.typing as npt
 from foxglove.messages import (
     CameraCalibration,
     Color,
@@ -46,7 +48,7 @@ from air_sitl.bus.ros2.messages import (
 from air_sitl.camera.info import camera_yaml_dict
 from air_sitl.camera.model import CameraModel
 from air_sitl.clock import NS_PER_S
-from air_sitl.frames import ned2geodetic, q_flu_enu_to_frd_ned
+from air_sitl.frames import LocalNed, q_flu_enu_to_frd_ned
 from air_sitl.mission.items import MavCmd, Mission
 from air_sitl.state import GeoPoint, Quat, Vec3
 
@@ -118,19 +120,26 @@ def image(sim_time_ns: int, jpeg: bytes) -> CompressedImage:
     )
 
 
+@functools.lru_cache(maxsize=8)
+def _calibration_fields(camera: CameraModel) -> dict[str, Any]:
+    """camera.yaml's intrinsics as CameraCalibration's fields (once per camera: the view sends
+    them with every image)."""
+    y = camera_yaml_dict(camera)
+    return {
+        "width": int(y["image_width"]),
+        "height": int(y["image_height"]),
+        "distortion_model": str(y["distortion_model"]),
+        "D": [float(c) for c in y["distortion_coefficients"]["data"]],
+        "K": [float(c) for c in y["camera_matrix"]["data"]],
+        "R": [float(c) for c in y["rectification_matrix"]["data"]],
+        "P": [float(c) for c in y["projection_matrix"]["data"]],
+    }
+
+
 def calibration(sim_time_ns: int, camera: CameraModel) -> CameraCalibration:
     """The intrinsics of camera.yaml (K, D, R, P as the ROS camera_info)."""
-    y = camera_yaml_dict(camera)
     return CameraCalibration(
-        timestamp=stamp(sim_time_ns),
-        frame_id=CAMERA_FRAME,
-        width=int(y["image_width"]),
-        height=int(y["image_height"]),
-        distortion_model=str(y["distortion_model"]),
-        D=[float(c) for c in y["distortion_coefficients"]["data"]],
-        K=[float(c) for c in y["camera_matrix"]["data"]],
-        R=[float(c) for c in y["rectification_matrix"]["data"]],
-        P=[float(c) for c in y["projection_matrix"]["data"]],
+        timestamp=stamp(sim_time_ns), frame_id=CAMERA_FRAME, **_calibration_fields(camera)
     )
 
 
@@ -214,8 +223,26 @@ def camera_mount(sim_time_ns: int, camera: CameraModel) -> FrameTransform:
         parent_frame_id=BASE_FRAME,
         child_frame_id=CAMERA_FRAME,
         translation=Vector3(x=0.0, y=0.0, z=0.0),
-        rotation=_quat(q_optical_to_flu_wxyz(camera)),
+        rotation=_quat(_mount_wxyz(camera)),
     )
+
+
+@functools.lru_cache(maxsize=8)
+def _mount_wxyz(camera: CameraModel) -> Quat:
+    return q_optical_to_flu_wxyz(camera)
+
+
+@functools.lru_cache(maxsize=8)
+def _corner_rays(camera: CameraModel) -> npt.NDArray[np.float64]:
+    """The image corners' rays in the camera frame (columns: K^-1 (u, v, 1))."""
+    w, h = camera.width_px - 1, camera.height_px - 1
+    pixels = np.array([[0, w, w, 0], [0, 0, h, h], [1, 1, 1, 1]], dtype=np.float64)
+    return np.asarray(np.linalg.inv(camera.intrinsics()) @ pixels, dtype=np.float64)
+
+
+@functools.lru_cache(maxsize=8)
+def _local(home: GeoPoint) -> LocalNed:
+    return LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
 
 
 def footprint_lonlat(
@@ -225,19 +252,15 @@ def footprint_lonlat(
     when a corner looks at or above the horizon."""
     if not height_m > 0.0:
         return None
-    r = camera.r_cam_to_ned(q_flu_enu_to_frd_ned(q_flu_enu_wxyz))
-    k_inv = np.linalg.inv(camera.intrinsics())
-    w, h = camera.width_px - 1, camera.height_px - 1
+    rays = (camera.r_cam_to_ned(q_flu_enu_to_frd_ned(q_flu_enu_wxyz)) @ _corner_rays(camera)).T
+    if not bool(np.all(rays[:, 2] > 1e-6)):
+        return None
+    local = _local(home)
     corners = []
-    for u, v in ((0, 0), (w, 0), (w, h), (0, h)):
-        ray = r @ (k_inv @ np.array([u, v, 1.0]))
-        if ray[2] <= 1e-6:
-            return None
+    for ray in rays.tolist():
         s = height_m / ray[2]
         n, e = enu_m[1] + s * ray[0], enu_m[0] + s * ray[1]
-        lat, lon, _ = ned2geodetic(
-            n, e, -enu_m[2] + height_m, home.lat_deg, home.lon_deg, home.alt_amsl_m
-        )
+        lat, lon, _ = local.to_geodetic(n, e, -enu_m[2] + height_m)
         corners.append((lon, lat))
     return corners
 
