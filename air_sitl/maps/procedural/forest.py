@@ -37,14 +37,17 @@ from air_sitl.maps.procedural.noise import (
     value_noise,
     white_noise,
 )
+from air_sitl.maps.procedural.yeargap import WATER_LEVEL, ponds, water_level
 
 _CONIFER = {"summer": (52, 84, 50), "autumn": (74, 94, 38), "spring": (56, 86, 54)}
 _DECIDUOUS = {"summer": (44, 104, 70), "autumn": (46, 104, 104), "spring": (70, 122, 110)}
 _DECIDUOUS_ALT = {"summer": (56, 118, 86), "autumn": (40, 96, 146), "spring": (84, 132, 120)}
 # Autumn broadleaves, each tree its own: still green, yellow, orange, brown (BGR).
 _AUTUMN_LEAVES = ((52, 108, 66), (48, 150, 170), (38, 100, 168), (50, 82, 112))
-_BARE: Color = (78, 96, 118)  # leafless broadleaf crowns: grey-brown branches
-_LITTER: Color = (50, 78, 108)  # last year's leaves on the forest floor
+# Leafless broadleaf crowns: grey-brown branches; green close to red, so that the spring
+# survey's cool white balance and bluish haze leave them brown, not mauve.
+_BARE: Color = (66, 98, 112)
+_LITTER: Color = (46, 84, 106)  # last year's leaves on the forest floor
 _REGROWTH: Color = (64, 120, 104)  # young growth on clear-cuts a few years old
 _BOAT: Color = (214, 218, 222)  # white hulls
 BOAT_CELL_M = 45.0  # one boat at most per cell of open water
@@ -188,8 +191,13 @@ class ForestWorld:
         stream_px = _sample(value_noise, k + 20, x0, y0, size, gsd_m, 520.0)
         stream_on = _sample(value_noise, k + 21, x0, y0, size, gsd_m, 1400.0) > -0.3
         stream = np.clip((STREAM_HALF - np.abs(stream_px)) * 80.0 * stream_on, 0.0, 1.0)
-        lake = self._lake(x0, y0, size, gsd_m)
-        water: FloatImage = np.maximum(stream, lake).astype(np.float32)
+        # Lakes stand higher or lower each year (trees keep off the highest shore; the shore
+        # the water left is grass); ponds fill and dry in the clearings.
+        lake = self._lake(x0, y0, size, gsd_m, date)
+        lake_max = self._lake(x0, y0, size, gsd_m)
+        meadow = np.maximum(meadow, lake_max - lake)
+        pond = ponds(self.seed, date, x0, y0, size, gsd_m) * meadow
+        water: FloatImage = np.maximum(np.maximum(stream, lake), pond).astype(np.float32)
         felled = cut_mask(self.seed, x0, y0, size, gsd_m, d)
         cut = np.zeros((size, size), np.float32) if felled is None else felled
         # Tracks, roads and yards: whatever those drawings touch on a black canvas.
@@ -197,7 +205,7 @@ class ForestWorld:
         self._tracks(cv, d)
         self._roads(cv, date)
         drawn = (cv.img[:, :, 0] | cv.img[:, :, 1] | cv.img[:, :, 2]) > 0
-        opened = np.maximum(drawn.astype(np.float32), water)
+        opened = np.maximum(drawn.astype(np.float32), np.maximum(water, lake_max))
         opened = np.maximum(opened, cut)
         sun_e, sun_n = date.sun_dir()
         if gsd_m <= CROWN_MAX_GSD_M:
@@ -234,13 +242,19 @@ class ForestWorld:
             water,
         )
 
-    def _lake(self, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
-        """1 on lakes (0 within DRY_RADIUS_M of home)."""
+    def _lake(
+        self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook | None = None
+    ) -> FloatImage:
+        """1 on lakes at this survey's water level (``date`` None: the highest level of any
+        survey); 0 within DRY_RADIUS_M of home."""
         k = key_of(self.seed, 41)
         lake_n = value_noise(k + 8, x0, y0, size, 700.0 / gsd_m) + 0.25 * value_noise(
             k + 9, x0, y0, size, 150.0 / gsd_m
         )
-        lake: FloatImage = np.clip((-lake_n - 1.7) * 30.0, 0.0, 1.0)
+        level: FloatImage | float = 0.0
+        if date is not None:
+            level = water_level(self.seed, date, x0, y0, size, gsd_m) - np.float32(WATER_LEVEL)
+        lake: FloatImage = np.clip((-lake_n - 1.7 + level) * 30.0, 0.0, 1.0)
         if self.home_en_m is not None and float(lake.max()) > 0.0:
             lake *= self._dry_near_home(x0, y0, size, gsd_m)
         return lake
@@ -265,7 +279,7 @@ class ForestWorld:
                 if not cv.overlaps(e, n, e, n, 5.0):
                     continue
                 col, row = math.floor(e / gsd_m), math.floor(-n / gsd_m)
-                if float(self._lake(col, row, 1, gsd_m)[0, 0]) < 0.99:
+                if float(self._lake(col, row, 1, gsd_m, date)[0, 0]) < 0.99:
                     continue
                 a = rng.uniform(0.0, math.pi)
                 length = rng.uniform(3.0, 8.0)
