@@ -1,8 +1,6 @@
 """Each date of a procedural map as the product of one aerial survey: what the camera and the
 orthophoto production did to the scene the worlds draw (``urban``/``forest`` ``draw``).
 
-- the years: patches of ground whose tone changed since the reference survey
-  (``yeargap.tone_change``: local contrast inversion, growing with the years);
 - geometry: the orthophoto is misregistered against the others, a global shift of 0.5-1.5 m
   plus a smooth local warp below 1 m (date 0, the reference survey, is exact);
 - sensor and processing: haze, exposure, white balance, saturation, gamma, photo-to-photo
@@ -34,7 +32,6 @@ from air_sitl.maps.procedural.noise import (
     value_noise,
     white_noise,
 )
-from air_sitl.maps.procedural.yeargap import tone_change
 
 Bgr = npt.NDArray[np.uint8]
 DrawFn = Callable[[int, int, int, float, DateLook], npt.NDArray[np.generic]]
@@ -142,7 +139,6 @@ def acquire(
     pad = margin_px(gsd_m, date) + (JPEG_BLOCK if jpeg else 0)
     xa, ya, n = _window(x0, y0, size, pad, JPEG_BLOCK if jpeg else 1)
     scene = np.asarray(draw(xa, ya, n, gsd_m, date), dtype=np.uint8)
-    scene = tone_change(scene, seed, date, xa, ya, gsd_m)  # what the years did to the ground
     d = displacement_m(seed, date, xa, ya, n, gsd_m)
     if d is not None:
         scene = np.asarray(_warp(scene, d, gsd_m, cv2.INTER_CUBIC), dtype=np.uint8)

@@ -55,6 +55,7 @@ from air_sitl.maps.procedural.urban_dates import (
     paved_at,
     rebuilt_at,
 )
+from air_sitl.maps.procedural.urban_years import object_look, reroofed, street_stretches
 
 PITCH_M = 105.0
 FINE_TEXTURE = 0.06  # relative amplitude of the 0.3-1 m material texture
@@ -230,6 +231,7 @@ class UrbanWorld:
                     "newroad": _ASPHALT_NEW,
                     "newlot": _LOT_NEW,
                 }[kind]
+                col = object_look(self.seed, date, kind, poly[0], col)
                 cv.poly(self.to_world(poly), col)
                 if kind in ("lawn", "verge"):
                     cv.poly(self.to_world(poly), (70,), "veg")
@@ -273,9 +275,7 @@ class UrbanWorld:
         # Roofs and tree crowns above the shadows.
         roof_shadow = np.zeros_like(cv.shadow)
         for blk in blocks:
-            for b in blk.buildings:
-                if not b.born <= d < b.gone:
-                    continue
+            for b in (reroofed(self.seed, date, b) for b in blk.buildings if b.born <= d < b.gone):
                 world = self.to_world(b.corners)
                 le, ln = lean_per_m(self.seed, date, *world[0])
                 lean = (le * b.height_m, ln * b.height_m)
@@ -389,17 +389,21 @@ class UrbanWorld:
                 pos, half, main = self.street(axis, k)
                 new = self.resurfaced_at(axis, k) <= d
                 lo, hi = (v_lo, v_hi) if axis == 0 else (u_lo, u_hi)
-                if new:
-                    # Ends on the block lattice, not the window's: its anti-aliased sides are
-                    # then the same whatever window draws them.
-                    a = math.floor(lo / PITCH_M) * PITCH_M
-                    b = math.ceil(hi / PITCH_M) * PITCH_M
-                    poly = (
-                        box(pos - half, a, pos + half, b)
-                        if axis == 0
-                        else box(a, pos - half, b, pos + half)
-                    )
-                    cv.poly(self.to_world(poly), _ASPHALT_NEW)
+                # Ends on the block lattice, not the window's: its anti-aliased sides are
+                # then the same whatever window draws them.
+                a = math.floor(lo / PITCH_M) * PITCH_M
+                b = math.ceil(hi / PITCH_M) * PITCH_M
+                stretches = [(a, b, _ASPHALT_NEW)] if new else []
+                if not new:  # stretches resurfaced or faded since the reference survey
+                    cross = [
+                        self.street(1 - axis, j)[0]
+                        for j in range(int(a // PITCH_M) - 1, int(b // PITCH_M) + 2)
+                    ]
+                    stretches = street_stretches(self.seed, date, axis, k, cross)
+                for a, b, col in stretches:
+                    poly = box(pos - half, a, pos + half, b) if axis == 0 else box(
+                        a, pos - half, b, pos + half)  # fmt: skip
+                    cv.poly(self.to_world(poly), col)
                 color = (60, 180, 210) if main else (220, 222, 224)
                 width = 0.3 if new else 0.25
                 dash = 3.0 if main else 6.0
