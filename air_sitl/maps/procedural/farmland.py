@@ -62,13 +62,12 @@ from air_sitl.maps.procedural.farmland_layout import (
 from air_sitl.maps.procedural.forest import _cast_shadow
 from air_sitl.maps.procedural.noise import (
     FloatImage,
-    fractal_noise,
     key_of,
     unit2,
     value_noise,
     white_noise,
 )
-from air_sitl.maps.procedural.yeargap import changed_share, years_since_reference
+from air_sitl.maps.procedural.yeargap import changed_share, renewed_noise, years_since_reference
 
 # What a field looks like: (plant colour BGR, share of the ground the plants cover, row
 # stripe amplitude, soil darkness (1 dry light .. 1.6 fresh tillage), height m, code).
@@ -193,7 +192,7 @@ class FarmlandWorld:
         cover = np.clip(cover * (1.0 + vigour) + 0.15 * (f.pivot * running * (cover > 0.2)), 0, 1)
         # Plants and clods at 0.5-3 m: the grain of a field on 0.6 m imagery.
         detail = np.float32(min(1.0, 0.6 / gsd_m))
-        tex = fractal_noise(k + 4, x0, y0, size, 1.6 / gsd_m, 2) * detail
+        tex = renewed_noise(k + 4, seed, date, x0, y0, size, 1.6 / gsd_m, 2) * detail
         cover = np.clip(cover * (1.0 + 0.12 * tex), 0.0, 1.0)
         soil = soil * (1.0 - 0.05 * tex)[:, :, None]
         stripes = _rows(seed, g, f, year, gsd_m, state)

@@ -38,7 +38,7 @@ from air_sitl.maps.procedural.noise import (
     value_noise,
     white_noise,
 )
-from air_sitl.maps.procedural.yeargap import ponds, water_level
+from air_sitl.maps.procedural.yeargap import ponds, renewed_noise, water_level
 
 _CONIFER = {"summer": (52, 84, 50), "autumn": (74, 94, 38), "spring": (56, 86, 54)}
 _DECIDUOUS = {"summer": (44, 104, 70), "autumn": (46, 104, 104), "spring": (70, 122, 110)}
@@ -103,7 +103,7 @@ class ForestWorld:
         else:  # crowns below a pixel: the mean shadow of crowns and of the gaps between
             gaps = np.clip(1.0 - g.meadow - g.cut - g.water - g.cover, 0.0, 1.0)
             shadow = MEAN_SHADOW_CROWN * g.cover + MEAN_SHADOW_GAP * gaps
-        fine = fractal_noise(k + 3, x0, y0, size, 1.2 * pm, 2)
+        fine = renewed_noise(k + 3, self.seed, date, x0, y0, size, 1.2 * pm, 2)
         # Crowns: species colour, per-tree tint, darker rims, the side toward the sun lit. Tops
         # bright whatever the sun (the sun-independent part keeps the dates aligned).
         dec = np.array(_DECIDUOUS[season], dtype=np.float32)

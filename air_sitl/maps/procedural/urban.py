@@ -26,7 +26,6 @@ from air_sitl.maps.procedural.canvas import (
     shade,
 )
 from air_sitl.maps.procedural.noise import (
-    fractal_noise,
     key_of,
     rng_for,
     unit_of,
@@ -56,6 +55,7 @@ from air_sitl.maps.procedural.urban_dates import (
     rebuilt_at,
 )
 from air_sitl.maps.procedural.urban_years import object_look, reroofed, street_stretches
+from air_sitl.maps.procedural.yeargap import renewed_noise
 
 PITCH_M = 105.0
 FINE_TEXTURE = 0.06  # relative amplitude of the 0.3-1 m material texture
@@ -303,11 +303,13 @@ class UrbanWorld:
                     _erase_circle(cv, (e, n), rr * 0.9)
         key = key_of(self.seed, 31)
         px_m = 1.0 / gsd_m
-        texture = 0.07 * fractal_noise(key, x0, y0, size, 8.0 * px_m, 3)
+        texture = 0.07 * renewed_noise(key, self.seed, date, x0, y0, size, 8.0 * px_m, 3)
         # Materials at 0.3-1 m (gravel, asphalt, roof tiles, grass tufts): the fine texture
         # of real 0.5 m imagery; the grain is each survey's own (film, sensor, processing).
-        texture += FINE_TEXTURE * fractal_noise(key + 3, x0, y0, size, 0.7 * px_m, 2)
-        veg_tex = 0.22 * fractal_noise(key + 5, x0, y0, size, 1.6 * px_m, 2)
+        texture += FINE_TEXTURE * renewed_noise(
+            key + 3, self.seed, date, x0, y0, size, 0.7 * px_m, 2
+        )
+        veg_tex = 0.22 * renewed_noise(key + 5, self.seed, date, x0, y0, size, 1.6 * px_m, 2)
         date_key = key_of(self.seed, 32, date.index)
         grain = float(GRAIN_DN * min(1.0, 0.6 * px_m)) * white_noise(date_key, x0, y0, size)
         return finish(cv, texture, grain, 0.5, veg_tex)

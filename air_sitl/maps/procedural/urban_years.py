@@ -19,13 +19,13 @@ from air_sitl.maps.procedural.yeargap import look
 # Mean years between two changes of an object's look (calibrated on real pairs: see
 # docs/map-dates.md, "What years do to the ground").
 EVERY_YEARS = {
-    "lawn": 2.5,  # watering, drought, re-seeding, paving over
-    "verge": 2.5,
-    "parking": 6.0,  # resurfaced or sealed black, or faded
-    "driveway": 8.0,
-    "sidewalk": 10.0,
-    "street": 6.0,  # a stretch between two crossings
-    "roof": 10.0,
+    "lawn": 2.0,  # watering, drought, re-seeding, paving over
+    "verge": 2.0,
+    "parking": 4.0,  # resurfaced or sealed black, or faded
+    "driveway": 6.0,
+    "sidewalk": 8.0,
+    "street": 4.0,  # a stretch between two crossings
+    "roof": 6.0,
 }
 _LAWN_LOOKS: tuple[Color, ...] = (  # BGR
     (118, 160, 180),  # straw: a dry summer

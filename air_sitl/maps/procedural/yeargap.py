@@ -29,7 +29,14 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.maps.procedural.canvas import DATES, DateLook
-from air_sitl.maps.procedural.noise import FloatImage, key_of, unit2, unit_of, value_noise
+from air_sitl.maps.procedural.noise import (
+    FloatImage,
+    fractal_noise,
+    key_of,
+    unit2,
+    unit_of,
+    value_noise,
+)
 
 WATER_LEVEL = 0.09  # largest threshold offset of a water body (noise units), by 7 years
 WATER_CELL_M = 900.0  # water bodies of one region rise and fall together
@@ -108,3 +115,20 @@ def ponds(seed: int, date: DateLook, x0: int, y0: int, size: int, gsd_m: float) 
     thr = np.float32(POND_THRESHOLD) - np.float32(swing) * np.clip(wet, -1.5, 1.5)
     out: FloatImage = np.clip((hollow - thr) * np.float32(12.0), 0.0, 1.0)
     return out
+
+
+SURFACE_EVERY_YEARS = 3.0  # grass tufts, asphalt patches, dirt on roofs: each year's own
+
+
+def renewed_noise(
+    key: int, seed: int, date: DateLook, x0: int, y0: int, size: int, cell_px: float, octaves: int
+) -> FloatImage:
+    """``fractal_noise(key, ...)``, a material's fine texture, as this survey sees it: the
+    share renewed since the reference survey is the year's own (the same variance)."""
+    fixed = fractal_noise(key, x0, y0, size, cell_px, octaves)
+    w = changed_share(years_since_reference(date), SURFACE_EVERY_YEARS)
+    if w <= 0.0:
+        return fixed
+    new = fractal_noise(key_of(seed, 0x7D0, key, date.index), x0, y0, size, cell_px, octaves)
+    out: FloatImage = np.float32(math.sqrt(1.0 - w * w)) * fixed + np.float32(w) * new
+    return out.astype(np.float32)
