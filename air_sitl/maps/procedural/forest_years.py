@@ -19,8 +19,8 @@ from air_sitl.maps.procedural.yeargap import changed_cells, changed_share, years
 COMPARTMENT_M = (180.0, 120.0)  # east, north
 STAND_EVERY_YEARS = 8.0  # mean years between changes of a compartment's canopy
 STAND_TONE = (0.72, 1.32)  # the canopy's brightness after a change: darker .. brighter
-TREE_EVERY_YEARS = 3.0  # mean years between changes of a tree crown (health, flowering)
-TREE_TONE = 0.8  # a changed crown's brightness: 1 +- this / 2
+TREE_EVERY_YEARS = 2.0  # mean years between changes of a tree crown (health, flowering)
+TREE_TONE = 1.2  # a changed crown's brightness: 1 +- this / 2
 MEADOW_EVERY_YEARS = 2.5  # meadows: mown, grazed or dry one year, lush the next
 # A changed meadow's look (BGR): straw, dry, freshly mown green, lush dark green.
 MEADOW_LOOKS: tuple[Color, ...] = ((120, 168, 186), (96, 140, 150), (70, 140, 100), (44, 92, 58))

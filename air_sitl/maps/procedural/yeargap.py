@@ -117,7 +117,7 @@ def ponds(seed: int, date: DateLook, x0: int, y0: int, size: int, gsd_m: float) 
     return out
 
 
-SURFACE_EVERY_YEARS = 3.0  # grass tufts, asphalt patches, dirt on roofs: each year's own
+SURFACE_EVERY_YEARS = 4.0  # grass tufts, asphalt patches, dirt on roofs: each year's own
 
 
 def renewed_noise(
