@@ -129,7 +129,10 @@ class ForestWorld:
         )
         if date.leaf_off:  # light passes through bare crowns: little shading of their own
             shading = shading * g.conifer + (0.75 + 0.25 * shading) * (1.0 - g.conifer)
-        gain = stand_tone(self.seed, date, x0, y0, size, gsd_m) * tree_tone(date, g.tint)
+        stands = stand_tone(self.seed, date, x0, y0, size, gsd_m)
+        if date.leaf_off:  # bare broadleaf stands: their floor shows, not their canopy's tone
+            stands = 1.0 + (stands - 1.0) * g.conifer
+        gain = stands * tree_tone(date, g.tint)
         img = crown_col * (shading * g.cover * gain)[:, :, None]
         # Between crowns: dark understory in the forest, meadow in clearings, soil on cuts.
         # Meadows: the soil's patches stay, the grass on them (mown, grazed, dry) is the year's.
