@@ -132,7 +132,7 @@ class ForestWorld:
         stands = stand_tone(self.seed, date, x0, y0, size, gsd_m)
         if date.leaf_off:  # bare broadleaf stands: their floor shows, not their canopy's tone
             stands = 1.0 + (stands - 1.0) * g.conifer
-        gain = stands * tree_tone(date, g.tint)
+        gain = stands * tree_tone(date, g.tint) if pad else stands  # mean gain of trees: 1
         img = crown_col * (shading * g.cover * gain)[:, :, None]
         # Between crowns: dark understory in the forest, meadow in clearings, soil on cuts.
         # Meadows: the soil's patches stay, the grass on them (mown, grazed, dry) is the year's.
