@@ -62,12 +62,12 @@ from air_sitl.maps.procedural.farmland_layout import (
 from air_sitl.maps.procedural.forest import _cast_shadow
 from air_sitl.maps.procedural.noise import (
     FloatImage,
-    fractal_noise,
     key_of,
     unit2,
     value_noise,
     white_noise,
 )
+from air_sitl.maps.procedural.yeargap import changed_share, renewed_noise, years_since_reference
 
 # What a field looks like: (plant colour BGR, share of the ground the plants cover, row
 # stripe amplitude, soil darkness (1 dry light .. 1.6 fresh tillage), height m, code).
@@ -105,6 +105,8 @@ SHADOW_REACH_M = 22.0
 SHADOW_STEPS_M = (0.6, 1.2, 1.8, 2.5, 3.5, 4.8, 6.5, 9.0, 12.0, 16.0, 22.0)
 CANOPY_MAX_GSD_M = 3.0  # coarser: trees as their stand's mean
 PIVOT_RING_M = 54.0  # spacing of a pivot's towers: its wheel tracks
+FIELD_EVERY_YEARS = 4.0  # mean years between changes of how a field is farmed (yeargap)
+FIELD_TONE = 0.35  # largest relative brightness change of a field farmed otherwise
 
 
 class FarmlandWorld:
@@ -179,10 +181,18 @@ class FarmlandWorld:
         # Growth varies over a field (soil, water), irrigated circles are even and green.
         vigour = 0.12 * value_noise(k + 1, x0 + 0.5, y0 + 0.5, size, 45.0 / gsd_m)
         vigour += 0.06 * value_noise(k + 2, x0 + 0.5, y0 + 0.5, size, 12.0 / gsd_m)
+        share = changed_share(years_since_reference(date), FIELD_EVERY_YEARS)
+        managed = (field_unit(seed, f.key, 0, 11)[f.fid] < share) if share > 0.0 else None
+        if managed is not None:  # fields farmed otherwise since the reference survey: the
+            # year's growth pattern (seeding, manure, drainage) and brightness
+            ky = key_of(seed, 0xF11, year)
+            grown = 0.2 * value_noise(ky, x0 + 0.5, y0 + 0.5, size, 30.0 / gsd_m)
+            grown += 0.1 * value_noise(ky + 1, x0 + 0.5, y0 + 0.5, size, 9.0 / gsd_m)
+            vigour = np.where(managed, grown, vigour)
         cover = np.clip(cover * (1.0 + vigour) + 0.15 * (f.pivot * running * (cover > 0.2)), 0, 1)
         # Plants and clods at 0.5-3 m: the grain of a field on 0.6 m imagery.
         detail = np.float32(min(1.0, 0.6 / gsd_m))
-        tex = fractal_noise(k + 4, x0, y0, size, 1.6 / gsd_m, 2) * detail
+        tex = renewed_noise(k + 4, seed, date, x0, y0, size, 1.6 / gsd_m, 2) * detail
         cover = np.clip(cover * (1.0 + 0.12 * tex), 0.0, 1.0)
         soil = soil * (1.0 - 0.05 * tex)[:, :, None]
         stripes = _rows(seed, g, f, year, gsd_m, state)
@@ -191,6 +201,9 @@ class FarmlandWorld:
             soil / dark[:, :, None] * (1.0 - 0.5 * rows_amp * stripes * (cover < 0.3))[:, :, None]
         )
         tone = 1.0 + 0.16 * (field_unit(seed, f.key, year, 9)[f.fid] - 0.5)
+        if managed is not None:
+            swing = FIELD_TONE * (2.0 * field_unit(seed, f.key, year, 12) - 1.0)
+            tone *= 1.0 + managed * swing[f.fid]
         col = (plant * cover[:, :, None] + ground * (1.0 - cover[:, :, None])) * tone[:, :, None]
         lay.col = col.astype(np.float32)
         lay.code = code

@@ -28,6 +28,7 @@ from air_sitl.maps.procedural.forest_cuts import (
     logging_tracks,
     track_node,
 )
+from air_sitl.maps.procedural.forest_years import meadow_look, stand_tone, tree_tone
 from air_sitl.maps.procedural.noise import (
     FloatImage,
     fractal_noise,
@@ -37,14 +38,17 @@ from air_sitl.maps.procedural.noise import (
     value_noise,
     white_noise,
 )
+from air_sitl.maps.procedural.yeargap import ponds, renewed_noise, water_level
 
 _CONIFER = {"summer": (52, 84, 50), "autumn": (74, 94, 38), "spring": (56, 86, 54)}
 _DECIDUOUS = {"summer": (44, 104, 70), "autumn": (46, 104, 104), "spring": (70, 122, 110)}
 _DECIDUOUS_ALT = {"summer": (56, 118, 86), "autumn": (40, 96, 146), "spring": (84, 132, 120)}
 # Autumn broadleaves, each tree its own: still green, yellow, orange, brown (BGR).
 _AUTUMN_LEAVES = ((52, 108, 66), (48, 150, 170), (38, 100, 168), (50, 82, 112))
-_BARE: Color = (78, 96, 118)  # leafless broadleaf crowns: grey-brown branches
-_LITTER: Color = (50, 78, 108)  # last year's leaves on the forest floor
+# Leafless broadleaf crowns: grey-brown branches; green close to red, so that the spring
+# survey's cool white balance and bluish haze leave them brown, not mauve.
+_BARE: Color = (66, 98, 112)
+_LITTER: Color = (46, 84, 106)  # last year's leaves on the forest floor
 _REGROWTH: Color = (64, 120, 104)  # young growth on clear-cuts a few years old
 _BOAT: Color = (214, 218, 222)  # white hulls
 BOAT_CELL_M = 45.0  # one boat at most per cell of open water
@@ -99,7 +103,7 @@ class ForestWorld:
         else:  # crowns below a pixel: the mean shadow of crowns and of the gaps between
             gaps = np.clip(1.0 - g.meadow - g.cut - g.water - g.cover, 0.0, 1.0)
             shadow = MEAN_SHADOW_CROWN * g.cover + MEAN_SHADOW_GAP * gaps
-        fine = fractal_noise(k + 3, x0, y0, size, 1.2 * pm, 2)
+        fine = renewed_noise(k + 3, self.seed, date, x0, y0, size, 1.2 * pm, 2)
         # Crowns: species colour, per-tree tint, darker rims, the side toward the sun lit. Tops
         # bright whatever the sun (the sun-independent part keeps the dates aligned).
         dec = np.array(_DECIDUOUS[season], dtype=np.float32)
@@ -125,14 +129,18 @@ class ForestWorld:
         )
         if date.leaf_off:  # light passes through bare crowns: little shading of their own
             shading = shading * g.conifer + (0.75 + 0.25 * shading) * (1.0 - g.conifer)
-        img = crown_col * (shading * g.cover)[:, :, None]
+        stands = stand_tone(self.seed, date, x0, y0, size, gsd_m)
+        if date.leaf_off:  # bare broadleaf stands: their floor shows, not their canopy's tone
+            stands = 1.0 + (stands - 1.0) * g.conifer
+        gain = stands * tree_tone(date, g.tint) if pad else stands  # mean gain of trees: 1
+        img = crown_col * (shading * g.cover * gain)[:, :, None]
         # Between crowns: dark understory in the forest, meadow in clearings, soil on cuts.
         # Meadows: the soil's patches stay, the grass on them (mown, grazed, dry) is the year's.
         season_key = key_of(self.seed, 43, date.index)
         meadow_tex = 1.0 + 0.04 * fractal_noise(k + 7, x0, y0, size, 6.0 * pm, 3) + 0.06 * fine
         meadow_tex += 0.07 * fractal_noise(season_key, x0, y0, size, 5.0 * pm, 3)
         under = np.array(_UNDERSTORY, dtype=np.float32) * (1.0 + 0.1 * fine)[:, :, None]
-        meadow = np.array(_MEADOW[season], dtype=np.float32) * meadow_tex[:, :, None]
+        meadow = meadow_look(self.seed, date, x0, y0, size, gsd_m, _MEADOW[season], meadow_tex)
         soil = np.array(_SOIL, dtype=np.float32) * (1.0 + 0.12 * fine)[:, :, None]
         young = np.clip((0.9 - g.cut) * 3.0, 0.0, 1.0) * (g.cut > 0.3)  # older cuts: regrowth
         growth = np.array(_REGROWTH, dtype=np.float32) * (1.0 + 0.25 * fine)[:, :, None]
@@ -188,8 +196,14 @@ class ForestWorld:
         stream_px = _sample(value_noise, k + 20, x0, y0, size, gsd_m, 520.0)
         stream_on = _sample(value_noise, k + 21, x0, y0, size, gsd_m, 1400.0) > -0.3
         stream = np.clip((STREAM_HALF - np.abs(stream_px)) * 80.0 * stream_on, 0.0, 1.0)
-        lake = self._lake(x0, y0, size, gsd_m)
-        water: FloatImage = np.maximum(stream, lake).astype(np.float32)
+        # Lakes stand higher or lower each year than at the reference survey (a higher lake
+        # drowns its shore's trees; the shore a lower one left is grass); ponds fill and dry
+        # in the clearings.
+        lake = self._lake(x0, y0, size, gsd_m, date)
+        lake_ref = self._lake(x0, y0, size, gsd_m)
+        meadow = np.maximum(meadow, lake_ref - lake)
+        pond = ponds(self.seed, date, x0, y0, size, gsd_m) * meadow
+        water: FloatImage = np.maximum(np.maximum(stream, lake), pond).astype(np.float32)
         felled = cut_mask(self.seed, x0, y0, size, gsd_m, d)
         cut = np.zeros((size, size), np.float32) if felled is None else felled
         # Tracks, roads and yards: whatever those drawings touch on a black canvas.
@@ -197,7 +211,7 @@ class ForestWorld:
         self._tracks(cv, d)
         self._roads(cv, date)
         drawn = (cv.img[:, :, 0] | cv.img[:, :, 1] | cv.img[:, :, 2]) > 0
-        opened = np.maximum(drawn.astype(np.float32), water)
+        opened = np.maximum(drawn.astype(np.float32), np.maximum(water, lake_ref))
         opened = np.maximum(opened, cut)
         sun_e, sun_n = date.sun_dir()
         if gsd_m <= CROWN_MAX_GSD_M:
@@ -234,13 +248,19 @@ class ForestWorld:
             water,
         )
 
-    def _lake(self, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
-        """1 on lakes (0 within DRY_RADIUS_M of home)."""
+    def _lake(
+        self, x0: int, y0: int, size: int, gsd_m: float, date: DateLook | None = None
+    ) -> FloatImage:
+        """1 on lakes at this survey's water level (``date`` None: the reference survey's);
+        0 within DRY_RADIUS_M of home."""
         k = key_of(self.seed, 41)
         lake_n = value_noise(k + 8, x0, y0, size, 700.0 / gsd_m) + 0.25 * value_noise(
             k + 9, x0, y0, size, 150.0 / gsd_m
         )
-        lake: FloatImage = np.clip((-lake_n - 1.7) * 30.0, 0.0, 1.0)
+        level: FloatImage | float = 0.0
+        if date is not None:
+            level = water_level(self.seed, date, x0, y0, size, gsd_m)
+        lake: FloatImage = np.clip((-lake_n - 1.7 + level) * 30.0, 0.0, 1.0)
         if self.home_en_m is not None and float(lake.max()) > 0.0:
             lake *= self._dry_near_home(x0, y0, size, gsd_m)
         return lake
@@ -265,7 +285,7 @@ class ForestWorld:
                 if not cv.overlaps(e, n, e, n, 5.0):
                     continue
                 col, row = math.floor(e / gsd_m), math.floor(-n / gsd_m)
-                if float(self._lake(col, row, 1, gsd_m)[0, 0]) < 0.99:
+                if float(self._lake(col, row, 1, gsd_m, date)[0, 0]) < 0.99:
                     continue
                 a = rng.uniform(0.0, math.pi)
                 length = rng.uniform(3.0, 8.0)

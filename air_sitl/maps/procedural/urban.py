@@ -26,7 +26,6 @@ from air_sitl.maps.procedural.canvas import (
     shade,
 )
 from air_sitl.maps.procedural.noise import (
-    fractal_noise,
     key_of,
     rng_for,
     unit_of,
@@ -55,6 +54,8 @@ from air_sitl.maps.procedural.urban_dates import (
     paved_at,
     rebuilt_at,
 )
+from air_sitl.maps.procedural.urban_years import object_look, reroofed, street_stretches
+from air_sitl.maps.procedural.yeargap import renewed_noise
 
 PITCH_M = 105.0
 FINE_TEXTURE = 0.06  # relative amplitude of the 0.3-1 m material texture
@@ -230,6 +231,7 @@ class UrbanWorld:
                     "newroad": _ASPHALT_NEW,
                     "newlot": _LOT_NEW,
                 }[kind]
+                col = object_look(self.seed, date, kind, poly[0], col)
                 cv.poly(self.to_world(poly), col)
                 if kind in ("lawn", "verge"):
                     cv.poly(self.to_world(poly), (70,), "veg")
@@ -273,9 +275,7 @@ class UrbanWorld:
         # Roofs and tree crowns above the shadows.
         roof_shadow = np.zeros_like(cv.shadow)
         for blk in blocks:
-            for b in blk.buildings:
-                if not b.born <= d < b.gone:
-                    continue
+            for b in (reroofed(self.seed, date, b) for b in blk.buildings if b.born <= d < b.gone):
                 world = self.to_world(b.corners)
                 le, ln = lean_per_m(self.seed, date, *world[0])
                 lean = (le * b.height_m, ln * b.height_m)
@@ -303,11 +303,13 @@ class UrbanWorld:
                     _erase_circle(cv, (e, n), rr * 0.9)
         key = key_of(self.seed, 31)
         px_m = 1.0 / gsd_m
-        texture = 0.07 * fractal_noise(key, x0, y0, size, 8.0 * px_m, 3)
+        texture = 0.07 * renewed_noise(key, self.seed, date, x0, y0, size, 8.0 * px_m, 3)
         # Materials at 0.3-1 m (gravel, asphalt, roof tiles, grass tufts): the fine texture
         # of real 0.5 m imagery; the grain is each survey's own (film, sensor, processing).
-        texture += FINE_TEXTURE * fractal_noise(key + 3, x0, y0, size, 0.7 * px_m, 2)
-        veg_tex = 0.22 * fractal_noise(key + 5, x0, y0, size, 1.6 * px_m, 2)
+        texture += FINE_TEXTURE * renewed_noise(
+            key + 3, self.seed, date, x0, y0, size, 0.7 * px_m, 2
+        )
+        veg_tex = 0.22 * renewed_noise(key + 5, self.seed, date, x0, y0, size, 1.6 * px_m, 2)
         date_key = key_of(self.seed, 32, date.index)
         grain = float(GRAIN_DN * min(1.0, 0.6 * px_m)) * white_noise(date_key, x0, y0, size)
         return finish(cv, texture, grain, 0.5, veg_tex)
@@ -389,17 +391,21 @@ class UrbanWorld:
                 pos, half, main = self.street(axis, k)
                 new = self.resurfaced_at(axis, k) <= d
                 lo, hi = (v_lo, v_hi) if axis == 0 else (u_lo, u_hi)
-                if new:
-                    # Ends on the block lattice, not the window's: its anti-aliased sides are
-                    # then the same whatever window draws them.
-                    a = math.floor(lo / PITCH_M) * PITCH_M
-                    b = math.ceil(hi / PITCH_M) * PITCH_M
-                    poly = (
-                        box(pos - half, a, pos + half, b)
-                        if axis == 0
-                        else box(a, pos - half, b, pos + half)
-                    )
-                    cv.poly(self.to_world(poly), _ASPHALT_NEW)
+                # Ends on the block lattice, not the window's: its anti-aliased sides are
+                # then the same whatever window draws them.
+                a = math.floor(lo / PITCH_M) * PITCH_M
+                b = math.ceil(hi / PITCH_M) * PITCH_M
+                stretches = [(a, b, _ASPHALT_NEW)] if new else []
+                if not new:  # stretches resurfaced or faded since the reference survey
+                    cross = [
+                        self.street(1 - axis, j)[0]
+                        for j in range(int(a // PITCH_M) - 1, int(b // PITCH_M) + 2)
+                    ]
+                    stretches = street_stretches(self.seed, date, axis, k, cross)
+                for a, b, col in stretches:
+                    poly = box(pos - half, a, pos + half, b) if axis == 0 else box(
+                        a, pos - half, b, pos + half)  # fmt: skip
+                    cv.poly(self.to_world(poly), col)
                 color = (60, 180, 210) if main else (220, 222, 224)
                 width = 0.3 if new else 0.25
                 dash = 3.0 if main else 6.0
