@@ -50,8 +50,9 @@ STATE_RATE_HZ = 10.0  # truth/nav fixes, poses and /tf
 TRUTH_KEPT = 4096  # truth positions kept by time for the estimates' errors (80 s at 50 Hz)
 STOP_TIMEOUT_S = 10.0
 # The server calls on_subscribe before the subscription may take effect: the latched messages
-# go at once and again this long after (a client may get them twice, never not at all).
-LATCH_AGAIN_S = 0.2
+# go at once and again these long after (a client may get them more than once; on a loaded
+# machine the subscription can take effect late, so the last pass waits seconds).
+LATCH_AGAIN_S = (0.2, 1.0, 3.0)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -94,7 +95,7 @@ class FoxgloveLive(NullSink):
         self.context = foxglove.Context()
         self.channels = tp.Channels(self.context, vehicle)
         self._due = threading.Event()
-        self._latch_again_s = 0.0  # monotonic time of the second latched pass (0: none due)
+        self._latch_again_s: list[float] = []  # monotonic times of the passes still due
         self._writer: Any = None
         if options.mcap is not None:
             if options.mcap.exists():
@@ -231,9 +232,10 @@ class FoxgloveLive(NullSink):
             if self._due.is_set():
                 self._due.clear()
                 self._latched()
-                self._latch_again_s = time.monotonic() + LATCH_AGAIN_S
-            elif self._latch_again_s and time.monotonic() >= self._latch_again_s:
-                self._latch_again_s = 0.0
+                now = time.monotonic()
+                self._latch_again_s = [now + after for after in LATCH_AGAIN_S]
+            elif self._latch_again_s and time.monotonic() >= self._latch_again_s[0]:
+                self._latch_again_s.pop(0)
                 self._latched()
             if item is None:
                 return

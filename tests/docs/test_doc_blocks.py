@@ -17,8 +17,8 @@ the ports of a real ground station:
 - ``missions/`` holds short versions of AIR's 12 plans: the same names and homes, 60 m high,
   a 30 m capture leg (about 100 frames) instead of 1-5 km; every flight takes seconds.
 - ``--scenarios all`` (and ``air``) flies UC-200 only; a ``fly`` with ``--altitude-offset``
-  starts in the air (``--air-start``: its climb of 800 m takes minutes); ``dataset``, ``bench`` and ``sweep`` get
-  ``--missions missions`` (the short plans, not the checkout's).
+  starts in the air (``--air-start``: its climb of 800 m takes minutes); ``dataset``,
+  ``bench`` and ``sweep`` get ``--missions missions`` (the short plans, not the checkout's).
 - ``map make`` writes at 5 m pixels (``--gsd-m 5``), and a ``--size-m`` window becomes 800 m
   square around the short flight from the nearest plan's home (a procedural map's cost grows
   with its area, whatever its pixels: 1300 x 3800 m took a minute of CPU at any pixel size).
