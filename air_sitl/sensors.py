@@ -105,10 +105,7 @@ class SensorSuite:
 
     def gps_denied(self, sim_time_ns: int) -> bool:
         """True inside any GNSS denial window [start, end)."""
-        for a, b in self.gps_denied_ns:  # read at 50 Hz: no generator per call
-            if a <= sim_time_ns < b:
-                return True
-        return False
+        return any(a <= sim_time_ns < b for a, b in self.gps_denied_ns)
 
     def sample(self, state: VehicleState) -> tuple[ImuSample, GpsFix | None]:
         """Sensor readings for one physics step (call once per step, in order)."""

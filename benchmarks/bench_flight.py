@@ -106,8 +106,9 @@ def bare_frame_s(setup: FlightSetup) -> float:
 def step_parts(
     setup: FlightSetup, nav: str, seconds: float
 ) -> tuple[float, list[tuple[str, float]]]:
-    """Where a step's time goes: CPU us per step of the whole step and wall us per step of
-    each part of ``Flight.step`` (timed in place by wrappers; indented parts lie inside the
+    """Where a step's time goes: CPU us per step of the whole step and of each part of
+    ``Flight.step`` (timed in place by wrappers on the wall clock, scaled by the step's CPU
+    over its wall time: a shared machine's waits spread evenly; indented parts lie inside the
     part above), over ``seconds`` of cruise after 200 s of the flight."""
     from air_sitl.flightlog import NavTrajectoryWriter, TrajectoryWriter
 
@@ -162,8 +163,8 @@ def step_parts(
         wall = clock() - w0
         top = sum(v for k, v in spent.items() if not k.startswith(" "))
         spent["rest of Flight.step (SimSample, camera tick, clock, wrappers)"] = wall - top
-    parts = [("the whole step (wall)", wall), *spent.items()]
-    return cpu_us, [(k, v / steps * 1e6) for k, v in parts]
+    to_cpu = cpu_us / (wall / steps * 1e6)
+    return cpu_us, [(k, v / steps * 1e6 * to_cpu) for k, v in spent.items()]
 
 
 def paired_cost(setup: FlightSetup, steps: int) -> tuple[float, float, float, int]:
@@ -248,7 +249,7 @@ def main() -> None:
             ratio = cpu_us / floor_us
             print(
                 f"where a step goes, --nav {nav}: {cpu_us:.1f} us CPU per step in all "
-                f"({ratio:.1f}x the floor); the parts, wall us per step:"
+                f"({ratio:.1f}x the floor); its parts, us CPU per step:"
             )
             for name, us in parts:
                 print(f"  {name:62s} {us:7.2f} us")
