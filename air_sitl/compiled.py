@@ -31,6 +31,8 @@ def _numpy_support_without_scipy() -> None:
     sys.modules[blas] = None  # type: ignore[assignment]  # an import of it raises ImportError
     try:
         import numba.np.arraymath  # noqa: F401
+    except ImportError:  # another numba's layout: it loads its own way at the first compile
+        pass
     finally:
         del sys.modules[blas]
 
