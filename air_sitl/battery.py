@@ -21,6 +21,7 @@ NS_PER_S = 1_000_000_000
 MOTOR_MAX_POWER_W = 600.0  # shaft power at full throttle (a 2-3 kg fixed wing)
 AVIONICS_POWER_W = 6.0  # autopilot, GNSS, radio, camera
 DRIVE_EFFICIENCY = 0.8  # ESC and motor
+_isfinite, _sqrt = math.isfinite, math.sqrt
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -93,15 +94,28 @@ class Battery:
 
     def step(self, sim_time_ns: int, throttle: float) -> BatteryState:
         """The state after flying at ``throttle`` since the last step."""
+        # A 200 Hz path: electrical_power_w and terminal_voltage_v written out, operation for
+        # operation (min/max as the builtins choose).
         spec = self._spec()
-        dt_s = 0.0 if self._last_ns is None else (sim_time_ns - self._last_ns) / NS_PER_S
+        last = self._last_ns
+        dt_s = 0.0 if last is None else (sim_time_ns - last) / NS_PER_S
         self._last_ns = sim_time_ns
         used = self.consumed_mah / spec.capacity_mah
         used = used if used < 1.0 else 1.0  # min(1.0, used), as the builtin
         cell_v = spec.v_charged_cell - (spec.v_charged_cell - spec.v_empty_cell) * used
         v_oc = spec.cells * cell_v
-        power_w = electrical_power_w(throttle)
-        voltage_v = terminal_voltage_v(v_oc, spec.r_internal_ohm, power_w)
+        if _isfinite(throttle):
+            t = throttle if throttle > 0.0 else 0.0
+            t = t if t < 1.0 else 1.0
+        else:
+            t = 0.0
+        power_w = AVIONICS_POWER_W + MOTOR_MAX_POWER_W * t**3 / DRIVE_EFFICIENCY
+        r_ohm = spec.r_internal_ohm
+        if r_ohm <= 0.0 or power_w <= 0.0:
+            voltage_v = v_oc
+        else:
+            disc = v_oc**2 - 4.0 * r_ohm * power_w
+            voltage_v = (v_oc + _sqrt(disc if disc > 0.0 else 0.0)) / 2.0
         current_a = power_w / voltage_v if voltage_v > 0 else 0.0
         if dt_s > 0:
             self.consumed_mah += current_a * dt_s / 3.6  # A s -> mAh

@@ -12,13 +12,8 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from air_sitl.camera.bridge import CameraBridge
-from air_sitl.camera.model import CameraModel
-from air_sitl.camera.options import open_chosen_renderer
-from air_sitl.maps.base import MapSource
-from air_sitl.maps.choose import close_map, open_chosen_map, open_chosen_surface
-from air_sitl.maps.surface import SurfaceModel
 from air_sitl.mission.geometry import shift_altitudes
 from air_sitl.mission.items import Mission
 from air_sitl.mission.plan_file import load_mission
@@ -26,6 +21,12 @@ from air_sitl.options import FlightOptions, MapChoice
 from air_sitl.runner import Flight, assemble_flight, home_of
 from air_sitl.sinks import FrameSource, Sink
 from air_sitl.state import GeoPoint
+
+if TYPE_CHECKING:  # the camera and the maps load where they are used: not for --no-camera
+    from air_sitl.camera.bridge import CameraBridge
+    from air_sitl.camera.model import CameraModel
+    from air_sitl.maps.base import MapSource
+    from air_sitl.maps.surface import SurfaceModel
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -120,6 +121,8 @@ def open_setup_terrain(setup: FlightSetup) -> tuple[SurfaceModel | None, Callabl
     """
     if setup.map.dem is None:
         return None, lambda: None
+    from air_sitl.maps.choose import close_map, open_chosen_surface
+
     map_source = open_setup_map(setup)
     owned = setup.map_source is None  # a map handed in (a sweep worker's) stays open
 
@@ -144,12 +147,17 @@ def open_setup_map(setup: FlightSetup) -> MapSource:
     """The map the camera sees (``--map`` default from the scenario name)."""
     if setup.map_source is not None:
         return setup.map_source
+    from air_sitl.maps.choose import open_chosen_map
+
     return open_chosen_map(setup.map, setup.home, setup.name)
 
 
 def open_camera(setup: FlightSetup, map_source: MapSource) -> CameraBridge:
     """The camera rendering ``map_source`` for ``setup`` (FrameSource; needs a camera model)."""
     assert setup.camera is not None, "open_camera: the setup flies without a camera"
+    from air_sitl.camera.bridge import CameraBridge
+    from air_sitl.camera.options import open_chosen_renderer
+
     renderer = open_chosen_renderer(setup.map, map_source, setup.camera, setup.options.seed)
     return CameraBridge(renderer, workers=setup.render_workers)
 

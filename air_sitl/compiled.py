@@ -7,15 +7,37 @@ disk where numba finds a writable place (next to the module or in the user's cac
 directory); where it finds none, compiled anew in each process rather than failing.
 
 Importing this module imports numba (about 0.4 s): modules that need it only on some paths
-import their kernels lazily.
+import their kernels lazily. Numba's numpy support, loaded at its first compile, would also
+import scipy.linalg (0.3 s) just to see whether ``np.dot`` may call BLAS; it loads here with
+that look-up answered "no" (our kernels call no BLAS; numba's linear algebra still imports
+scipy itself where a kernel uses it).
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable
 from typing import Any
 
 import numba
+
+
+def _numpy_support_without_scipy() -> None:
+    """Load ``numba.np.arraymath`` with ``scipy.linalg.cython_blas`` unimportable for the
+    moment of its BLAS check (nothing is hidden when scipy.linalg is loaded already)."""
+    blas = "scipy.linalg.cython_blas"
+    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
+        return
+    sys.modules[blas] = None  # type: ignore[assignment]  # an import of it raises ImportError
+    try:
+        import numba.np.arraymath  # noqa: F401
+    except ImportError:  # another numba's layout: it loads its own way at the first compile
+        pass
+    finally:
+        del sys.modules[blas]
+
+
+_numpy_support_without_scipy()
 
 
 def compiled(fn: Callable[..., Any]) -> Any:

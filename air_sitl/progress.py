@@ -14,11 +14,12 @@ import math
 import sys
 import time
 from collections.abc import Callable, Sequence
-from typing import IO, Any
-
-from tqdm import tqdm
+from typing import IO, TYPE_CHECKING, Any
 
 from air_sitl.closeable import Closeable
+
+if TYPE_CHECKING:  # tqdm (0.1 s with its metadata look-up) loads when a line or bar shows
+    from tqdm import tqdm
 
 LINE_STEP = 0.1  # a plain line each time another tenth of the total is done ...
 LINE_EVERY_S = 30.0  # ... or after this long without one
@@ -71,6 +72,8 @@ class Progress(Closeable):
         self._bar: tqdm[Any] | None = None  # on a terminal, from the first count
 
     def _start_bar(self) -> None:
+        from tqdm import tqdm
+
         self._bar = tqdm(
             total=self.total,
             initial=self.initial,
@@ -139,6 +142,8 @@ class Progress(Closeable):
     def text(self, now: float | None = None, *, end: bool = False) -> str:
         """The progress as one line of text (what a line reports; tqdm's formatter); ``end``:
         the time it took instead of the ETA."""
+        from tqdm import tqdm
+
         elapsed = (self.clock() if now is None else now) - self._start
         line = _LINE_END if end else _LINE
         return tqdm.format_meter(
@@ -163,6 +168,8 @@ class Progress(Closeable):
         if not self.enabled:
             return
         if self.tty:
+            from tqdm import tqdm
+
             tqdm.write(line, file=self.stream)  # clears the bars, writes, draws them again
         else:
             self.stream.write(line + "\n")

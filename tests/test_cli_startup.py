@@ -188,3 +188,28 @@ def test_every_missing_argument_is_one_line(
     line = one_line_error(argv, capsys)
     assert line.startswith(f"air-sitl: error: {where}: ")
     assert "required" in line and line.endswith(f"(see `air-sitl {where} --help`)")
+
+
+def test_a_flight_without_camera_nor_filter_loads_neither(tmp_path: Path) -> None:
+    """``fly --no-camera --nav truth`` starts without the camera's modules and numba (issue 34:
+    start-up at most 1 s CPU); the onboard filter loads numba, the check sees it."""
+    plan = str(REPO / "missions" / "FR-300.plan")
+    loaded = {}
+    for nav in ("truth", "ekf"):
+        run = subprocess.run(
+            [sys.executable, "-X", "importtime", "-m", "air_sitl", "fly", plan, "--no-camera",
+             "--quiet", "--nav", nav, "--max-sim-time", "0.1", "--out", str(tmp_path / nav)],
+            capture_output=True, text=True, timeout=300, check=False, cwd=REPO,
+        )  # fmt: skip
+        assert run.returncode == 1, run.stderr[-2000:]  # not completed: files written, exit 1
+        loaded[nav] = {
+            line.rsplit("|", 1)[-1].strip()
+            for line in run.stderr.splitlines()
+            if line.startswith("import time:") and "|" in line
+        }
+    for nav, modules in loaded.items():
+        camera = sorted(m for m in modules if m.startswith("air_sitl.camera.") and "render" in m)
+        assert not camera, f"fly --no-camera --nav {nav} imported {camera}"
+        assert "tqdm" not in modules  # --quiet: no progress line, no tqdm
+    assert "numba" not in loaded["truth"]
+    assert "numba" in loaded["ekf"]

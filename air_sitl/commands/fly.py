@@ -104,7 +104,7 @@ def require_on_map(setup: FlightSetup) -> None:
 def run(args: argparse.Namespace) -> int:
     """Fly the plan; exit 0 when the mission completed, 1 when it did not."""
     from air_sitl.builder import load_setup
-    from air_sitl.bus.hookup import bus_sinks_from_args
+    from air_sitl.bus.args import bus_options_from_args
     from air_sitl.progress import Progress, print_summary
     from air_sitl.recording import RecordingRequest, record_flight
 
@@ -119,12 +119,17 @@ def run(args: argparse.Namespace) -> int:
     require_on_map(setup)  # with or without the camera: the flight is on its map
     out = Path(args.out) if args.out else Path("out") / (setup.mission.name or "flight")
     live = open_live(args, vehicle=args.vehicle, home=setup.home, camera=setup.camera)
+    bus = None  # zenoh loads only when an option asks for the bus
+    if bus_options_from_args(args).enabled:
+        from air_sitl.bus.hookup import bus_sinks_from_args
+
+        bus = bus_sinks_from_args(args)
     request = RecordingRequest(
         setup=setup,
         out=out,
         resume=bool(args.resume),
         overwrite=bool(args.overwrite),
-        bus=bus_sinks_from_args(args),
+        bus=bus,
         sinks=() if live is None else (live,),
     )
     bars: list[Progress] = []  # made when the flight starts (the mission as flown)

@@ -17,10 +17,9 @@ import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from air_sitl.builder import FlightSetup, build_flight, open_camera, open_setup_map
-from air_sitl.bus.hookup import BusHookup
 from air_sitl.camera.coverage import DemCoverage, DemExtent, NodataFrames
 from air_sitl.clock import NS_PER_S
 from air_sitl.dataset.air_schema import (
@@ -43,6 +42,9 @@ from air_sitl.recording.inputs import GPS_DENIAL_JSON, archive_info_for, gps_den
 from air_sitl.runner import Flight
 from air_sitl.sinks import FrameSource, Sink
 from air_sitl.state import SimSample
+
+if TYPE_CHECKING:  # zenoh loads only for a flight on the bus
+    from air_sitl.bus.hookup import BusHookup
 
 ProgressFn = Callable[[SimSample, Flight], None]
 
