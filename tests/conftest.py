@@ -1,8 +1,13 @@
 """Shared test set-up: this folder is on sys.path, so tests import the helper modules beside it
 (``georef_helpers``, ``short_plans``) whether or not their own folder is a package."""
 
+import compileall
+from pathlib import Path
+
 import pytest
 from hypothesis import settings
+
+REPO = Path(__file__).resolve().parent.parent
 
 # No per-example deadline: Hypothesis times examples by the wall clock, which the other xdist
 # worker (or any load) can stretch past its 200 ms default; the properties are what is tested.
@@ -11,10 +16,20 @@ settings.load_profile("air-sitl")
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Our own pytest plugin (the ``air_sitl_vehicle`` fixture), as users get it.
+    """Byte code of the checkout written once, and our own pytest plugin.
+
+    The tests start hundreds of ``air-sitl`` processes; where PYTHONDONTWRITEBYTECODE is set
+    (CI's machine sets it), each would compile every module it imports again (about 0.4 s of
+    CPU a process). Python reads byte code already written whatever that variable says, so
+    the controller (not each xdist worker) writes it before the first test.
+
+    The plugin (the ``air_sitl_vehicle`` fixture) as users get it:
 
     An install of air-sitl registers it through its ``pytest11`` entry point (named
     ``air_sitl``); a checkout on PYTHONPATH without that install registers it here.
     """
+    if not hasattr(config, "workerinput"):
+        for folder in ("air_sitl", "bridges", "tests"):
+            compileall.compile_dir(REPO / folder, quiet=1)
     if not config.pluginmanager.has_plugin("air_sitl"):
         config.pluginmanager.import_plugin("air_sitl.testing.pytest_plugin")
