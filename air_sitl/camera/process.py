@@ -14,11 +14,13 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import signal
 from multiprocessing.connection import Connection
 
 from air_sitl.camera.model import CameraModel
 from air_sitl.options import MapChoice
 from air_sitl.state import CameraFrame, GeoPoint, SimSample
+from air_sitl.workers import die_with_parent
 
 STOP_TIMEOUT_S = 10.0
 NICE = 19  # the process's priority: the lowest (a best-effort camera)
@@ -28,7 +30,11 @@ def _render_loop(
     conn: Connection, choice: MapChoice, home: GeoPoint, name: str, camera: CameraModel, seed: int
 ) -> None:
     """The child: render each (sample, index) received, send the frame back; None stops.
-    At the lowest priority: where the cores are short, the simulation runs first."""
+    At the lowest priority: where the cores are short, the simulation runs first. Like the
+    other workers, it leaves Ctrl-C (sent to the whole process group) to its parent, which
+    stops it, and dies with it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    die_with_parent()
     with contextlib.suppress(OSError):
         os.nice(NICE)
     from air_sitl.camera.options import open_chosen_renderer

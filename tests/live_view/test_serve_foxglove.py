@@ -5,14 +5,19 @@ the mission a ground station uploads."""
 from __future__ import annotations
 
 import json
+import os
 import re
+import signal
+import subprocess
+import sys
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
 import pytest
 import short_plans
-from mavlink.gcs import Gcs, serve
+from mavlink.gcs import SAFETY_S, Gcs, serve
 from pymavlink import mavutil
 
 from air_sitl.mission.plan_file import read_plan
@@ -92,3 +97,55 @@ def test_serve_streams_the_vehicle_and_its_statustext(tmp_path: Path) -> None:
             elif topic == V + "mission":
                 plans.append(json.loads(value.geojson))
         client.close()
+
+
+def _spawned_workers(pid: int) -> list[int]:
+    """The children multiprocessing spawned to run a target (not its resource tracker)."""
+    path = Path(f"/proc/{pid}/task/{pid}/children")
+    found = []
+    for child in path.read_text().split() if path.exists() else []:
+        try:
+            cmdline = Path(f"/proc/{child}/cmdline").read_bytes()
+        except OSError:
+            continue
+        if b"spawn_main" in cmdline:
+            found.append(int(child))
+    return found
+
+
+def _ignores_sigint(pid: int) -> bool:
+    """/proc's mask of ignored signals has SIGINT's bit."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    mask = int(re.search(r"^SigIgn:\s*([0-9a-f]+)", status, re.M).group(1), 16)  # type: ignore[union-attr]
+    return bool(mask & (1 << (signal.SIGINT - 1)))
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc (Linux)")
+def test_ctrl_c_stops_serve_and_its_camera_process_without_a_traceback() -> None:
+    """Ctrl-C reaches the terminal's whole process group: serve stops cleanly, and the view's
+    camera process (which renders its images) leaves the stop to serve, printing nothing."""
+    cmd = [sys.executable, "-m", "air_sitl", "serve", "--mavlink", "udpin:127.0.0.1:0",
+           "--no-video", "--foxglove", "127.0.0.1:0"]  # fmt: skip
+    with tempfile.TemporaryFile("w+") as err:
+        proc = subprocess.Popen(
+            cmd, stdout=subprocess.PIPE, stderr=err, text=True, start_new_session=True
+        )
+        try:
+            assert proc.stdout is not None
+            assert "vehicle ready" in proc.stdout.readline()
+            deadline = time.monotonic() + SAFETY_S  # only a broken serve gets there
+            while not any(_ignores_sigint(c) for c in _spawned_workers(proc.pid)):
+                assert proc.poll() is None and time.monotonic() < deadline, "no camera process"
+                time.sleep(0.05)
+            os.killpg(proc.pid, signal.SIGINT)
+            assert proc.wait(timeout=SAFETY_S) == 0
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        err.seek(0)
+        said = err.read()
+    assert "Traceback" not in said and "KeyboardInterrupt" not in said, said
