@@ -151,7 +151,7 @@ def test_a_slow_subscriber_does_not_slow_the_simulation(plan: Path, tmp_path: Pa
     script.write_text(SLOW_SUBSCRIBER)
     walls: dict[str, list[float]] = {"alone": [], "slow": []}
     received = []
-    for k in range(2):  # alternate, keep the best of two: the machine is shared
+    for k in range(1):  # the ratio is printed, not tested: one pair is enough
         for case in ("alone", "slow"):
             endpoint = free_endpoint()
             sub = None
@@ -275,7 +275,7 @@ def test_an_estimator_that_vanishes_stops_the_run_with_one_line(plan: Path, tmp_
     loc = start([sys.executable, LOCALIZER, "--name", "ex", "--zenoh-connect", endpoint])
     out = tmp_path / "a"
     flyer = start(cli("fly", str(plan), "--out", str(out), "--air-start", "--quiet",
-                      "--zenoh-listen", endpoint, "--wait-for", "ex", "--wait-timeout", "20",
+                      "--zenoh-listen", endpoint, "--wait-for", "ex", "--wait-timeout", "8",
                       "--speed", "1"))  # fmt: skip
     try:
         assert wait_until(
@@ -292,7 +292,7 @@ def test_an_estimator_that_vanishes_stops_the_run_with_one_line(plan: Path, tmp_
     assert code == 2, stderr
     lines = stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in stderr
-    assert "--wait-for ex: no estimate for frame" in lines[0] and "within 20 s" in lines[0]
+    assert "--wait-for ex: no estimate for frame" in lines[0] and "within 8 s" in lines[0]
     assert len(read_csv(out / "estimates" / "ex.csv")) >= 20  # what came is kept
     assert (out / "trajectory.csv").stat().st_size > 0
 

@@ -26,6 +26,7 @@ from short_plans import write_short_plan
 
 from air_sitl.bus.keys import KeySpace
 from air_sitl.bus.session import BusConfig, Message, open_bus
+from air_sitl.mission.plan_file import load_mission
 from tests.mavlink.gcs import Gcs
 
 from .helpers import (
@@ -149,11 +150,16 @@ def compose_command(service: str, swap: dict[str, str]) -> list[str]:
     return [swap.get(a, a) for a in argv]
 
 
-def test_the_compose_services_by_hand() -> None:
+def test_the_compose_services_by_hand(tmp_path: Path) -> None:
     """docker-compose.yml's router, simulator and localizer, each with its own arguments
     (endpoints on this host's network address instead of the compose network, a free MAVLink
-    port, the simulator unpaced): a ground station flies the mission and a third program, a
-    peer on the router, hears the example localizer's estimates."""
+    port, the simulator unpaced, UC-200 as a short plan from its home: its capture window
+    comes after seconds, not after 250 simulated seconds of video): a ground station flies
+    the mission and a third program, a peer on the router, hears the example localizer's
+    estimates."""
+    uc200 = load_mission(REPO / "missions" / "UC-200.plan").planned_home
+    assert uc200 is not None
+    short = write_short_plan(tmp_path / "UC-200.plan", uc200, leg_m=150.0, alt_m=80.0)
     address = lan_address()
     port = free_port()
     mav = free_port()
@@ -167,6 +173,7 @@ def test_the_compose_services_by_hand() -> None:
         "tcpin:0.0.0.0:5760": f"tcpin:127.0.0.1:{mav}",
         "udp://host.docker.internal:5600": f"udp://127.0.0.1:{viewer.getsockname()[1]}",
         "1": "0",  # --speed 1 -> 0: as fast as the machine goes
+        "missions/UC-200.plan": str(short),
     }
     hub_cmd = compose_command("router", swap)
     sim_cmd = compose_command("simulator", swap)
@@ -198,8 +205,7 @@ def test_the_compose_services_by_hand() -> None:
                 gcs.connect()
                 assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
                 assert gcs.command(M.MAV_CMD_MISSION_START, 0, 0) == M.MAV_RESULT_ACCEPTED
-                # UC-200 reaches its capture window after ~250 simulated seconds: a safety
-                # bound for a loaded machine, not a speed.
+                # A safety bound for a loaded machine, not a speed.
                 reached = wait_until(lambda: len(heard) >= 5, timeout_s=600.0)
             finally:
                 gcs.close()

@@ -52,13 +52,15 @@ def _finish(proc: subprocess.Popen[str]) -> subprocess.CompletedProcess[str]:
 
 
 def test_fly_is_deterministic_and_seeds_matter_only_where_they_should(tmp_path: Path) -> None:
-    wind = ("--wind", "4@300", "--turbulence", "0.3")
+    # The first 100 simulated seconds (5,000 rows): the take-off is skipped, the turbulence
+    # and the autopilot's turns are in it; the whole plan would only repeat them.
+    wind = ("--wind", "4@300", "--turbulence", "0.3", "--max-sim-time", "100")
     # Side by side (one process per core): the same seed gives the same bytes anyway.
     procs = [_start("UC-300.plan", tmp_path / name, "--seed", seed, *wind) for name, seed in
              [("a", "5"), ("b", "5"), ("c", "6")]]  # fmt: skip
     runs = [_finish(p) for p in procs]
-    for run in runs:
-        assert run.returncode == 0, run.stderr
+    for run in runs:  # exit 1: the mission is not completed when --max-sim-time ends it
+        assert run.returncode == 1 and not run.stderr, run.stderr
     a, b, c = ((tmp_path / n / "trajectory.csv").read_bytes() for n in "abc")
     assert a == b
     assert a != c  # the seed drives the turbulence

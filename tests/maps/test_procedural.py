@@ -146,8 +146,8 @@ def test_direct_coarse_levels_match_reduced_level_0() -> None:
     direct = ProceduralMap("forest", HOME, seed=6)
     reduced = ProceduralMap("forest", HOME, seed=6)
     reduced._native_tile = lambda *args: None  # type: ignore[method-assign]
-    a = direct.read_level(3, 20, 20, 256, 256)[:, :, :3].astype(np.float32)
-    b = reduced.read_level(3, 20, 20, 256, 256)[:, :, :3].astype(np.float32)
+    a = direct.read_level(3, 20, 20, 128, 128)[:, :, :3].astype(np.float32)
+    b = reduced.read_level(3, 20, 20, 128, 128)[:, :, :3].astype(np.float32)
     assert np.abs(a.mean(axis=(0, 1)) - b.mean(axis=(0, 1))).max() < 5.0
     ga = cv2.GaussianBlur(_gray(a.astype(np.uint8)), (0, 0), 2.0)
     gb = cv2.GaussianBlur(_gray(b.astype(np.uint8)), (0, 0), 2.0)

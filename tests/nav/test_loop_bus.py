@@ -31,7 +31,7 @@ def aided_flight(tmp_path: Path, plan: Path, name: str, shift_east_m: float = 0.
 @pytest.fixture(scope="module")
 def plan(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_short_plan(
-        tmp_path_factory.mktemp("plan") / "UB-200.plan", HOME, leg_m=600.0, alt_m=80.0
+        tmp_path_factory.mktemp("plan") / "UB-200.plan", HOME, leg_m=300.0, alt_m=80.0
     )
 
 
@@ -49,7 +49,9 @@ def test_a_lockstep_aid_over_zenoh_is_fused_and_deterministic(plan: Path, tmp_pa
     assert nav["horizontal_error_denied_m"]["p95"] < 5.0, nav
     for name in ("trajectory.csv", "frames.csv", "metadata.csv"):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
-    strip = ("wall_time_s", "realtime_factor", "lockstep_wait_wall_s", "plan")
+    # Wall-clock figures: frames_reoffered counts frames put again after a wall-clock wait
+    # for their answer (a loaded machine makes some), the bytes above are the same anyway.
+    strip = ("wall_time_s", "realtime_factor", "lockstep_wait_wall_s", "plan", "frames_reoffered")
     sa = {k: v for k, v in summary.items() if k not in strip}
     sb = {k: v for k, v in json.loads((b / "summary.json").read_text()).items() if k not in strip}
     assert sa == sb
