@@ -30,7 +30,6 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.camera import effects as fx_mod
-from air_sitl.camera import effects_kernel as kernel
 from air_sitl.camera.homography import (
     MAX_MOSAIC_HALF_PX,
     MIN_DOWN,
@@ -104,6 +103,11 @@ class EffectsPath:
     """The effects part of a Renderer's per-pixel paths (``remap.RemapPaths`` holds it)."""
 
     def __init__(self, owner: FrameOwner, paths: RemapPaths) -> None:
+        # The compiled kernels (numba: about a second of start-up) load with the first
+        # camera that has effects, not with every camera.
+        from air_sitl.camera import effects_kernel
+
+        self._compiled = effects_kernel
         self._owner = owner
         self._paths = paths
         self.camera = cam = owner.camera
@@ -266,7 +270,7 @@ class EffectsPath:
             )
             pu, pv = self.pinhole[0][cut], self.pinhole[1][cut]
             maps = np.empty((*pu.shape, 2), dtype=np.float32)
-            misses = kernel.row_maps(pu, pv, rows, float(mx), float(my), maps)
+            misses = self._compiled.row_maps(pu, pv, rows, float(mx), float(my), maps)
         else:
             pad = 0  # over relief: the frame's own pixels at its edges (the margin repeated)
             maps = self._relief_maps(state, g)
@@ -290,7 +294,9 @@ class EffectsPath:
             cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR, dst=out)
         else:
             img = np.empty((h, w, 3), dtype=np.float32)
-            total = kernel.light(frame, self._keep(state, g), self._vignette, self._air, img)
+            total = self._compiled.light(
+                frame, self._keep(state, g), self._vignette, self._air, img
+            )
             gain = 1.0
             if fx.on("exposure"):
                 lum = total / img.size
