@@ -17,6 +17,8 @@ disagree in sign: those objects' contrast against their neighbours inverted.
 - :func:`changed_cells`: the same for an array of parcels (fields, cells);
 - :func:`water_level` and :func:`ponds`: shorelines that move by tens of metres from survey
   to survey, and small ponds that fill in a wet year and dry out in another.
+- :func:`renewed_noise`: a material's texture (grass tufts, asphalt patches, crop growth),
+  each octave renewed with the years: on real pairs the fine texture is each year's own.
 
 Everything is a function of seed, object and date (tiles agree).
 """
