@@ -15,6 +15,9 @@ place at date 1 and date 2 (and date 0 against itself: the same-date check), in 
 - ``oc1``, ``oc2``, ``flip``: at 2 m pixels, the single- and doubled-angle gradient
   orientation agreement of A and B, and the share of textured 32 m windows whose single-angle
   agreement is below 0 (contrast inverted, or unrelated content);
+- ``tex1``, ``tex2``: how much of the materials' texture two dates share: the NCC of the
+  band-passed pair (1-6 m and 3-12 m) in windows without edges (16 and 32 m; the median
+  over all such windows of the row);
 - ``sat``: mean HSV saturation (OpenCV's 0..255) of the B crops;
 - ``slope``: radially averaged power-spectrum slope of the B crops (grey, Hann window, 4-100
   cycles per 256 px, least squares in log-log), the median over crops.
@@ -137,6 +140,32 @@ def gradient_agreement(a: Gray, b: Gray) -> tuple[float, float, float]:
     return float(c1.sum()) / total, float(c2.sum()) / total, share
 
 
+TEXTURE_BANDS_M = ((1.0, 6.0, 16.0), (3.0, 12.0, 32.0))  # (fine sigma, coarse sigma, window)
+EDGE_FREE_DN = 45.0  # a window without edges: its smoothed grey spans less than this
+TEXTURED_DN = 1.0  # ... and its band-passed texture has at least this std in both images
+
+
+def texture_windows(a: Gray, b: Gray, gsd_m: float) -> tuple[list[float], list[float]]:
+    """NCC of the band-passed A and B in each window without edges, per band (fine, coarse):
+    how much of the texture of grass, fields, asphalt and roofs two dates share."""
+    out: tuple[list[float], list[float]] = ([], [])
+    for (lo_m, hi_m, win_m), vals in zip(TEXTURE_BANDS_M, out, strict=True):
+        ba = cv2.GaussianBlur(a, (0, 0), lo_m / gsd_m) - cv2.GaussianBlur(a, (0, 0), hi_m / gsd_m)
+        bb = cv2.GaussianBlur(b, (0, 0), lo_m / gsd_m) - cv2.GaussianBlur(b, (0, 0), hi_m / gsd_m)
+        sa = cv2.GaussianBlur(a, (0, 0), 2.0 * lo_m / gsd_m)
+        sb = cv2.GaussianBlur(b, (0, 0), 2.0 * lo_m / gsd_m)
+        w = round(win_m / gsd_m)
+        for y in range(0, a.shape[0] - w + 1, w):
+            for x in range(0, a.shape[1] - w + 1, w):
+                win = np.s_[y : y + w, x : x + w]
+                if max(float(np.ptp(sa[win])), float(np.ptp(sb[win]))) > EDGE_FREE_DN:
+                    continue
+                if min(float(ba[win].std()), float(bb[win].std())) < TEXTURED_DN:
+                    continue
+                vals.append(ncc(ba[win], bb[win]))
+    return out
+
+
 def saturation(bgr: Bgr) -> float:
     """Mean HSV saturation (0..255)."""
     return float(cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)[:, :, 1].mean())
@@ -170,8 +199,9 @@ class Figures:
         self.flipped: list[float] = []
         self.sats: list[float] = []
         self.slopes: list[float] = []
+        self.tex: tuple[list[float], list[float]] = ([], [])
 
-    def add(self, a: Bgr, b: Bgr, rng: np.random.Generator) -> None:
+    def add(self, a: Bgr, b: Bgr, rng: np.random.Generator, gsd_m: float = GSD_M) -> None:
         ga, gb = gray(a), gray(b)
         self.nccs.append(ncc(ga, gb))
         err, peak = registers(ga, gb, rng)
@@ -184,6 +214,8 @@ class Figures:
         self.flipped.append(flipped)
         self.sats.append(saturation(b))
         self.slopes.append(spectrum_slope(gb))
+        for vals, new in zip(self.tex, texture_windows(ga, gb, gsd_m), strict=True):
+            vals.extend(new)
 
     def row(self) -> dict[str, float]:
         return {
@@ -196,6 +228,8 @@ class Figures:
             "flip": float(np.mean(self.flipped)),
             "sat": float(np.mean(self.sats)),
             "slope": float(np.median(self.slopes)),
+            "tex1": float(np.median(self.tex[0])) if self.tex[0] else float("nan"),
+            "tex2": float(np.median(self.tex[1])) if self.tex[1] else float("nan"),
             "n": float(len(self.nccs)),
         }
 
@@ -259,13 +293,15 @@ def matcher_figure(
 def matcher_rows(
     kind: str, count: int, seed: int, map_seed: int, heights: tuple[float, ...] = HEIGHTS_M
 ) -> list[tuple[str, dict[str, float]]]:
-    """Rows ``kind 0-d @h``: frames of date d at each height matched against date 0."""
+    """Rows ``kind 0-d @h``: frames of date d at each height matched against date 0. Every
+    date is flown at the same places, headings and priors (a paired comparison of the
+    gaps; the reference's tiles are drawn once)."""
     ref = ProceduralMap(kind, HOME, seed=map_seed, date=0)
     rows = []
     for d in (0, 1, 2):
         frames = ref if d == 0 else ProceduralMap(kind, HOME, seed=map_seed, date=d)
         for h in heights:
-            rng = np.random.default_rng([seed, 11, KINDS.index(kind), d, int(h)])
+            rng = np.random.default_rng([seed, 11, KINDS.index(kind), int(h)])
             acc, resp = matcher_figure(ref, frames, HOME, h, count, rng, FRAME_SPREAD_M)
             rows.append((f"{kind} 0-{d} @{h:.0f} m", {"accept": acc, "response": resp, "n": count}))
     return rows
@@ -351,13 +387,14 @@ def print_table(rows: list[tuple[str, dict[str, float]]], out: Callable[[str], N
     """The figures beside the targets."""
     out(
         f"{'pairs':<22}{'n':>4}{'NCC med':>9}{'reg':>8}{'reg8':>8}{'peak':>7}{'oc1':>7}"
-        f"{'oc2':>7}{'flip':>7}{'sat':>8}{'slope':>8}"
+        f"{'oc2':>7}{'flip':>7}{'sat':>8}{'slope':>8}{'tex1':>6}{'tex2':>6}"
     )
     for name, r in rows:
         out(
             f"{name:<22}{int(r['n']):>4}{_fmt(r['ncc'], 'ncc'):>9}{_fmt(r['reg'], 'reg'):>8}"
             f"{_fmt(r['reg8'], 'reg'):>8}{r['peak']:>7.2f}{r['oc1']:>7.2f}{r['oc2']:>7.2f}"
             f"{100 * r['flip']:>5.0f} %{_fmt(r['sat'], 'sat'):>8}{_fmt(r['slope'], 'slope'):>8}"
+            f"{r['tex1']:>6.2f}{r['tex2']:>6.2f}"
         )
     t = TARGETS
     out(

@@ -1,7 +1,9 @@
 """Clear-cuts of the ``forest`` map and the tracks built to them (world frame, metres).
 
-A share of 170 m cells is clear-cut at each later survey (5 % by 2012, 10 % by 2016): bare
-soil the survey that catches it, young growth after. Felling needs a way in: every cut gets a
+Managed forests are clear-cut at about 1 % of their area a year (rotations of 60-100 years), in
+cuts of one to a few hectares: a 300 m cell gets at most one cut of 1-3 ha (100-220 x
+70-150 m), felled by 2012 in 15 % of the cells and by 2016 in 36 % (3 % and 7 % of the area):
+bare soil the survey that catches it, young growth after. Felling needs a way in: every cut gets a
 logging track from the nearest node of the forest's track network, built when the cut is
 felled and kept afterwards. All of it is found from cell indices alone, so any tile is drawn
 without its neighbours and the built-in surface opens the same ground the texture shows.
@@ -16,11 +18,15 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from air_sitl.maps.procedural.canvas import Canvas, Point, rect
+from air_sitl.maps.procedural.canvas import DATES, Canvas, Point, rect
 from air_sitl.maps.procedural.noise import rng_for, unit_of
 
 TRACK_CELL_M = 380.0  # one node of the track network per cell
-CUT_CELL_M = 170.0  # at most one clear-cut per cell
+CUT_CELL_M = 300.0  # at most one clear-cut per cell
+CUT_AREA_PER_YEAR = 0.01  # share of the forest felled a year
+CUT_SIZE_M = ((100.0, 220.0), (70.0, 150.0))  # a cut's sides (uniform)
+CUT_JITTER_M = 40.0  # a cut's centre off its cell's centre (it may reach past the cell)
+_CUT_SHARE = (sum(CUT_SIZE_M[0]) / 2.0) * (sum(CUT_SIZE_M[1]) / 2.0) / CUT_CELL_M**2
 
 
 class ClearCut(NamedTuple):
@@ -46,10 +52,12 @@ def clear_cut(seed: int, i: int, j: int) -> ClearCut:
     """The clear-cut of cell (i, j): when it is felled and its rectangle."""
     rng = rng_for(seed, 51, i, j)
     u = rng.random()
-    at = 1 if u < 0.05 else 2 if u < 0.10 else 9
-    w, h = rng.uniform(40, 80), rng.uniform(30, 70)
-    cx = (i + 0.5) * CUT_CELL_M + rng.uniform(-30, 30)
-    cy = (j + 0.5) * CUT_CELL_M + rng.uniform(-30, 30)
+    years = [year - int(DATES[0].label[:4]) for year in (int(d.label[:4]) for d in DATES)]
+    by = [y * CUT_AREA_PER_YEAR / _CUT_SHARE for y in years]
+    at = 1 if u < by[1] else 2 if u < by[2] else 9
+    w, h = rng.uniform(*CUT_SIZE_M[0]), rng.uniform(*CUT_SIZE_M[1])
+    cx = (i + 0.5) * CUT_CELL_M + rng.uniform(-CUT_JITTER_M, CUT_JITTER_M)
+    cy = (j + 0.5) * CUT_CELL_M + rng.uniform(-CUT_JITTER_M, CUT_JITTER_M)
     a = rng.uniform(0, math.pi)
     return ClearCut(at, (cx, cy), tuple(rect(cx, cy, w, h, math.cos(a), math.sin(a))))
 
@@ -66,8 +74,9 @@ def cut_mask(
     mask = np.zeros((size, size), dtype=np.uint8)
     cv = Canvas(x0, y0, size, gsd_m, (0, 0, 0))
     cv.shadow = mask
-    for i in range(math.floor(e0 / CUT_CELL_M), math.floor(e1 / CUT_CELL_M) + 1):
-        for j in range(math.floor(n0 / CUT_CELL_M), math.floor(n1 / CUT_CELL_M) + 1):
+    # Cuts reach at most half a cell past their own.
+    for i in range(math.floor(e0 / CUT_CELL_M) - 1, math.floor(e1 / CUT_CELL_M) + 2):
+        for j in range(math.floor(n0 / CUT_CELL_M) - 1, math.floor(n1 / CUT_CELL_M) + 2):
             cut = clear_cut(seed, i, j)
             if cut.at > d:
                 continue

@@ -303,7 +303,9 @@ class UrbanWorld:
                     _erase_circle(cv, (e, n), rr * 0.9)
         key = key_of(self.seed, 31)
         px_m = 1.0 / gsd_m
-        texture = 0.07 * renewed_noise(key, self.seed, date, x0, y0, size, 8.0 * px_m, 3)
+        texture = 0.07 * renewed_noise(
+            key, self.seed, date, x0, y0, size, 8.0 * px_m, 3, coarse_octaves=1
+        )
         # Materials at 0.3-1 m (gravel, asphalt, roof tiles, grass tufts): the fine texture
         # of real 0.5 m imagery; the grain is each survey's own (film, sensor, processing).
         texture += FINE_TEXTURE * renewed_noise(

@@ -17,6 +17,8 @@ disagree in sign: those objects' contrast against their neighbours inverted.
 - :func:`changed_cells`: the same for an array of parcels (fields, cells);
 - :func:`water_level` and :func:`ponds`: shorelines that move by tens of metres from survey
   to survey, and small ponds that fill in a wet year and dry out in another.
+- :func:`renewed_noise`: a material's texture (grass tufts, asphalt patches, crop growth),
+  each octave renewed with the years: on real pairs the fine texture is each year's own.
 
 Everything is a function of seed, object and date (tiles agree).
 """
@@ -117,18 +119,45 @@ def ponds(seed: int, date: DateLook, x0: int, y0: int, size: int, gsd_m: float) 
     return out
 
 
-SURFACE_EVERY_YEARS = 4.0  # grass tufts, asphalt patches, dirt on roofs: each year's own
+# Mean years over which a material's texture becomes the year's own (grass tufts, asphalt
+# patches, dirt on roofs, crop growth), set on real pairs of different years in windows
+# without edges and not labelled changed (NCC of the band-passed pair, docs/map-dates.md):
+# the fine texture (1-6 m) keeps 0.10 of its pattern over LEVIR's 5-14 years (0.02 in
+# DSIFN's fields), the coarse patches (3-12 m: wear, soil, lawn patches) 0.31 (0.03).
+FINE_EVERY_YEARS = 2.0
+COARSE_EVERY_YEARS = 4.0
 
 
 def renewed_noise(
-    key: int, seed: int, date: DateLook, x0: int, y0: int, size: int, cell_px: float, octaves: int
+    key: int,
+    seed: int,
+    date: DateLook,
+    x0: int,
+    y0: int,
+    size: int,
+    cell_px: float,
+    octaves: int,
+    coarse_octaves: int = 0,
 ) -> FloatImage:
-    """``fractal_noise(key, ...)``, a material's fine texture, as this survey sees it: the
-    share renewed since the reference survey is the year's own (the same variance)."""
-    fixed = fractal_noise(key, x0, y0, size, cell_px, octaves)
-    w = changed_share(years_since_reference(date), SURFACE_EVERY_YEARS)
-    if w <= 0.0:
-        return fixed
-    new = fractal_noise(key_of(seed, 0x7D0, key, date.index), x0, y0, size, cell_px, octaves)
-    out: FloatImage = np.float32(math.sqrt(1.0 - w * w)) * fixed + np.float32(w) * new
-    return out.astype(np.float32)
+    """``fractal_noise(key, ...)``, a material's texture, as this survey sees it: in each
+    octave, the share renewed since the reference survey is the year's own (the same
+    variance); the first ``coarse_octaves`` renew over ``COARSE_EVERY_YEARS``, the finer
+    ones over ``FINE_EVERY_YEARS``."""
+    years = years_since_reference(date)
+    if years <= 0.0:
+        return fractal_noise(key, x0, y0, size, cell_px, octaves)
+    new_key = key_of(seed, 0x7D0, key, date.index)
+    total = np.zeros((size, size), dtype=np.float32)
+    amp, norm, cell = 1.0, 0.0, cell_px
+    for o in range(octaves):
+        if cell < 0.75:  # as fractal_noise
+            break
+        w = changed_share(years, COARSE_EVERY_YEARS if o < coarse_octaves else FINE_EVERY_YEARS)
+        fixed = value_noise(key + 7919 * o, x0, y0, size, cell)
+        new = value_noise(new_key + 7919 * o, x0, y0, size, cell)
+        total += np.float32(amp * math.sqrt(1.0 - w * w)) * fixed + np.float32(amp * w) * new
+        norm += amp * amp
+        amp *= 0.5
+        cell /= 2.0
+    out: FloatImage = total * np.float32(1.0 / math.sqrt(max(norm, 1e-9)))
+    return out
