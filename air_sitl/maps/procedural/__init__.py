@@ -166,13 +166,13 @@ class ProceduralMap(TiledMap):
 
     def _acquire(self, x0_abs: int, y0_abs: int, size: int, gsd_m: float) -> Image:
         """This date's survey of the world over a square of the lattice at ``gsd_m``."""
-        shared = self._shared
-        if shared is not None and (saved := shared.get(x0_abs, y0_abs, size, gsd_m)) is not None:
-            return saved
-        image = acquire(self._world.draw, self.seed, x0_abs, y0_abs, size, gsd_m, self.date)
-        if shared is not None:
-            shared.put(x0_abs, y0_abs, size, gsd_m, image)
-        return image
+
+        def draw() -> Image:
+            return acquire(self._world.draw, self.seed, x0_abs, y0_abs, size, gsd_m, self.date)
+
+        if self._shared is None:
+            return draw()
+        return self._shared.square(x0_abs, y0_abs, size, gsd_m, draw)
 
     def misregistration_m(self, x_px: float, y_px: float) -> tuple[float, float]:
         """(dE, dN) metres by which this date's orthophoto shows, at level-0 map pixel

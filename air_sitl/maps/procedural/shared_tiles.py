@@ -9,9 +9,10 @@ gives, so the frames' bytes do not change.
 
 A square is saved under a name holding its place and ground sample distance, in a folder
 named after everything the drawing depends on (kind, seed, survey date and its sun, home); it
-is written to a temporary name and renamed, so a reader sees a whole square or none. The
-folder belongs to one run (its code, so no stale squares): the caller makes and removes it.
-A square that cannot be saved (disk full) is drawn again where needed; nothing else changes.
+is written to a temporary name and renamed, so a reader sees a whole square or none; a claim
+file beside it tells the others it is being drawn. The folder belongs to one run (its code,
+so no stale squares): the caller makes and removes it. A square that cannot be saved (disk
+full) is drawn again where needed; nothing else changes.
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ import contextlib
 import hashlib
 import os
 import tempfile
+import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +30,8 @@ import numpy as np
 import numpy.typing as npt
 
 Bgr = npt.NDArray[np.uint8]
+WAIT_S = 30.0  # longest wait for a square another process draws (a drawing takes 0.3-0.6 s)
+POLL_S = 0.01
 
 
 class SharedSurveys:
@@ -36,29 +41,60 @@ class SharedSurveys:
         digest = hashlib.sha256(repr(identity).encode()).hexdigest()[:20]
         self.folder = root / f"{identity[0]}-{digest}"
 
-    def _path(self, x0_abs: int, y0_abs: int, size: int, gsd_m: float) -> Path:
-        return self.folder / f"{x0_abs}_{y0_abs}_{size}_{gsd_m!r}.npy"
-
-    def get(self, x0_abs: int, y0_abs: int, size: int, gsd_m: float) -> Bgr | None:
-        """The square saved by any process of the run, or None."""
-        try:
-            image: Bgr = np.load(self._path(x0_abs, y0_abs, size, gsd_m), allow_pickle=False)
-        except (OSError, ValueError):
-            return None
-        return image
-
-    def put(self, x0_abs: int, y0_abs: int, size: int, gsd_m: float, image: Bgr) -> None:
-        """Save a square for the other processes (whole or not at all)."""
-        path = self._path(x0_abs, y0_abs, size, gsd_m)
+    def square(
+        self, x0_abs: int, y0_abs: int, size: int, gsd_m: float, draw: Callable[[], Bgr]
+    ) -> Bgr:
+        """The square saved by any process of the run; else ``draw()``'s, saved for the
+        others. While another process (or thread) draws it, wait for it rather than drawing
+        it twice (two scenarios of one area fly the same first legs at the same time); one
+        that has not saved it after WAIT_S (it died) is drawn here."""
+        path = self.folder / f"{x0_abs}_{y0_abs}_{size}_{gsd_m!r}.npy"
+        if (saved := _load(path)) is not None:
+            return saved
+        claim = path.with_suffix(".drawing")
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=self.folder, suffix=".part")
+            os.close(os.open(claim, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
+        except FileExistsError:
+            deadline = time.monotonic() + WAIT_S
+            while time.monotonic() < deadline:
+                time.sleep(POLL_S)
+                if (saved := _load(path)) is not None:
+                    return saved
+                if not claim.exists():  # the drawer gave up (could not save)
+                    break
+            saved = _load(path)
+            return saved if saved is not None else draw()
         except OSError:
-            return
+            return draw()  # no folder to share through: draw alone
         try:
-            with os.fdopen(fd, "wb") as f:
-                np.save(f, image, allow_pickle=False)
-            os.replace(tmp, path)
-        except OSError:
+            image = draw()
+            _save(path, image)
+        finally:
             with contextlib.suppress(OSError):
-                os.unlink(tmp)
+                os.unlink(claim)
+        return image
+
+
+def _load(path: Path) -> Bgr | None:
+    try:
+        image: Bgr = np.load(path, allow_pickle=False)
+    except (OSError, ValueError):
+        return None
+    return image
+
+
+def _save(path: Path, image: Bgr) -> None:
+    """Write ``image`` whole to ``path`` or not at all (a full disk only costs the others a
+    drawing of their own)."""
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".part")
+    except OSError:
+        return
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.save(f, image, allow_pickle=False)
+        os.replace(tmp, path)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
