@@ -121,6 +121,11 @@ class ProceduralMap(TiledMap):
     def _latlon_to_crs(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
         return latlon2utm(lat_deg, lon_deg, self.zone)
 
+    def _made_together(self, level: int, tx: int, ty: int) -> tuple[int, int, int]:
+        if 0 < level < DIRECT_FROM_LEVEL:
+            return (level, tx, ty)  # from four finer tiles, alone
+        return (level, tx - tx % 2, ty - ty % 2)  # the 2x2 group of _make_tile, _native_tile
+
     def _make_tile(self, tx: int, ty: int) -> Image:
         # Draw the 2x2 group holding this tile at once: the margin every tile must draw
         # around itself (shadows, crowns crossing the edge) is then paid once for four.
