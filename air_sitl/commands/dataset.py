@@ -19,7 +19,6 @@ import dataclasses
 import io
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -174,6 +173,7 @@ def run(args: argparse.Namespace) -> int:
         stats_table,
     )
     from air_sitl.files import require_writable_folder, write_bytes_atomic
+    from air_sitl.maps.procedural.shared_tiles import shared_folder
     from air_sitl.progress import JobsProgress
     from air_sitl.recording.batch import Outcome, run_jobs
 
@@ -219,10 +219,10 @@ def run(args: argparse.Namespace) -> int:
     start = time.monotonic()
     try:
         # The scenarios of one area fly over the same ground: drawn once for all processes.
-        with tempfile.TemporaryDirectory(prefix="air-sitl-ground-") as shared:
+        with shared_folder() as shared:
             # Longest first (the paper's image counts): the processes finish together.
             outcomes = run_jobs(
-                share_ground(jobs, Path(shared)),
+                share_ground(jobs, shared),
                 n,
                 on_progress=on_progress,
                 on_done=on_done,

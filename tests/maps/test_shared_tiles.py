@@ -3,13 +3,18 @@ drawing alone, the squares read back by another map of the same date, not by oth
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import tempfile
 import threading
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from air_sitl.maps.procedural import ProceduralMap
-from air_sitl.maps.procedural.shared_tiles import SharedSurveys
+from air_sitl.maps.procedural.shared_tiles import PREFIX, SharedSurveys, shared_folder
 from air_sitl.state import GeoPoint
 
 HOME = GeoPoint(lat_deg=38.5125, lon_deg=-121.4935, alt_amsl_m=10.0)
@@ -73,3 +78,25 @@ def test_a_square_another_process_is_drawing_is_waited_for(tmp_path: Path) -> No
     (shared.folder / "3_4_8_0.6.drawing").touch()
     (shared.folder / "3_4_8_0.6.drawing").unlink()
     assert np.array_equal(shared.square(3, 4, 8, 0.6, lambda: theirs + 1), theirs + 1)
+
+
+def test_the_folder_of_a_killed_run_goes_with_the_next_run(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    gone = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    killed = tmp_path / f"{PREFIX}{gone}-old"
+    (killed / "urban-0").mkdir(parents=True)
+    running = tmp_path / f"{PREFIX}{os.getppid()}-other"  # a run still going
+    running.mkdir()
+    with shared_folder() as folder:
+        assert folder.parent == tmp_path
+        assert folder.is_dir()
+        assert not killed.exists()
+        assert running.is_dir()
+    assert not folder.exists()

@@ -20,9 +20,10 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
+import shutil
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -30,8 +31,35 @@ import numpy as np
 import numpy.typing as npt
 
 Bgr = npt.NDArray[np.uint8]
+PREFIX = "air-sitl-ground-"  # the run's folders in the system's temporary folder: PREFIX<pid>-*
 WAIT_S = 30.0  # longest wait for a square another process draws (a drawing takes 0.3-0.6 s)
 POLL_S = 0.01
+
+
+@contextlib.contextmanager
+def shared_folder() -> Iterator[Path]:
+    """A folder for one run's processes to share the drawn ground, removed after the run;
+    the folders of runs whose process is gone (killed: nothing removed them) go first."""
+    base = Path(tempfile.gettempdir())
+    for old in base.glob(f"{PREFIX}*"):
+        pid = old.name[len(PREFIX) :].split("-", 1)[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            shutil.rmtree(old, ignore_errors=True)
+    folder = Path(tempfile.mkdtemp(prefix=f"{PREFIX}{os.getpid()}-"))
+    try:
+        yield folder
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # another user's process
+    return True
 
 
 class SharedSurveys:
