@@ -9,6 +9,7 @@ import argparse
 import math
 import re
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from air_sitl.clock import NS_PER_S
 from air_sitl.errors import OptionError
@@ -53,6 +54,9 @@ class MapChoice:
     seed: int = 0
     date: str | None = None
     dem: str | None = None  # surface model: a GeoTIFF DEM path or "builtin"; None = flat
+    # A folder where the processes of one run share the procedural maps' drawn ground
+    # (maps.procedural.shared_tiles; dataset makes one per run): speed only, same pixels.
+    shared_dir: Path | None = None
 
 
 def parse_wind(text: str) -> Wind:

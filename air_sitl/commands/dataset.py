@@ -173,6 +173,7 @@ def run(args: argparse.Namespace) -> int:
         stats_table,
     )
     from air_sitl.files import require_writable_folder, write_bytes_atomic
+    from air_sitl.maps.procedural.shared_tiles import shared_folder
     from air_sitl.progress import JobsProgress
     from air_sitl.recording.batch import Outcome, run_jobs
 
@@ -217,14 +218,16 @@ def run(args: argparse.Namespace) -> int:
 
     start = time.monotonic()
     try:
-        # Longest first (the paper's image counts): the processes finish together.
-        outcomes = run_jobs(
-            jobs,
-            n,
-            on_progress=on_progress,
-            on_done=on_done,
-            first=lambda j: -expected[j.name],
-        )
+        # The scenarios of one area fly over the same ground: drawn once for all processes.
+        with shared_folder() as shared:
+            # Longest first (the paper's image counts): the processes finish together.
+            outcomes = run_jobs(
+                share_ground(jobs, shared),
+                n,
+                on_progress=on_progress,
+                on_done=on_done,
+                first=lambda j: -expected[j.name],
+            )
     finally:
         display.close()
     wall = time.monotonic() - start
@@ -266,6 +269,20 @@ def run(args: argparse.Namespace) -> int:
     if errors:
         return 2
     return 0 if all(o.mission_completed for o in outcomes) else 1
+
+
+def share_ground(jobs: list[Job], folder: Path) -> list[Job]:
+    """The jobs with their procedural maps sharing the drawn ground through ``folder``
+    (:mod:`air_sitl.maps.procedural.shared_tiles`: the same pixels, drawn once)."""
+    return [
+        dataclasses.replace(
+            j,
+            setup=dataclasses.replace(
+                j.setup, map=dataclasses.replace(j.setup.map, shared_dir=folder)
+            ),
+        )
+        for j in jobs
+    ]
 
 
 def forecast_frames(job: Job) -> int:

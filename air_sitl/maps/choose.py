@@ -15,7 +15,7 @@ def open_chosen_map(choice: MapChoice, home: GeoPoint, plan_name: str = "") -> M
     """The MapSource ``choice`` names (default from the plan name: U* urban, F* forest,
     A* farmland)."""
     spec = choice.spec or default_map_for_plan(plan_name)
-    return open_map(spec, home, seed=choice.seed, date=choice.date)
+    return open_map(spec, home, seed=choice.seed, date=choice.date, shared_dir=choice.shared_dir)
 
 
 def open_chosen_surface(choice: MapChoice, map_source: MapSource) -> SurfaceModel | None:

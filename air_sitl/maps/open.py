@@ -40,12 +40,18 @@ def _looks_like_path(text: str) -> bool:
 
 
 def open_map(
-    spec: str, home: GeoPoint, *, seed: int = 0, date: str | int | None = None
+    spec: str,
+    home: GeoPoint,
+    *,
+    seed: int = 0,
+    date: str | int | None = None,
+    shared_dir: Path | None = None,
 ) -> MapSource:
-    """The map named by ``spec`` at ``date``, placed so that ``home`` is inside it."""
+    """The map named by ``spec`` at ``date``, placed so that ``home`` is inside it
+    (``shared_dir``: where a procedural map shares its drawn ground with other processes)."""
     text = spec.strip()
     if text in KINDS:
-        return ProceduralMap(text, home, seed=seed, date=date)
+        return ProceduralMap(text, home, seed=seed, date=date, shared_dir=shared_dir)
     files = date_files(text)
     dates = _dates_of(files)
     index = _choose_date(files, dates, date)

@@ -5,9 +5,10 @@ Both take :class:`~air_sitl.sweep.run.RunTask` objects and hand each finished ro
 
 - :class:`PoolExecutor`: ``-j N`` spawned worker processes (forked workers can hang on the
   threads numpy/OpenCV/zenoh start), one thread each for BLAS and OpenCV, a procedural map
-  kept per worker. A worker dies with the driver (Linux ``PR_SET_PDEATHSIG``), so a killed
-  sweep leaves no orphan writing into a run folder; a worker that dies mid-run (killed,
-  out of memory) is replaced and its run tried once more, then recorded as failed.
+  kept per worker, its drawn ground shared by the workers (a folder of the sweep). A worker
+  dies with the driver (Linux ``PR_SET_PDEATHSIG``), so a killed sweep leaves no orphan
+  writing into a run folder; a worker that dies mid-run (killed, out of memory) is replaced
+  and its run tried once more, then recorded as failed.
 - :class:`RayExecutor`: the same runs as Ray tasks (``ray`` is the optional extra
   ``air-sitl[ray]``): a local Ray (``--ray``) or a cluster (``--ray ADDRESS``). Each task
   carries its own plan text and seed, each bus takes a free loopback port, rows come back
@@ -25,21 +26,24 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 from typing import Any
 
+from air_sitl.maps.procedural.shared_tiles import shared_folder
 from air_sitl.sweep.errors import SweepError
-from air_sitl.sweep.run import THREAD_ENV, RunTask, execute, pin_threads
+from air_sitl.sweep.run import THREAD_ENV, RunTask, execute, pin_threads, share_ground_through
 from air_sitl.workers import die_with_parent
 
 OnRow = Callable[[dict[str, Any]], None]
 CRASHES_ALLOWED = 1  # a run whose worker died this many times is tried once more, then failed
 
 
-def _init_worker() -> None:
+def _init_worker(shared_ground: Path | None = None) -> None:
     # Ctrl-C reaches the whole process group: the driver alone decides, workers are stopped
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     die_with_parent()
     pin_threads()
+    share_ground_through(shared_ground)
 
 
 def _crashed_row(task: RunTask, why: str) -> dict[str, Any]:
@@ -60,12 +64,14 @@ class PoolExecutor:
 
     def __init__(self, jobs: int) -> None:
         self.jobs = jobs
+        self._shared_ground: Path | None = None
 
     def _pool(self) -> ProcessPoolExecutor:
         return ProcessPoolExecutor(
             max_workers=self.jobs,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_init_worker,
+            initargs=(self._shared_ground,),
         )
 
     def run(self, tasks: Sequence[RunTask], on_row: OnRow) -> None:
@@ -73,7 +79,9 @@ class PoolExecutor:
         saved = {name: os.environ.get(name) for name in THREAD_ENV}
         os.environ.update(dict.fromkeys(THREAD_ENV, "1"))  # inherited by the spawned workers
         try:
-            self._run(list(tasks), on_row)
+            # The workers draw each square of procedural ground once for all of them.
+            with shared_folder() as self._shared_ground:
+                self._run(list(tasks), on_row)
         finally:
             for name, value in saved.items():
                 if value is None:

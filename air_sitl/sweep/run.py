@@ -61,6 +61,8 @@ THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUM
 MAPS_KEPT = 4  # procedural maps a worker keeps open (each caches up to 256 MB of tiles)
 
 _MAPS: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+# Where the workers of one pool share the procedural maps' drawn ground (None: alone).
+_SHARED_GROUND: list[Path | None] = [None]
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -121,6 +123,12 @@ def _one_line(err: BaseException) -> str:
     return f"{type(err).__name__}: {first}" if first else type(err).__name__
 
 
+def share_ground_through(folder: Path | None) -> None:
+    """This worker's procedural maps share their drawn ground with the pool's other workers
+    through ``folder`` (:mod:`air_sitl.maps.procedural.shared_tiles`; the same pixels)."""
+    _SHARED_GROUND[0] = folder
+
+
 def _cached_map(setup: Any) -> Any:
     """The procedural map of ``setup``, opened once per worker; None for GeoTIFF maps (a
     flight closes its map's files when it ends)."""
@@ -133,7 +141,7 @@ def _cached_map(setup: Any) -> Any:
     if key in _MAPS:
         _MAPS.move_to_end(key)
         return _MAPS[key]
-    source = open_chosen_map(setup.map, home, setup.name)
+    source = open_chosen_map(replace(setup.map, shared_dir=_SHARED_GROUND[0]), home, setup.name)
     _MAPS[key] = source
     while len(_MAPS) > MAPS_KEPT:
         _MAPS.popitem(last=False)

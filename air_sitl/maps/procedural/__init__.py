@@ -14,6 +14,7 @@ world ignores home": the forest keeps lakes 2 km away from home, so flights star
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -30,6 +31,7 @@ from air_sitl.maps.base import (
 from air_sitl.maps.procedural.canvas import DATES, DateLook
 from air_sitl.maps.procedural.farmland import FarmlandWorld
 from air_sitl.maps.procedural.forest import ForestWorld
+from air_sitl.maps.procedural.shared_tiles import SharedSurveys
 from air_sitl.maps.procedural.survey import acquire, displacement_m
 from air_sitl.maps.procedural.urban import UrbanWorld
 from air_sitl.maps.utm import latlon2utm, utm_zone_of
@@ -70,7 +72,10 @@ class ProceduralMap(TiledMap):
         date: str | int | None = None,
         gsd_m: float = DEFAULT_GSD_M,
         cache_bytes: int = DEFAULT_CACHE_BYTES,
+        shared_dir: Path | None = None,
     ) -> None:
+        """``shared_dir``: a folder where the processes of one run share the drawn ground
+        (:mod:`.shared_tiles`); None draws everything here."""
         super().__init__(cache_bytes)
         if kind not in KINDS:
             raise map_error("--map", f"{kind!r} is not a procedural map ({', '.join(KINDS)})")
@@ -105,6 +110,8 @@ class ProceduralMap(TiledMap):
         self.num_levels = NUM_LEVELS
         self._gsd = gsd_m
         self.home_px = self.latlon_to_map_px(home.lat_deg, home.lon_deg)
+        identity = (kind, self.seed, self.date, gsd_m, e, n, self.zone.epsg)
+        self._shared = None if shared_dir is None else SharedSurveys(shared_dir, identity)
 
     @property
     def world(self) -> UrbanWorld | ForestWorld | FarmlandWorld:
@@ -113,6 +120,11 @@ class ProceduralMap(TiledMap):
 
     def _latlon_to_crs(self, lat_deg: float, lon_deg: float) -> tuple[float, float]:
         return latlon2utm(lat_deg, lon_deg, self.zone)
+
+    def _made_together(self, level: int, tx: int, ty: int) -> tuple[int, int, int]:
+        if 0 < level < DIRECT_FROM_LEVEL:
+            return (level, tx, ty)  # from four finer tiles, alone
+        return (level, tx - tx % 2, ty - ty % 2)  # the 2x2 group of _make_tile, _native_tile
 
     def _make_tile(self, tx: int, ty: int) -> Image:
         # Draw the 2x2 group holding this tile at once: the margin every tile must draw
@@ -159,7 +171,13 @@ class ProceduralMap(TiledMap):
 
     def _acquire(self, x0_abs: int, y0_abs: int, size: int, gsd_m: float) -> Image:
         """This date's survey of the world over a square of the lattice at ``gsd_m``."""
-        return acquire(self._world.draw, self.seed, x0_abs, y0_abs, size, gsd_m, self.date)
+
+        def draw() -> Image:
+            return acquire(self._world.draw, self.seed, x0_abs, y0_abs, size, gsd_m, self.date)
+
+        if self._shared is None:
+            return draw()
+        return self._shared.square(x0_abs, y0_abs, size, gsd_m, draw)
 
     def misregistration_m(self, x_px: float, y_px: float) -> tuple[float, float]:
         """(dE, dN) metres by which this date's orthophoto shows, at level-0 map pixel
