@@ -15,6 +15,7 @@ scipy itself where a kernel uses it).
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -56,3 +57,29 @@ def compiled_inline(fn: Callable[..., Any]) -> Any:
         return numba.njit(fn, cache=True, nogil=True, error_model="numpy", inline="always")
     except RuntimeError:  # as in compiled
         return numba.njit(fn, nogil=True, error_model="numpy", inline="always")
+
+
+def never_compiled(*functions: Any) -> bool:
+    """Whether numba's disk cache lacks the machine code of one of ``functions`` (made with
+    :func:`compiled`): their first call will compile them (seconds each) rather than load
+    them. False where numba cannot say (no cache, another numba's layout)."""
+    for fn in functions:
+        index = getattr(
+            getattr(getattr(fn, "_cache", None), "_cache_file", None), "_index_path", None
+        )
+        if isinstance(index, str) and not os.path.exists(index):
+            return True
+    return False
+
+
+def say_when_compiling(what: str, *functions: Any) -> None:
+    """One line on a terminal before ``functions`` are compiled for the first time on this
+    machine (the first flight after an install sits half a minute in it otherwise); nothing
+    where stderr is not a terminal (scripts, tests, workers' pipes) or the code is cached."""
+    if sys.stderr.isatty() and never_compiled(*functions):
+        print(
+            f"air-sitl: compiling {what} for this machine, once (about half a minute; "
+            "later runs load it)",
+            file=sys.stderr,
+            flush=True,
+        )

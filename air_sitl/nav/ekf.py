@@ -42,8 +42,10 @@ class ErrorStateEkf:
     def __init__(self, params: NavParams, gravity_m_s2: float) -> None:
         # numba (0.4 s to import, compiled code loaded from its cache) only where a filter
         # runs: `air-sitl --help` and --nav truth flights never load it.
+        from air_sitl.compiled import say_when_compiling
         from air_sitl.nav import kernels, quaternion, strapdown
 
+        say_when_compiling("the navigation filter", kernels.predict_covariance, strapdown.advance)
         kernels.warm()
         strapdown.warm()
         self.kernels = kernels
