@@ -19,11 +19,10 @@ from air_sitl.dataset.scenarios import (
     parse_scenarios,
     stats_table,
 )
-from air_sitl.maps.open import default_map_for_plan, open_map, open_surface
-from air_sitl.maps.procedural import ProceduralMap
 from air_sitl.maps.base import MapError
 from air_sitl.maps.dates import date_fields
-from air_sitl.maps.procedural import parse_date
+from air_sitl.maps.open import default_map_for_plan, open_map, open_surface
+from air_sitl.maps.procedural import ProceduralMap, parse_date
 from air_sitl.maps.procedural.canvas import DATES, FARMLAND_DATES, dates_of
 from air_sitl.maps.procedural.farmland import FarmlandWorld, _rows
 from air_sitl.maps.procedural.farmland_built import BUILDING, TREES, WATER

@@ -209,9 +209,7 @@ def crop_in(seed: int, field_key: npt.NDArray[np.uint64], year: int) -> Ints:
     return out
 
 
-def field_unit(
-    seed: int, field_key: npt.NDArray[np.uint64], year: int | Ints, salt: int
-) -> Floats:
+def field_unit(seed: int, field_key: npt.NDArray[np.uint64], year: int | Ints, salt: int) -> Floats:
     """A uniform draw per field and year (harvested yet, tilled, row direction, ...);
     ``year`` may be one per field."""
     z = np.zeros_like(field_key, np.int64)
