@@ -52,6 +52,7 @@ from air_sitl.frames import ned2geodetic
 from air_sitl.localize.mapmatch_core import MapMatcher
 from air_sitl.maps.base import MapSource
 from air_sitl.maps.procedural import KINDS, ProceduralMap
+from air_sitl.maps.procedural.canvas import dates_of
 from air_sitl.state import GeoPoint
 
 CROP = 256
@@ -456,6 +457,8 @@ def main(argv: list[str] | None = None) -> int:
         rows += procedural_rows(kind, args.crops, args.seed, args.map_seed, keep_p)
     if args.real:
         rows += real_rows(args.real[0], args.real[1], args.crops, args.seed, keep_r)
+    for kind in [k for k in args.maps.split(",") if k]:
+        print(f"{kind} dates: " + ", ".join(f"{d.index} = {d.full_label}" for d in dates_of(kind)))
     print_table(rows, print)
     if args.frames > 0:
         mrows: list[tuple[str, dict[str, float]]] = []

@@ -283,10 +283,19 @@ def run_bench(
 
 
 def _map_dates(config: BenchConfig) -> tuple[str | None, ...]:
-    """The acquisition dates of the flights' map, as the first archive's manifest names them."""
-    manifest = json.loads((config.archives / config.scenarios[0] / MANIFEST_JSON).read_text())
-    info = manifest.get("map")
-    return tuple(date_fields(info)["dates"]) if isinstance(info, dict) else ()
+    """The acquisition dates of the flights' maps, as the archives' manifests name them; the
+    worlds keep their own calendars (farmland's surveys are NAIP's growing season): where
+    the scenarios' maps differ, an index's dates are joined, ``2016-04-22 / 2016-08-13``."""
+    by_index: list[list[str]] = []
+    for scenario in config.scenarios:
+        path = config.archives / scenario / MANIFEST_JSON
+        info = json.loads(path.read_text()).get("map") if path.is_file() else None
+        for i, when in enumerate(date_fields(info)["dates"] if isinstance(info, dict) else ()):
+            while len(by_index) <= i:
+                by_index.append([])
+            if when and when not in by_index[i]:
+                by_index[i].append(str(when))
+    return tuple(" / ".join(names) or None for names in by_index)
 
 
 def fly_dates_once(config: BenchConfig, flight_dates: tuple[int, ...], stream: IO[str]) -> bool:

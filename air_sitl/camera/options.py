@@ -34,8 +34,9 @@ def add_map_arguments(parser: argparse.ArgumentParser) -> None:
         "--map-date",
         default=None,
         metavar="D",
-        help="date of the map: 0, 1, 2 (procedural: 2009-06-20 summer, 2012-10-08 autumn, "
-        "2016-04-22 spring) or a GeoTIFF date file's index, acquisition date (YYYY-MM-DD "
+        help="date of the map: 0, 1, 2 (urban, forest: 2009-06-20 summer, 2012-10-08 autumn, "
+        "2016-04-22 spring; farmland, in the growing season as NAIP: 2009-06-20, 2012-07-24, "
+        "2016-08-13) or a GeoTIFF date file's index, acquisition date (YYYY-MM-DD "
         "or a year) or path (default 0)",
     )
     group.add_argument(

@@ -2,7 +2,8 @@
 
 A map's ``describe()`` (the manifest's ``map``) holds ``date`` (YYYY-MM-DD of its imagery),
 ``date_index`` and, for GeoTIFF dates, ``dates`` (every date file's, in index order);
-procedural maps' dates are :data:`air_sitl.maps.procedural.DATES`.
+procedural maps' dates are their world's (:func:`air_sitl.maps.procedural.canvas.dates_of`:
+``DATES``, the farmland's growing-season ``FARMLAND_DATES``).
 """
 
 from __future__ import annotations
@@ -14,9 +15,9 @@ from typing import Any
 def date_fields(info: Mapping[str, Any]) -> dict[str, Any]:
     """summary.json's ``map`` block of a map's description: date, date_index, dates."""
     if info.get("source") == "procedural":
-        from air_sitl.maps.procedural.canvas import DATES
+        from air_sitl.maps.procedural.canvas import dates_of
 
-        dates: list[Any] = [d.label for d in DATES]
+        dates: list[Any] = [d.label for d in dates_of(info.get("kind"))]
     else:
         dates = list(info.get("dates") or [info.get("date")])
     return {"date": info.get("date"), "date_index": info.get("date_index"), "dates": dates}

@@ -6,7 +6,8 @@ GeoTIFF dates: ``--map a.tif,b.tif,c.tif`` lists the files of one area (date 0, 
 as ``map fetch`` and ``map make`` write them) in date order. ``--map-date`` picks one: its
 index (default 0), its acquisition date (``2016-07-01``, or a year when one file has it) or a
 file's path. Every date file must share the first file's CRS and contain home. Procedural maps
-take ``--map-date`` as an index (0, 1, 2), a season or an ISO label (``maps.procedural.DATES``).
+take ``--map-date`` as an index (0, 1, 2), a season or an ISO label of the world's dates
+(``maps.procedural.dates_of``: ``DATES``, farmland ``FARMLAND_DATES``).
 """
 
 from __future__ import annotations

@@ -188,7 +188,7 @@ def date_gaps(rows: Sequence[dict[str, Any]]) -> str:
     """Which map dates the runs compared: map-based methods (``mapmatch``, ``fused``) match a
     reference map of one date while the flight's camera saw another."""
     gaps: dict[tuple[int, int], int] = {}
-    named: dict[tuple[int, int], str] = {}
+    named: dict[tuple[int, int], list[str]] = {}  # each world's dates (farmland: its own)
     for row in rows:
         # The date the run flew (summary.json's ``map``), else the option as given
         block = (row.get("summary") or {}).get("map") or {}
@@ -197,9 +197,12 @@ def date_gaps(rows: Sequence[dict[str, Any]]) -> str:
         flight = int(index) if isinstance(index, int) else int(given) if given.isdigit() else 0
         ref = reference_date_for(flight, row.get("reference_date"))
         gaps[(ref, flight)] = gaps.get((ref, flight), 0) + 1
-        named.setdefault((ref, flight), gap_name(ref, flight, block.get("dates") or ()))
+        names = named.setdefault((ref, flight), [])
+        if (name := gap_name(ref, flight, block.get("dates") or ())) not in names:
+            names.append(name)
     text = ", ".join(
-        f"{named[gap]} ({n} run{'' if n == 1 else 's'})" for gap, n in sorted(gaps.items())
+        f"{' / '.join(named[gap])} ({n} run{'' if n == 1 else 's'})"
+        for gap, n in sorted(gaps.items())
     )
     return f"Map dates (map-based methods): {text}."
 

@@ -131,3 +131,22 @@ def test_a_bench_over_two_dates_scores_each_gap(tmp_path: Path) -> None:
     assert data["gaps"][1]["map_dates"] == ["2009-06-20", "2012-10-08", "2016-04-22"]
     medians = [g["summary"]["mapmatch"]["median_m"] for g in data["gaps"]]
     assert all(m is not None for m in medians)
+
+
+def test_scenarios_over_worlds_of_their_own_calendars_name_both_dates(tmp_path: Path) -> None:
+    """AIR's urban scenarios and farmland's in one bench: an index's dates are joined."""
+    from types import SimpleNamespace
+
+    from air_sitl.bench import _map_dates
+    from air_sitl.dataset.air_schema import MANIFEST_JSON
+
+    for name, kind in (("UL-200", "urban"), ("AL-200", "farmland")):
+        (tmp_path / name).mkdir()
+        info = {"source": "procedural", "kind": kind, "date": "2009-06-20", "date_index": 0}
+        (tmp_path / name / MANIFEST_JSON).write_text(json.dumps({"map": info}))
+    config = SimpleNamespace(archives=tmp_path, scenarios=["UL-200", "AL-200"])
+    assert _map_dates(config) == (  # type: ignore[arg-type]
+        "2009-06-20",
+        "2012-10-08 / 2012-07-24",
+        "2016-04-22 / 2016-08-13",
+    )

@@ -19,13 +19,19 @@ from air_sitl.dataset.scenarios import (
     parse_scenarios,
     stats_table,
 )
+from air_sitl.maps.base import MapError
+from air_sitl.maps.dates import date_fields
 from air_sitl.maps.open import default_map_for_plan, open_map, open_surface
-from air_sitl.maps.procedural import ProceduralMap
+from air_sitl.maps.procedural import ProceduralMap, parse_date
+from air_sitl.maps.procedural.canvas import DATES, FARMLAND_DATES, dates_of
+from air_sitl.maps.procedural.farmland import FarmlandWorld, _rows
 from air_sitl.maps.procedural.farmland_built import BUILDING, TREES, WATER
 from air_sitl.maps.procedural.farmland_layout import (
     CORN,
+    GRASS,
     SOY,
     crop_in,
+    drainage,
     fields,
     grid,
 )
@@ -128,6 +134,63 @@ def test_water_varies_from_year_to_year() -> None:
         shares.append(float((codes == WATER).mean()))
     assert min(shares) > 0.0005
     assert max(shares) > 1.5 * min(shares), shares
+
+
+def test_farmland_is_surveyed_in_the_growing_season_as_naip() -> None:
+    """Farmland's own calendar: the reference June survey, then 3 and 7 years later in July
+    and August (leaf-on); urban and forest keep the common one. Maps, reports and parsing
+    name the world's dates."""
+    assert FARMLAND_DATES[0] == DATES[0] and dates_of("urban") == DATES
+    assert [d.label[:4] for d in FARMLAND_DATES] == ["2009", "2012", "2016"]
+    assert all(6 <= int(d.label[5:7]) <= 8 and d.season == "summer" for d in FARMLAND_DATES)
+    m = _map(2)
+    assert m.describe()["date"] == FARMLAND_DATES[2].label
+    assert date_fields(m.describe())["dates"] == [d.label for d in FARMLAND_DATES]
+    assert parse_date(FARMLAND_DATES[1].label, "farmland") == FARMLAND_DATES[1]
+    with pytest.raises(MapError, match="farmland"):
+        parse_date(DATES[1].label, "farmland")  # October is not a farmland survey
+
+
+def _grey(img: np.ndarray) -> np.ndarray:
+    return img.astype(np.float64) @ np.array([0.114, 0.587, 0.299])
+
+
+def test_what_persists_inside_fields_with_the_years_sign() -> None:
+    """Grassed waterways stay grass every survey; the row direction of most fields is the
+    reference year's; crops in the swales are darker (greener) than off them in the dry year
+    (2012, seed 0: wetness 0.33) and paler (drowned out) in the wet one (2016: 0.65)."""
+    world = FarmlandWorld(0)
+    gsd, n = 2.4, 384
+    ratios: dict[int, list[float]] = {1: [], 2: []}
+    drawn = 0
+    for x0, y0 in ((0, 0), (3000, -2000), (-4000, 5000)):
+        swale, waterway = drainage(0, x0, y0, n, gsd)
+        assert 0.003 < float((waterway > 0.5).mean()) < 0.06
+        kept = waterway > 0.9  # drawn where no pivot, pond, road or farmstead lies
+        for d, look in enumerate(FARMLAND_DATES):
+            code = world.land_cover(x0, y0, n, gsd, look)
+            if d == 0:
+                kept &= code == GRASS
+                drawn += int(kept.sum())
+                continue
+            assert int((code[kept] != GRASS).sum()) <= 0.05 * int(kept.sum()), look.label
+            grey = _grey(world.draw(x0, y0, n, gsd, look))
+            crop = np.isin(code, (CORN, SOY)) & (waterway < 0.1)
+            ratios[d].append(grey[crop & (swale > 0.6)].mean() / grey[crop & (swale < 0.05)].mean())
+    assert drawn > 500
+    assert np.mean(ratios[1]) < 0.97 and np.mean(ratios[2]) > 1.02, ratios
+    # Rows: the axis of the row stripes (structure tensor per pixel) in 2009 and 2016.
+    g = grid(0, 2000, -3000, 512, 0.6)
+    axes = []
+    for year in (2009, 2016):
+        f = fields(0, g, year, 0.6)
+        stripes = _rows(0, g, f, year, 0.6, np.zeros(f.fid.shape, np.int64))
+        gy, gx = np.gradient(stripes)
+        inner = (f.edge_m > 15.0) & ~np.isfinite(f.pivot_r_m)
+        axes.append((np.abs(gx) > np.abs(gy), inner))
+    both = axes[0][1] & axes[1][1]
+    assert float(both.mean()) > 0.3
+    assert float((axes[0][0] == axes[1][0])[both].mean()) > 0.75
 
 
 def test_scenarios_groups_and_the_air_table() -> None:

@@ -148,3 +148,16 @@ def test_the_report_names_the_dates_the_runs_flew(tmp_path: Path) -> None:
     assert main(["sweep", "report", str(folder), "--quiet"]) == 0
     md = (folder / "report.md").read_text()
     assert "reference date 0 (2010-06-14) -> flight date 2 (2018-08-20) (4 runs)" in md
+
+
+def test_worlds_with_their_own_calendars_are_named_each() -> None:
+    """A sweep over urban and farmland scenarios: one gap, each world's dates named."""
+    from air_sitl.sweep.report import date_gaps
+
+    urban = {"date_index": 1, "dates": ["2009-06-20", "2012-10-08", "2016-04-22"]}
+    farm = {"date_index": 1, "dates": ["2009-06-20", "2012-07-24", "2016-08-13"]}
+    rows = [{"summary": {"map": block}, "options": {}} for block in (urban, farm, urban)]
+    assert date_gaps(rows) == (
+        "Map dates (map-based methods): reference date 0 (2009-06-20) -> flight date 1 "
+        "(2012-10-08) / reference date 0 (2009-06-20) -> flight date 1 (2012-07-24) (3 runs)."
+    )

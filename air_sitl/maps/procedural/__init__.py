@@ -28,7 +28,7 @@ from air_sitl.maps.base import (
     downsample2,
     map_error,
 )
-from air_sitl.maps.procedural.canvas import DATES, DateLook
+from air_sitl.maps.procedural.canvas import DateLook, dates_of
 from air_sitl.maps.procedural.farmland import FarmlandWorld
 from air_sitl.maps.procedural.forest import ForestWorld
 from air_sitl.maps.procedural.shared_tiles import SharedSurveys
@@ -47,17 +47,20 @@ NUM_LEVELS = 9  # level 8 is 256 x gsd per pixel (154 m at 0.6 m)
 DIRECT_FROM_LEVEL = 3
 
 
-def parse_date(value: str | int | None) -> DateLook:
-    """A date of a procedural map from an index ("0", "1", ...), a label ("2012-10-08", or with
-    its local solar time "2012-10-08 14:20") or a season; its sun at the default latitude."""
+def parse_date(value: str | int | None, kind: str | None = None) -> DateLook:
+    """A date of a procedural map (of world ``kind``: :func:`dates_of`) from an index ("0",
+    "1", ...), a label ("2012-10-08", or with its local solar time "2012-10-08 14:20") or a
+    season; its sun at the default latitude."""
+    dates = dates_of(kind)
     if value is None:
-        return DATES[0]
+        return dates[0]
     text = str(value).strip()
-    for look in DATES:
+    for look in dates:
         if text in (str(look.index), look.label, look.full_label, look.season):
             return look
-    names = ", ".join(f"{d.index}={d.full_label} ({d.season})" for d in DATES)
-    raise map_error("--map-date", f"{text!r} is not a date of the procedural maps ({names})")
+    names = ", ".join(f"{d.index}={d.full_label} ({d.season})" for d in dates)
+    world = f"the {kind} map" if kind in KINDS else "the procedural maps"
+    raise map_error("--map-date", f"{text!r} is not a date of {world} ({names})")
 
 
 class ProceduralMap(TiledMap):
@@ -83,7 +86,7 @@ class ProceduralMap(TiledMap):
             raise map_error("--gsd-m", f"{gsd_m!r} is not a ground sample distance >= 0.05 m")
         self.kind = kind
         self.seed = int(seed)
-        self.date = parse_date(date).at_latitude(home.lat_deg)
+        self.date = parse_date(date, kind).at_latitude(home.lat_deg)
         self.zone = utm_zone_of(home.lat_deg, home.lon_deg)
         e, n = latlon2utm(home.lat_deg, home.lon_deg, self.zone)
         self._world: UrbanWorld | ForestWorld | FarmlandWorld = (

@@ -79,6 +79,18 @@ DATES: tuple[DateLook, ...] = (
     survey_date(1, "2012-10-08", "autumn", "13:40", DEFAULT_LAT_DEG),
     survey_date(2, "2016-04-22", "spring", "15:30", DEFAULT_LAT_DEG),
 )
+# The farmland world's surveys, as NAIP flies farmland: in the growing season (June-August,
+# leaf-on), 3 and 7 years after the reference (the common June survey).
+FARMLAND_DATES: tuple[DateLook, ...] = (
+    DATES[0],
+    survey_date(1, "2012-07-24", "summer", "11:20", DEFAULT_LAT_DEG),
+    survey_date(2, "2016-08-13", "summer", "12:50", DEFAULT_LAT_DEG),
+)
+
+
+def dates_of(kind: str | None) -> tuple[DateLook, ...]:
+    """The survey dates of a procedural world (``farmland`` its own, the others ``DATES``)."""
+    return FARMLAND_DATES if kind == "farmland" else DATES
 
 
 class Canvas:

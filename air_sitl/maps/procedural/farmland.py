@@ -21,7 +21,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from air_sitl.maps.procedural.canvas import DateLook
+from air_sitl.maps.procedural.canvas import DATES, DateLook
 from air_sitl.maps.procedural.farmland_built import (
     ASPHALT_BGR,
     FALLOW,
@@ -48,6 +48,7 @@ from air_sitl.maps.procedural.farmland_layout import (
     band,
     creek_distance_m,
     crop_in,
+    drainage,
     field_unit,
     fields,
     grid,
@@ -62,12 +63,13 @@ from air_sitl.maps.procedural.farmland_layout import (
 from air_sitl.maps.procedural.forest import _cast_shadow
 from air_sitl.maps.procedural.noise import (
     FloatImage,
+    fractal_noise,
     key_of,
     unit2,
     value_noise,
     white_noise,
 )
-from air_sitl.maps.procedural.yeargap import changed_share, renewed_noise, years_since_reference
+from air_sitl.maps.procedural.yeargap import changed_share, years_since_reference
 
 # What a field looks like: (plant colour BGR, share of the ground the plants cover, row
 # stripe amplitude, soil darkness (1 dry light .. 1.6 fresh tillage), height m, code).
@@ -89,6 +91,9 @@ _STATES: dict[str, tuple[tuple[float, float, float], float, float, float, float,
     "tilled": ((0, 0, 0), 0.0, 0.3, 1.6, 0.0, FALLOW),
     "planted": ((0, 0, 0), 0.0, 0.35, 1.4, 0.0, FALLOW),
     "fallow": ((86, 128, 124), 0.45, 0.05, 1.0, 0.2, FALLOW),
+    # July-August (NAIP's season): canopies closed over the rows, small grain harvested.
+    "corn_tall": ((40, 98, 52), 0.97, 0.03, 1.0, 2.5, CORN),
+    "soy_full": ((58, 134, 82), 0.9, 0.07, 1.0, 0.8, SOY),
 }
 _STATE_NAMES = tuple(_STATES)
 _SOIL_LIGHT = np.array((118, 136, 150), np.float32)  # eroded hilltops, dry (BGR)
@@ -107,6 +112,18 @@ CANOPY_MAX_GSD_M = 3.0  # coarser: trees as their stand's mean
 PIVOT_RING_M = 54.0  # spacing of a pivot's towers: its wheel tracks
 FIELD_EVERY_YEARS = 4.0  # mean years between changes of how a field is farmed (yeargap)
 FIELD_TONE = 0.35  # largest relative brightness change of a field farmed otherwise
+# What stays inside a field from year to year (docs/map-dates.md, "What persists inside
+# fields"): the soil's zones (eroded light knobs, dark wet swales) show in bare soil and
+# through the crop, whose vigour follows them with the year's sign; grassed waterways; the
+# row direction most farmers keep (the reference year's); headlands, pivot wheel tracks.
+SWALE_SOIL = 0.3  # soil value (0 dark loam .. 1 light) a swale's middle loses
+SWALE_CROP = 0.18  # a canopy's relative brightness in a swale's middle: darker (greener)
+# in a dry year, paler (drowned out, thin) in a wet one: - SWALE_CROP * (0.5 - wet) / 0.35
+KNOB_CROP = 0.3  # thinner crop on light (eroded) soil: cover * (1 - KNOB_CROP * (v - 0.5))
+ROWS_KEPT = 0.8  # share of the fields planted in the reference year's direction every year
+REFERENCE_YEAR = year_of(DATES[0].label)
+# A waterway's grass, drawn per field and year: lush, mown for hay, dark, straw (dry year).
+_WATERWAY = np.array(((72, 128, 102), (100, 150, 140), (58, 112, 78), (96, 140, 150)), np.float32)
 
 
 class FarmlandWorld:
@@ -154,13 +171,14 @@ class FarmlandWorld:
         seed = self.seed
         year = year_of(date.label)
         season = date.season
+        stage = _stage(date)
         lay = Layers(x0, y0, size, gsd_m)
         g = grid(seed, x0, y0, size, gsd_m)
         f = fields(seed, g, year, gsd_m)
         crop = np.where(f.pasture, GRASS, crop_in(seed, f.key, year)[f.fid])
         prev = np.where(f.pasture, GRASS, crop_in(seed, f.key, year - 1)[f.fid])
         running = f.running
-        state = _field_state(seed, f.key, f.fid, crop, prev, year, season)
+        state = _field_state(seed, f.key, f.fid, crop, prev, year, stage, wetness(seed, year))
         idle = (f.pivot > 0.5) & ~running & (crop != GRASS)
         state = np.where(idle, _STATE_NAMES.index("fallow"), state)
         # Soil: light on the eroded hilltops, darker in swales and in a wet year.
@@ -169,6 +187,8 @@ class FarmlandWorld:
         soil_v = 0.45 + 0.15 * hills(seed, x0, y0, size, gsd_m)
         soil_v += 0.1 * value_noise(k, x0 + 0.5, y0 + 0.5, size, 90.0 / gsd_m)
         soil_v += 0.1 * value_noise(k + 3, x0 + 0.5, y0 + 0.5, size, 320.0 / gsd_m)
+        swale, waterway = drainage(seed, x0, y0, size, gsd_m)
+        soil_v -= SWALE_SOIL * swale
         soil_v = np.clip(soil_v - 0.2 * (wet - 0.5), 0.0, 1.0)
         soil = _SOIL_DARK + (_SOIL_LIGHT - _SOIL_DARK) * soil_v[:, :, None]
         table = list(_STATES.values())
@@ -178,9 +198,13 @@ class FarmlandWorld:
         dark = np.array([s[3] for s in table], np.float32)[state]
         height = np.array([s[4] for s in table], np.float32)[state]
         code = np.array([s[5] for s in table], np.uint8)[state]
-        # Growth varies over a field (soil, water), irrigated circles are even and green.
+        # Growth varies over a field: with the soil (45 m, kept), and in patches of the
+        # year's own (12 m: stand, weeds; DSIFN's fields share 0.02 of their 3-12 m texture).
+        # The texture of annual plants and tilled clods is each year's own too.
+        ref = year == REFERENCE_YEAR
         vigour = 0.12 * value_noise(k + 1, x0 + 0.5, y0 + 0.5, size, 45.0 / gsd_m)
-        vigour += 0.06 * value_noise(k + 2, x0 + 0.5, y0 + 0.5, size, 12.0 / gsd_m)
+        kv = k + 2 if ref else key_of(seed, 0xF14, year)
+        vigour += 0.06 * value_noise(kv, x0 + 0.5, y0 + 0.5, size, 12.0 / gsd_m)
         share = changed_share(years_since_reference(date), FIELD_EVERY_YEARS)
         managed = (field_unit(seed, f.key, 0, 11)[f.fid] < share) if share > 0.0 else None
         if managed is not None:  # fields farmed otherwise since the reference survey: the
@@ -189,10 +213,14 @@ class FarmlandWorld:
             grown = 0.2 * value_noise(ky, x0 + 0.5, y0 + 0.5, size, 30.0 / gsd_m)
             grown += 0.1 * value_noise(ky + 1, x0 + 0.5, y0 + 0.5, size, 9.0 / gsd_m)
             vigour = np.where(managed, grown, vigour)
+        vigour -= KNOB_CROP * (soil_v - 0.5)
+        if stage == "midsummer":  # a dry summer: dryland crops thin, irrigated ones green
+            vigour -= 0.8 * max(0.0, 0.45 - wet)
         cover = np.clip(cover * (1.0 + vigour) + 0.15 * (f.pivot * running * (cover > 0.2)), 0, 1)
         # Plants and clods at 0.5-3 m: the grain of a field on 0.6 m imagery.
         detail = np.float32(min(1.0, 0.6 / gsd_m))
-        tex = renewed_noise(k + 4, seed, date, x0, y0, size, 1.6 / gsd_m, 2) * detail
+        tk = k + 4 if ref else key_of(seed, 0xF13, year)
+        tex = fractal_noise(tk, x0, y0, size, 1.6 / gsd_m, 2) * detail
         cover = np.clip(cover * (1.0 + 0.12 * tex), 0.0, 1.0)
         soil = soil * (1.0 - 0.05 * tex)[:, :, None]
         stripes = _rows(seed, g, f, year, gsd_m, state)
@@ -204,10 +232,19 @@ class FarmlandWorld:
         if managed is not None:
             swing = FIELD_TONE * (2.0 * field_unit(seed, f.key, year, 12) - 1.0)
             tone *= 1.0 + managed * swing[f.fid]
+        tone = tone * (1.0 - SWALE_CROP * (0.5 - wet) / 0.35 * swale * cover)
         col = (plant * cover[:, :, None] + ground * (1.0 - cover[:, :, None])) * tone[:, :, None]
         lay.col = col.astype(np.float32)
+        # Grassed waterways along the drainage lines, through the cropped fields.
+        grassed = (waterway * ((f.pivot < 0.5) & ~f.pasture)).astype(np.float32)
+        if grassed.any():
+            pick = field_unit(seed, f.key, year, 15)[f.fid] * 3.0
+            pick = np.where(wet < 0.35, 3.0, pick).astype(np.int64)
+            grass = _WATERWAY[pick] * (1.0 + 0.1 * tex)[:, :, None]
+            lay.col = lay.col * (1.0 - grassed[:, :, None]) + grass * grassed[:, :, None]
+            code = np.where(grassed > 0.5, np.uint8(GRASS), code)
         lay.code = code
-        lay.height = (height * (cover > 0.3)).astype(np.float32)
+        lay.height = (height * (cover > 0.3) * (grassed < 0.5)).astype(np.float32)
         self._pivots(lay, g, f, date)
         self._water(lay, date, wet)
         gravel, paved, ditch = roads(seed, g, gsd_m)
@@ -344,20 +381,28 @@ def _field_state(
     crop: npt.NDArray[np.int64],
     prev: npt.NDArray[np.int64],
     year: int,
-    season: str,
+    stage: str,
+    wet: float,
 ) -> npt.NDArray[np.int64]:
-    """Index into ``_STATES`` of each field in this survey: the year's crop in its season
-    (harvested yet, tilled, cut), in spring the residue of last year's crop."""
+    """Index into ``_STATES`` of each field in this survey: the year's crop at its stage
+    (:func:`_stage`: harvested yet, tilled, cut), in spring the residue of last year's crop."""
     s = _STATE_NAMES.index
-    u = field_unit(seed, key, year, 1 if season != "spring" else 2)[fid]
+    u = field_unit(seed, key, year, 1 if stage != "spring" else 2)[fid]
     v = field_unit(seed, key, year, 3)[fid]
-    if season == "summer":
+    if stage == "midsummer":  # July-August: wheat cut in July, alfalfa cut every 5 weeks
+        pairs = [
+            (crop == CORN, "corn_tall"), (crop == SOY, "soy_full"),
+            ((crop == WHEAT) & (v < 0.4), "tilled"), (crop == WHEAT, "wheat_stubble"),
+            ((crop == ALFALFA) & (u < 0.4), "alfalfa_cut"), (crop == ALFALFA, "alfalfa"),
+        ]  # fmt: skip
+        default = "grass_dry" if wet < 0.35 else "grass"
+    elif stage == "june":
         pairs = [
             (crop == CORN, "corn_june"), (crop == SOY, "soy_june"), (crop == WHEAT, "wheat_ripe"),
             ((crop == ALFALFA) & (u < 0.35), "alfalfa_cut"), (crop == ALFALFA, "alfalfa"),
         ]  # fmt: skip
         default = "grass"
-    elif season == "autumn":
+    elif stage == "autumn":
         harvested = ((crop == CORN) & (u < 0.45)) | ((crop == SOY) & (u < 0.75))
         pairs = [
             (harvested & (v < 0.25), "tilled"), ((crop == CORN) & harvested, "corn_residue"),
@@ -377,6 +422,14 @@ def _field_state(
     return np.select([c for c, _ in pairs], [s(n) for _, n in pairs], s(default))
 
 
+def _stage(date: DateLook) -> str:
+    """The crops' stage in a survey: ``june``, ``midsummer`` (July-August), ``autumn``,
+    ``spring``."""
+    if date.season == "summer":
+        return "june" if int(date.label[5:7]) <= 6 else "midsummer"
+    return date.season
+
+
 def _rows(
     seed: int, g: Grid, f: Fields, year: int, gsd_m: float, state: npt.NDArray[np.int64]
 ) -> FloatImage:
@@ -386,7 +439,9 @@ def _rows(
     fade = float(np.clip(1.0 - (2.2 * gsd_m / period) ** 2, 0.0, 1.0))
     if fade == 0.0:
         return np.zeros(state.shape, np.float32)
-    east_rows = (field_unit(seed, f.key, year, 4)[f.fid] < 0.7) == f.along_e
+    kept = field_unit(seed, f.key, 0, 14) < ROWS_KEPT  # the reference year's direction
+    direction = field_unit(seed, f.key, np.where(kept, REFERENCE_YEAR, year), 4)
+    east_rows = (direction[f.fid] < 0.7) == f.along_e
     coord = np.where(
         east_rows, g.b[:, None] + 0.0 * g.a[None, :], g.a[None, :] + 0.0 * g.b[:, None]
     )

@@ -209,8 +209,9 @@ def crop_in(seed: int, field_key: npt.NDArray[np.uint64], year: int) -> Ints:
     return out
 
 
-def field_unit(seed: int, field_key: npt.NDArray[np.uint64], year: int, salt: int) -> Floats:
-    """A uniform draw per field and year (harvested yet, tilled, row direction, ...)."""
+def field_unit(seed: int, field_key: npt.NDArray[np.uint64], year: int | Ints, salt: int) -> Floats:
+    """A uniform draw per field and year (harvested yet, tilled, row direction, ...);
+    ``year`` may be one per field."""
     z = np.zeros_like(field_key, np.int64)
     return unit2(field_key.astype(np.int64), z + year, key_of(seed, 0xFC2, salt))
 
@@ -268,6 +269,25 @@ def creek_distance_m(seed: int, x0: int, y0: int, size: int, gsd_m: float) -> Fl
         best = np.minimum(best, d)
     out: FloatImage = best.astype(np.float32)
     return out
+
+
+DRAIN_CELL_M = 220.0  # feature size of the swells between the fields' drainage lines
+DRAIN_SLOPE = 2.5  # median slope of value_noise, per cell: |noise| * cell / slope ~ metres
+SWALE_HALF_M = 40.0  # the swale each side of a drainage line: lower, wetter, darker soil
+WATERWAY_HALF_M = 6.0  # a grassed waterway along the line (NRCS code 412: 8-20 m wide)
+WATERWAY_SHARE = 0.7  # share of the drainage lines' length with a grassed waterway
+
+
+def drainage(seed: int, x0: int, y0: int, size: int, gsd_m: float) -> tuple[Floats, Floats]:
+    """The relief inside the fields, the same every year: (swale 0..1, how near and low a
+    drainage line's swale is; waterway 0..1, cover of the grassed waterway kept in grass
+    along the line where one was built)."""
+    line = value_noise(key_of(seed, 0xFE6), x0 + 0.5, y0 + 0.5, size, DRAIN_CELL_M / gsd_m)
+    d = np.abs(line).astype(np.float64) * (DRAIN_CELL_M / DRAIN_SLOPE)  # metres off the line
+    swale: Floats = np.exp(-((2.0 * d / SWALE_HALF_M) ** 2))  # smooth across the line
+    built = value_noise(key_of(seed, 0xFE7), x0 + 0.5, y0 + 0.5, size, 700.0 / gsd_m)
+    waterway: Floats = band(d, WATERWAY_HALF_M, gsd_m) * (built > -0.52 * 1.74)
+    return swale, waterway
 
 
 def pothole(seed: int, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
