@@ -54,7 +54,12 @@ from air_sitl.maps.procedural.urban_dates import (
     paved_at,
     rebuilt_at,
 )
-from air_sitl.maps.procedural.urban_years import object_look, reroofed, street_stretches
+from air_sitl.maps.procedural.urban_years import (
+    field_texture,
+    object_look,
+    reroofed,
+    street_stretches,
+)
 from air_sitl.maps.procedural.yeargap import renewed_noise
 
 PITCH_M = 105.0
@@ -213,11 +218,13 @@ class UrbanWorld:
         lawn = _LAWN[date.season]
         tree_cols = _TREE[date.season]
         crops = _CROPS[date.season]
+        fields: list[list[Point]] = []  # crop fields: their texture is the year's own
         for blk in blocks:
             for poly, kind in blk.grounds:
                 if kind.startswith("crop"):
-                    cv.poly(self.to_world(poly), crops[crop_index(self.seed, date, poly, kind)])
-                    cv.poly(self.to_world(poly), (40,), "veg")
+                    fields.append(self.to_world(poly))
+                    cv.poly(fields[-1], crops[crop_index(self.seed, date, poly, kind)])
+                    cv.poly(fields[-1], (40,), "veg")
                     continue
                 col = {
                     "sidewalk": _SIDEWALK,
@@ -306,6 +313,7 @@ class UrbanWorld:
         texture = 0.07 * renewed_noise(
             key, self.seed, date, x0, y0, size, 8.0 * px_m, 3, coarse_octaves=1
         )
+        field_texture(cv, self.seed, date, fields, texture, 8.0 * px_m)
         # Materials at 0.3-1 m (gravel, asphalt, roof tiles, grass tufts): the fine texture
         # of real 0.5 m imagery; the grain is each survey's own (film, sensor, processing).
         texture += FINE_TEXTURE * renewed_noise(
