@@ -22,6 +22,10 @@ place at date 1 and date 2 (and date 0 against itself: the same-date check), in 
 - ``slope``: radially averaged power-spectrum slope of the B crops (grey, Hann window, 4-100
   cycles per 256 px, least squares in log-log), the median over crops.
 
+Urban crops are also reported by where they fall (``urban built``, ``urban fields``: most of
+the crop in blocks of the town or of its outskirts' farm fields), to set beside real suburbs
+(LEVIR) and real farmland (DSIFN).
+
 ``--real A_DIR B_DIR``: the same figures for pairs of images with the same file names in two
 folders (public change-detection samples: A the earlier year, B the later); images larger than
 256 px give several crops. Targets (issues 24 and 32) are printed beside.
@@ -52,6 +56,7 @@ from air_sitl.frames import ned2geodetic
 from air_sitl.localize.mapmatch_core import MapMatcher
 from air_sitl.maps.base import MapSource
 from air_sitl.maps.procedural import KINDS, ProceduralMap
+from air_sitl.maps.procedural.urban import UrbanWorld
 from air_sitl.state import GeoPoint
 
 CROP = 256
@@ -244,14 +249,30 @@ def procedural_rows(
     places = rng.integers(-SPREAD_PX // 2, SPREAD_PX // 2, size=(crops, 2))
     figs = {d: Figures(f"{kind} 0-{d}") for d in (0, 1, 2)}
     reg_rngs = {d: np.random.default_rng([seed, 7, d]) for d in (0, 1, 2)}
+    # Urban crops also by where they fall: the town's outskirts (fields) or built-up.
+    parts: dict[str, dict[int, Figures]] = {"built": {}, "fields": {}}
+    part_rngs = {d: np.random.default_rng([seed, 17, d]) for d in (1, 2)}
     for i, (px, py) in enumerate(places):
         x0, y0 = ox + 5120 + int(px), oy + 5120 + int(py)
         imgs = [m.render_abs(x0, y0, CROP) for m in maps]
+        part = parts["fields" if urban_fields(kind, map_seed, x0, y0) else "built"]
         for d in (0, 1, 2):
             figs[d].add(imgs[0], imgs[d], reg_rngs[d])
+            if kind == "urban" and d > 0:
+                part.setdefault(d, Figures("")).add(imgs[0], imgs[d], part_rngs[d])
         if keep is not None and i < 2:
             keep.append(imgs)
-    return [(f"{kind} 0-{d}" + (" (same)" if d == 0 else ""), figs[d].row()) for d in (0, 1, 2)]
+    rows = [(f"{kind} 0-{d}" + (" (same)" if d == 0 else ""), figs[d].row()) for d in (0, 1, 2)]
+    return rows + [(f"{kind} {n} 0-{d}", f.row()) for n, fs in parts.items() for d, f in fs.items()]
+
+
+def urban_fields(kind: str, map_seed: int, x0: int, y0: int) -> bool:
+    """Whether most of an urban crop (absolute 0.5 m pixels) lies in the outskirts' fields."""
+    if kind != "urban":
+        return False
+    world = UrbanWorld(map_seed)
+    pts = [(x0 + 16 + 32 * i, y0 + 16 + 32 * j) for i in range(8) for j in range(8)]
+    return sum(world.in_fields(x * GSD_M, -y * GSD_M) for x, y in pts) >= len(pts) // 2
 
 
 def matcher_figure(

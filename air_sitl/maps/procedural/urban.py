@@ -169,6 +169,19 @@ class UrbanWorld:
             return construction_site(rng, *bounds)
         return fill_block(rng, kind, *bounds)
 
+    def in_fields(self, e: float, n: float) -> bool:
+        """Whether world point (E, N) lies in a block of farm fields (the town's outskirts)
+        as the first survey found it."""
+        u, v = self.c * e + self.s * n, -self.s * e + self.c * n
+        kx, ky = math.floor(u / PITCH_M), math.floor(v / PITCH_M)
+        for i in (kx - 1, kx, kx + 1):  # streets are jittered: the block may be a neighbour
+            for j in (ky - 1, ky, ky + 1):
+                blk = self._first_block(i, j)
+                u0, v0, u1, v1 = blk.bounds
+                if u0 <= u <= u1 and v0 <= v <= v1:
+                    return is_fields(blk)
+        return False
+
     def _at_town_edge(self, kx: int, ky: int) -> bool:
         """Whether a block has a built (not field) block beside it."""
         around = ((kx - 1, ky), (kx + 1, ky), (kx, ky - 1), (kx, ky + 1))

@@ -27,9 +27,9 @@ EVERY_YEARS = {
     "lawn": 2.0,  # watering, drought, re-seeding, paving over
     "verge": 2.0,
     "parking": 4.0,  # resurfaced or sealed black, or faded
-    "driveway": 6.0,
-    "sidewalk": 8.0,
-    "street": 4.0,  # a stretch between two crossings
+    "driveway": 25.0,
+    "sidewalk": 30.0,
+    "street": 12.0,  # a stretch between two crossings
     "roof": 20.0,
 }
 _LAWN_LOOKS: tuple[Color, ...] = (  # BGR
