@@ -154,7 +154,8 @@ class UrbanWorld:
         base = self._first_block(kx, ky)
         if is_fields(base):
             at = developed_at(self.seed, kx, ky)
-            if d < at or not self._at_town_edge(kx, ky):
+            # A field given a new street or lot before is not built over: it would move.
+            if d < at or paved_at(self.seed, kx, ky) < at or not self._at_town_edge(kx, ky):
                 return base
             rng = rng_for(self.seed, 25, kx, ky, at)
             bounds, kind = self._street_bounds(kx, ky), 0.62 * rng.random()  # homes
