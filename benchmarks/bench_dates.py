@@ -22,6 +22,10 @@ place at date 1 and date 2 (and date 0 against itself: the same-date check), in 
 - ``slope``: radially averaged power-spectrum slope of the B crops (grey, Hann window, 4-100
   cycles per 256 px, least squares in log-log), the median over crops.
 
+Urban crops are also reported by where they fall (``urban built``, ``urban fields``: most of
+the crop in blocks of the town or of its outskirts' farm fields), to set beside real suburbs
+(LEVIR) and real farmland (DSIFN).
+
 ``--real A_DIR B_DIR``: the same figures for pairs of images with the same file names in two
 folders (public change-detection samples: A the earlier year, B the later); images larger than
 256 px give several crops. Targets (issues 24 and 32) are printed beside.
@@ -53,6 +57,7 @@ from air_sitl.localize.mapmatch_core import MapMatcher
 from air_sitl.maps.base import MapSource
 from air_sitl.maps.procedural import KINDS, ProceduralMap
 from air_sitl.maps.procedural.canvas import dates_of
+from air_sitl.maps.procedural.urban import UrbanWorld
 from air_sitl.state import GeoPoint
 
 CROP = 256
@@ -236,23 +241,44 @@ class Figures:
 
 
 def procedural_rows(
-    kind: str, crops: int, seed: int, map_seed: int, keep: list[list[Bgr]] | None
+    kind: str,
+    crops: int,
+    seed: int,
+    map_seed: int,
+    keep: list[list[Bgr]] | None,
+    by_place: bool = False,
 ) -> list[tuple[str, dict[str, float]]]:
-    """Rows ``kind 0-0``, ``kind 0-1``, ``kind 0-2`` over the same random places."""
+    """Rows ``kind 0-0``, ``kind 0-1``, ``kind 0-2`` over the same random places; with
+    ``by_place``, urban's also for its built-up and its fields' crops."""
     maps = [ProceduralMap(kind, HOME, seed=map_seed, date=d, gsd_m=GSD_M) for d in (0, 1, 2)]
     ox, oy = maps[0].origin_abs_px
     rng = np.random.default_rng([seed, KINDS.index(kind) + 1])
     places = rng.integers(-SPREAD_PX // 2, SPREAD_PX // 2, size=(crops, 2))
     figs = {d: Figures(f"{kind} 0-{d}") for d in (0, 1, 2)}
     reg_rngs = {d: np.random.default_rng([seed, 7, d]) for d in (0, 1, 2)}
+    # Urban crops also by where they fall: the town's outskirts (fields) or built-up.
+    parts: dict[str, dict[int, Figures]] = {"built": {}, "fields": {}}
+    part_rngs = {d: np.random.default_rng([seed, 17, d]) for d in (1, 2)}
+    world = UrbanWorld(map_seed) if by_place and kind == "urban" else None
     for i, (px, py) in enumerate(places):
         x0, y0 = ox + 5120 + int(px), oy + 5120 + int(py)
         imgs = [m.render_abs(x0, y0, CROP) for m in maps]
         for d in (0, 1, 2):
             figs[d].add(imgs[0], imgs[d], reg_rngs[d])
+        if world is not None:
+            part = parts["fields" if in_fields(world, x0, y0) else "built"]
+            for d in (1, 2):
+                part.setdefault(d, Figures("")).add(imgs[0], imgs[d], part_rngs[d])
         if keep is not None and i < 2:
             keep.append(imgs)
-    return [(f"{kind} 0-{d}" + (" (same)" if d == 0 else ""), figs[d].row()) for d in (0, 1, 2)]
+    rows = [(f"{kind} 0-{d}" + (" (same)" if d == 0 else ""), figs[d].row()) for d in (0, 1, 2)]
+    return rows + [(f"{kind} {n} 0-{d}", f.row()) for n, fs in parts.items() for d, f in fs.items()]
+
+
+def in_fields(world: UrbanWorld, x0: int, y0: int) -> bool:
+    """Whether most of an urban crop (absolute 0.5 m pixels) lies in the outskirts' fields."""
+    pts = [(x0 + 16 + 32 * i, y0 + 16 + 32 * j) for i in range(8) for j in range(8)]
+    return sum(world.in_fields(x * GSD_M, -y * GSD_M) for x, y in pts) >= len(pts) // 2
 
 
 def matcher_figure(
@@ -454,7 +480,7 @@ def main(argv: list[str] | None = None) -> int:
     keep_r: list[list[Bgr]] | None = [] if args.sheet else None
     rows: list[tuple[str, dict[str, float]]] = []
     for kind in [k for k in args.maps.split(",") if k]:
-        rows += procedural_rows(kind, args.crops, args.seed, args.map_seed, keep_p)
+        rows += procedural_rows(kind, args.crops, args.seed, args.map_seed, keep_p, True)
     if args.real:
         rows += real_rows(args.real[0], args.real[1], args.crops, args.seed, keep_r)
     for kind in [k for k in args.maps.split(",") if k]:

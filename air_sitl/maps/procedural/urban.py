@@ -35,7 +35,6 @@ from air_sitl.maps.procedural.noise import (
 from air_sitl.maps.procedural.survey import lean_per_m
 from air_sitl.maps.procedural.urban_blocks import (
     Block,
-    Building,
     box,
     fill_block,
     grown,
@@ -48,13 +47,21 @@ from air_sitl.maps.procedural.urban_dates import (
     bare_crown,
     construction_site,
     crop_index,
+    developed_at,
     is_fields,
     new_paving,
     parked_car,
     paved_at,
     rebuilt_at,
 )
-from air_sitl.maps.procedural.urban_years import object_look, reroofed, street_stretches
+from air_sitl.maps.procedural.urban_draw import draw_roof, erase_circle, erase_shadow
+from air_sitl.maps.procedural.urban_draw import hull as convex_hull
+from air_sitl.maps.procedural.urban_years import (
+    field_texture,
+    object_look,
+    reroofed,
+    street_stretches,
+)
 from air_sitl.maps.procedural.yeargap import renewed_noise
 
 PITCH_M = 105.0
@@ -142,27 +149,61 @@ class UrbanWorld:
         return new_paving(self.seed, kx, ky, built)
 
     def _built_block(self, kx: int, ky: int, d: int) -> Block:
-        """Block (kx, ky) at date index ``d`` as first built or redeveloped."""
+        """Block (kx, ky) at date index ``d`` as first built or redeveloped; fields at the
+        town's edge built over (a new subdivision between new streets)."""
         base = self._first_block(kx, ky)
-        at = rebuilt_at(self.seed, kx, ky)
-        if d < at or is_fields(base):
-            return base
-        rng = rng_for(self.seed, 24, kx, ky, at)
+        if is_fields(base):
+            at = developed_at(self.seed, kx, ky)
+            # A field given a new street or lot before is not built over: it would move.
+            if d < at or paved_at(self.seed, kx, ky) < at or not self._at_town_edge(kx, ky):
+                return base
+            rng = rng_for(self.seed, 25, kx, ky, at)
+            bounds, kind = self._street_bounds(kx, ky), 0.62 * rng.random()  # homes
+        else:
+            at = rebuilt_at(self.seed, kx, ky)
+            if d < at:
+                return base
+            rng = rng_for(self.seed, 24, kx, ky, at)
+            bounds, kind = base.bounds, 0.3 + 0.7 * rng.random()
         site = rng.random() < 0.5
         if d == at and site:
-            return construction_site(rng, *base.bounds)
-        u0, v0, u1, v1 = base.bounds
-        return fill_block(rng, 0.3 + 0.7 * rng.random(), u0, v0, u1, v1)
+            return construction_site(rng, *bounds)
+        return fill_block(rng, kind, *bounds)
+
+    def in_fields(self, e: float, n: float) -> bool:
+        """Whether world point (E, N) lies in a block of farm fields (the town's outskirts)
+        as the first survey found it."""
+        u, v = self.c * e + self.s * n, -self.s * e + self.c * n
+        kx, ky = math.floor(u / PITCH_M), math.floor(v / PITCH_M)
+        for i in (kx - 1, kx, kx + 1):  # streets are jittered: the block may be a neighbour
+            for j in (ky - 1, ky, ky + 1):
+                blk = self._first_block(i, j)
+                u0, v0, u1, v1 = blk.bounds
+                if u0 <= u <= u1 and v0 <= v <= v1:
+                    return is_fields(blk)
+        return False
+
+    def _at_town_edge(self, kx: int, ky: int) -> bool:
+        """Whether a block has a built (not field) block beside it."""
+        around = ((kx - 1, ky), (kx + 1, ky), (kx, ky - 1), (kx, ky + 1))
+        return any(not is_fields(self._first_block(i, j)) for i, j in around)
+
+    def _street_bounds(self, kx: int, ky: int) -> tuple[float, float, float, float]:
+        """(u0, v0, u1, v1) of block (kx, ky) between its four streets' kerbs."""
+        ux0, wx0, _ = self.street(0, kx)
+        ux1, wx1, _ = self.street(0, kx + 1)
+        vy0, wy0, _ = self.street(1, ky)
+        vy1, wy1, _ = self.street(1, ky + 1)
+        return ux0 + wx0, vy0 + wy0, ux1 - wx1, vy1 - wy1
 
     @functools.lru_cache(maxsize=4096)  # noqa: B019 - one world per map, bounded cache
     def _first_block(self, kx: int, ky: int) -> Block:
         """The content of block (kx, ky) as the first survey found it."""
-        ux0, wx0, main_x0 = self.street(0, kx)
-        ux1, wx1, main_x1 = self.street(0, kx + 1)
-        vy0, wy0, main_y0 = self.street(1, ky)
-        vy1, wy1, main_y1 = self.street(1, ky + 1)
-        u0, u1 = ux0 + wx0, ux1 - wx1
-        v0, v1 = vy0 + wy0, vy1 - wy1
+        ux0, _, main_x0 = self.street(0, kx)
+        ux1, _, main_x1 = self.street(0, kx + 1)
+        vy0, _, main_y0 = self.street(1, ky)
+        vy1, _, main_y1 = self.street(1, ky + 1)
+        u0, v0, u1, v1 = self._street_bounds(kx, ky)
         rng = rng_for(self.seed, 21, kx, ky)
         # Districts: a smooth field (1.5 km) shifts blocks between homes, shops and parks.
         zone = float(
@@ -213,11 +254,13 @@ class UrbanWorld:
         lawn = _LAWN[date.season]
         tree_cols = _TREE[date.season]
         crops = _CROPS[date.season]
+        fields: list[list[Point]] = []  # crop fields: their texture is the year's own
         for blk in blocks:
             for poly, kind in blk.grounds:
                 if kind.startswith("crop"):
-                    cv.poly(self.to_world(poly), crops[crop_index(self.seed, date, poly, kind)])
-                    cv.poly(self.to_world(poly), (40,), "veg")
+                    fields.append(self.to_world(poly))
+                    cv.poly(fields[-1], crops[crop_index(self.seed, date, poly, kind)])
+                    cv.poly(fields[-1], (40,), "veg")
                     continue
                 col = {
                     "sidewalk": _SIDEWALK,
@@ -262,7 +305,7 @@ class UrbanWorld:
                     dx, dy = date.shadow_vector(b.height_m)
                     world = self.to_world(b.corners)
                     moved = [(e + dx, n + dy) for e, n in world]
-                    hull = _hull(world + moved)
+                    hull = convex_hull(world + moved)
                     cv.poly(hull, (255,), "shadow")
             for c, r, ci, born in blk.trees:
                 if born <= d:
@@ -281,10 +324,10 @@ class UrbanWorld:
                 lean = (le * b.height_m, ln * b.height_m)
                 if lean != (0.0, 0.0):  # walls show between the footprint and the roof
                     roof_at = [(e + lean[0], n + lean[1]) for e, n in world]
-                    cv.poly(_hull(world + roof_at), shade(b.roof, 0.55))
+                    cv.poly(convex_hull(world + roof_at), shade(b.roof, 0.55))
                     world = roof_at
-                _erase_shadow(cv, world, roof_shadow)
-                _roof(cv, self, b, world, sun_e, sun_n, lean)
+                erase_shadow(cv, world, roof_shadow)
+                draw_roof(cv, self.to_world, b, world, sun_e, sun_n, lean)
             for c, r, ci, born in blk.trees:
                 if born <= d:
                     rr = r * (1.0 + 0.12 * (d - born))
@@ -300,12 +343,13 @@ class UrbanWorld:
                     cv.circle((e, n), rr, shade(col, 0.8))
                     cv.circle((e + sun_e * rr * 0.25, n + sun_n * rr * 0.25), rr * 0.7, col)
                     cv.circle((e, n), rr, (255,), "veg")
-                    _erase_circle(cv, (e, n), rr * 0.9)
+                    erase_circle(cv, (e, n), rr * 0.9)
         key = key_of(self.seed, 31)
         px_m = 1.0 / gsd_m
         texture = 0.07 * renewed_noise(
             key, self.seed, date, x0, y0, size, 8.0 * px_m, 3, coarse_octaves=1
         )
+        field_texture(cv, self.seed, date, fields, texture, 8.0 * px_m)
         # Materials at 0.3-1 m (gravel, asphalt, roof tiles, grass tufts): the fine texture
         # of real 0.5 m imagery; the grain is each survey's own (film, sensor, processing).
         texture += FINE_TEXTURE * renewed_noise(
@@ -440,69 +484,6 @@ def _box_overlaps(
     b: tuple[float, float, float, float], u0: float, v0: float, u1: float, v1: float
 ) -> bool:
     return not (b[2] < u0 or b[0] > u1 or b[3] < v0 or b[1] > v1)
-
-
-def _hull(pts: list[Point]) -> list[Point]:
-    a = np.asarray(pts, dtype=np.float32)
-    h = cv2.convexHull(a)
-    return [(float(p[0][0]), float(p[0][1])) for p in h]
-
-
-def _erase_shadow(cv: Canvas, world: list[Point], _scratch: np.ndarray) -> None:
-    cv2.fillPoly(cv.shadow, [cv.px(world)], (0,), cv2.LINE_8, 4)
-    cv2.fillPoly(cv.veg, [cv.px(world)], (0,), cv2.LINE_8, 4)
-
-
-def _erase_circle(cv: Canvas, c: Point, r: float) -> None:
-    p = cv.px([c])[0]
-    cv2.circle(
-        cv.shadow, (int(p[0]), int(p[1])), max(1, round(r / cv.gsd_m * 16)), (0,), -1, cv2.LINE_8, 4
-    )
-
-
-def _roof(
-    cv: Canvas,
-    world_: UrbanWorld,
-    b: Building,
-    world: list[Point],
-    sun_e: float,
-    sun_n: float,
-    lean: Point = (0.0, 0.0),
-) -> None:
-    """A gabled roof in two shaded halves with a ridge (hipped: its ends sloped too, four
-    facets), or a flat roof with a parapet; ``lean`` moves it off its footprint (metres)."""
-
-    def to_world(pts: list[Point] | tuple[Point, ...]) -> list[Point]:
-        return [(e + lean[0], n + lean[1]) for e, n in world_.to_world(pts)]
-
-    p = b.corners
-    if b.gabled:
-        # The ridge joins the middles of the two short ends (e0, e1).
-        e0, e1 = ((p[0], p[3]), (p[1], p[2])) if b.ridge_along_x else ((p[0], p[1]), (p[3], p[2]))
-        m0 = ((e0[0][0] + e0[1][0]) / 2, (e0[0][1] + e0[1][1]) / 2)
-        m1 = ((e1[0][0] + e1[1][0]) / 2, (e1[0][1] + e1[1][1]) / 2)
-        r0, r1 = m0, m1
-        if b.hipped:  # the ridge ends half the short side in from each end
-            length = math.dist(m0, m1) or 1.0
-            t = min(0.45, 0.5 * math.dist(*e0) / length)
-            r0 = (m0[0] + (m1[0] - m0[0]) * t, m0[1] + (m1[1] - m0[1]) * t)
-            r1 = (m1[0] + (m0[0] - m1[0]) * t, m1[1] + (m0[1] - m1[1]) * t)
-        facets = [[e0[0], r0, r1, e1[0]], [r0, e0[1], e1[1], r1]]
-        if b.hipped:
-            facets += [[e0[0], e0[1], r0], [e1[0], e1[1], r1]]
-        cx = sum(q[0] for q in world) / 4
-        cy = sum(q[1] for q in world) / 4
-        for facet in facets:
-            w = to_world(facet)
-            ce = sum(q[0] for q in w) / len(w) - cx
-            cn = sum(q[1] for q in w) / len(w) - cy
-            n = math.hypot(ce, cn) or 1.0
-            lit = (ce * sun_e + cn * sun_n) / n
-            cv.poly(w, shade(b.roof, 1.0 + 0.22 * lit))
-        cv.line(to_world([r0, r1]), shade(b.roof, 1.3), 0.35)
-    else:
-        cv.poly(world, shade(b.roof, 0.78))
-        cv.poly(to_world(grown(b.corners, -0.7)), b.roof)
 
 
 ALL_DATES = DATES

@@ -27,6 +27,10 @@ from air_sitl.maps.procedural.urban_blocks import (
 )
 
 REBUILT_PER_YEAR = 0.014  # share of blocks redeveloped per year
+# Share of the fields at the town's edge (next to a built block) built over per year: new
+# subdivisions, as on the real suburbs' pairs (LEVIR-CD: a growing town's new streets and
+# homes on former open land).
+GROWTH_PER_YEAR = 0.04
 CAR_OCCUPANCY = 0.72  # share of the car places taken during a survey
 _SITE_GROUND = "dirt"
 _SITE_ROOFS: tuple[Color, ...] = ((150, 156, 160), (120, 126, 130), (170, 172, 170))
@@ -52,6 +56,16 @@ def rebuilt_at(seed: int, kx: int, ky: int) -> int:
     u = unit_of(seed, 0xB1, kx, ky)
     for d in range(1, len(DATES)):
         if u < REBUILT_PER_YEAR * (year_of(d) - year_of(0)):
+            return d
+    return 99
+
+
+def developed_at(seed: int, kx: int, ky: int) -> int:
+    """First date index at which field block (kx, ky), at the town's edge, has been built
+    over (99: never); what is built by a date stays built at every later date."""
+    u = unit_of(seed, 0xB4, kx, ky)
+    for d in range(1, len(DATES)):
+        if u < GROWTH_PER_YEAR * (year_of(d) - year_of(0)):
             return d
     return 99
 

@@ -10,11 +10,16 @@ on some objects from one survey to another, as on real imagery of different year
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import replace
 
-from air_sitl.maps.procedural.canvas import Color, DateLook, Point
+import cv2
+import numpy as np
+
+from air_sitl.maps.procedural.canvas import Canvas, Color, DateLook, Point
+from air_sitl.maps.procedural.noise import FloatImage, fractal_noise, key_of
 from air_sitl.maps.procedural.urban_blocks import Building
-from air_sitl.maps.procedural.yeargap import look
+from air_sitl.maps.procedural.yeargap import changed_share, look, years_since_reference
 
 # Mean years between two changes of an object's look (calibrated on real pairs: see
 # docs/map-dates.md, "What years do to the ground").
@@ -22,10 +27,10 @@ EVERY_YEARS = {
     "lawn": 2.0,  # watering, drought, re-seeding, paving over
     "verge": 2.0,
     "parking": 4.0,  # resurfaced or sealed black, or faded
-    "driveway": 6.0,
-    "sidewalk": 8.0,
-    "street": 4.0,  # a stretch between two crossings
-    "roof": 6.0,
+    "driveway": 25.0,
+    "sidewalk": 30.0,
+    "street": 12.0,  # a stretch between two crossings
+    "roof": 20.0,
 }
 _LAWN_LOOKS: tuple[Color, ...] = (  # BGR
     (118, 160, 180),  # straw: a dry summer
@@ -87,3 +92,36 @@ def street_stretches(
         if col != (0, 0, 0):
             out.append((a, b, col))
     return out
+
+
+FIELD_TEXTURE = 0.07  # relative amplitude of a crop field's growth pattern (8 m and finer)
+FIELD_EVERY_YEARS = 1.0  # a field is sown anew each year: its pattern renews within years
+
+
+def field_texture(
+    cv: Canvas,
+    seed: int,
+    date: DateLook,
+    fields: list[list[Point]],
+    texture: FloatImage,
+    cell_px: float,
+) -> None:
+    """Give the crop fields (world polygons) of a survey after the reference one the year's
+    own growth pattern in ``texture`` (in place): a field is sown anew every year, its
+    patches of growth, soil and moisture are mostly the year's (a share ``1 - exp(-years /
+    FIELD_EVERY_YEARS)``; real farmland pairs of different years share 0.02 of it,
+    docs/map-dates.md)."""
+    new = changed_share(years_since_reference(date), FIELD_EVERY_YEARS)
+    if not fields or new <= 0.0:
+        return
+    mask = np.zeros((cv.size, cv.size), np.uint8)
+    cv2.fillPoly(mask, [cv.px(f) for f in fields], (255,), cv2.LINE_AA, 4)
+    inside = mask > 0
+    if not inside.any():
+        return
+    k = key_of(seed, 0x7E0, date.index)
+    own = fractal_noise(k, cv.x0, cv.y0, cv.size, cell_px, 3)
+    w = mask[inside].astype(np.float32) * np.float32(1.0 / 255.0)
+    kept = np.float32(math.sqrt(1.0 - new * new))
+    mixed = texture[inside] * kept + np.float32(FIELD_TEXTURE * new) * own[inside]
+    texture[inside] = texture[inside] * (1.0 - w) + mixed * w
