@@ -260,17 +260,21 @@ def procedural_rows(
     parts: dict[str, dict[int, Figures]] = {"built": {}, "fields": {}}
     part_rngs = {d: np.random.default_rng([seed, 17, d]) for d in (1, 2)}
     world = UrbanWorld(map_seed) if by_place and kind == "urban" else None
+    kept: set[str] = set()
     for i, (px, py) in enumerate(places):
         x0, y0 = ox + 5120 + int(px), oy + 5120 + int(py)
         imgs = [m.render_abs(x0, y0, CROP) for m in maps]
         for d in (0, 1, 2):
             figs[d].add(imgs[0], imgs[d], reg_rngs[d])
+        fields = world is not None and in_fields(world, x0, y0)
         if world is not None:
-            part = parts["fields" if in_fields(world, x0, y0) else "built"]
+            part = parts["fields" if fields else "built"]
             for d in (1, 2):
                 part.setdefault(d, Figures("")).add(imgs[0], imgs[d], part_rngs[d])
-        if keep is not None and i < 2:
+        # The sheet: each world's first crop, and urban's first on the outskirts' fields.
+        if keep is not None and (i == 0 or (fields and "fields" not in kept)):
             keep.append(imgs)
+            kept.add("fields" if fields else "first")
     rows = [(f"{kind} 0-{d}" + (" (same)" if d == 0 else ""), figs[d].row()) for d in (0, 1, 2)]
     return rows + [(f"{kind} {n} 0-{d}", f.row()) for n, fs in parts.items() for d, f in fs.items()]
 
