@@ -30,6 +30,7 @@ from air_sitl.state import CameraFrame
 from .helpers import (
     HOME,
     REPO,
+    SMALL_FRAMES,
     WAIT_SAFETY,
     cli,
     free_endpoint,
@@ -159,7 +160,7 @@ def test_a_slow_subscriber_does_not_slow_the_simulation(plan: Path, tmp_path: Pa
                 sub = start([sys.executable, str(script), endpoint])
                 wait_for_line(sub, "ready")
             t0 = time.monotonic()
-            run = fly(plan, tmp_path / f"{case}{k}", "--zenoh-connect", endpoint)
+            run = fly(plan, tmp_path / f"{case}{k}", "--zenoh-connect", endpoint, *SMALL_FRAMES)
             walls[case].append(time.monotonic() - t0)
             assert run.returncode == 0, run.stderr
             if sub is not None:
@@ -252,7 +253,8 @@ def test_gps_stops_in_the_denial_window_and_the_archive_records_it(
     listener = start([sys.executable, str(script), endpoint])
     try:
         wait_for_line(listener, "ready")
-        run = fly(plan, tmp_path / "a", "--zenoh-connect", endpoint, "--gps-denied-window", "2:4")
+        denial = ("--gps-denied-window", "2:4")
+        run = fly(plan, tmp_path / "a", "--zenoh-connect", endpoint, *denial, *SMALL_FRAMES)
     finally:
         code, out, err = stop(listener)
     assert run.returncode == 0, run.stderr

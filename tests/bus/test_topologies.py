@@ -32,6 +32,7 @@ from tests.mavlink.gcs import Gcs
 from .helpers import (
     HOME,
     REPO,
+    SMALL_FRAMES,
     WAIT_SAFETY,
     cli,
     free_endpoint,
@@ -71,7 +72,7 @@ def fly_beside_deadreckon(
     try:
         flown = subprocess.run(
             cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out), "--wait-for",
-                "dr", *WAIT_SAFETY, *fly_net),
+                "dr", *WAIT_SAFETY, *fly_net, *SMALL_FRAMES),
             capture_output=True, text=True, timeout=300, check=False,
         )  # fmt: skip
         # The localizer leaves by itself once the capture window is over (a signal then could
