@@ -2,6 +2,7 @@
 (``georef_helpers``, ``short_plans``) whether or not their own folder is a package."""
 
 import compileall
+import os
 from pathlib import Path
 
 import pytest
@@ -13,6 +14,10 @@ REPO = Path(__file__).resolve().parent.parent
 # worker (or any load) can stretch past its 200 ms default; the properties are what is tested.
 settings.register_profile("air-sitl", deadline=None)
 settings.load_profile("air-sitl")
+
+# Each call of a built kernel checked against its signature (air_sitl.compiled): an array of
+# another type or layout than declared fails here, rather than being read wrongly.
+os.environ.setdefault("AIR_SITL_CHECK_KERNELS", "1")
 
 
 def pytest_configure(config: pytest.Config) -> None:
