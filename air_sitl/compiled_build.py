@@ -58,10 +58,10 @@ def machine_code(group: str, modules: tuple[str, ...], what: str) -> ModuleType 
     for place in places:
         if (place / name).exists():
             return _load(place / name)
-    place = next((p for p in places if _writable(p)), None)
-    if place is None or not _can_build():
+    writable = next((p for p in places if _writable(p)), None)
+    if writable is None or not _can_build():
         return None
-    return _build(place / name, modules, what)
+    return _build(writable / name, modules, what)
 
 
 def build_name(group: str, modules: tuple[str, ...]) -> str:
@@ -249,12 +249,28 @@ def build(path: Path, modules: list[str]) -> None:
                 entries.append((symbol(name, value.py_func.__name__), signature, _entry(value)))
     if not entries:
         raise SystemExit(f"air-sitl: {' '.join(modules)}: no kernel with a signature to build")
+    cc = _compiler(path)
+    for name, signature, fn in sorted(entries):
+        cc.export(name, signature)(fn)
+    fd, temp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        cc.output_dir = str(path.parent)
+        cc.output_file = Path(temp).name
+        cc.compile()
+        os.chmod(temp, 0o755)
+        os.replace(temp, path)
+    finally:
+        if os.path.exists(temp):
+            os.unlink(temp)
 
-    import numba.pycc.compiler as pycc_compiler
-    from numba.core import codegen
-    from numba.pycc import CC
 
-    compile_extra = pycc_compiler.compile_extra
+def _compiler(path: Path) -> Any:
+    """numba's ahead-of-time compiler (untyped: Any) set as the JIT: ``compiled._jit``'s
+    options, this CPU with its features; and pycc's C runtime compiled once per toolchain."""
+    pycc: Any = importlib.import_module("numba.pycc.compiler")
+    codegen: Any = importlib.import_module("numba.core.codegen")
+    compile_extra = pycc.compile_extra
 
     def compile_as_jit(
         typing: Any, target: Any, fn: Any, args: Any, result: Any, flags: Any, **kwargs: Any
@@ -263,20 +279,17 @@ def build(path: Path, modules: list[str]) -> None:
         them for each (a compile may change the flags it is given: inlining turns SSA off;
         pycc gives one object to all)."""
         flags = flags.copy()
-        flags.error_model = "numpy"  # the options of compiled._jit
+        flags.error_model = "numpy"
         flags.release_gil = True
         return compile_extra(typing, target, fn, args, result, flags, **kwargs)
 
-    def host_features(self: codegen.AOTCPUCodegen) -> str:
+    def host_features(self: Any) -> str:
         return str(self._get_host_cpu_features())
 
-    pycc_compiler.compile_extra = compile_as_jit
+    pycc.compile_extra = compile_as_jit
     codegen.AOTCPUCodegen._customize_tm_features = host_features  # as JITCPUCodegen's
-
-    cc = CC(MODULE, source_module=modules[0])
+    cc = importlib.import_module("numba.pycc").CC(MODULE)
     cc.target_cpu = "host"
-    for name, signature, fn in sorted(entries):
-        cc.export(name, signature)(fn)
     compile_mixins = cc._compile_mixins
 
     def shared_mixins(build_dir: str) -> list[str]:
@@ -295,17 +308,7 @@ def build(path: Path, modules: list[str]) -> None:
         return sorted(str(obj) for obj in kept.iterdir())
 
     cc._compile_mixins = shared_mixins
-    fd, temp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        cc.output_dir = str(path.parent)
-        cc.output_file = Path(temp).name
-        cc.compile()
-        os.chmod(temp, 0o755)
-        os.replace(temp, path)
-    finally:
-        if os.path.exists(temp):
-            os.unlink(temp)
+    return cc
 
 
 def _entry(kernel: Any) -> Any:
