@@ -172,6 +172,7 @@ def _build(path: Path, modules: tuple[str, ...], what: str) -> ModuleType | None
             )  # fmt: skip
             if run.returncode > 0:  # not killed by a signal: noted, not tried again
                 failed.write_text(run.stdout + run.stderr)
+                _tell(f"air-sitl: could not compile {what} ({failed}): numba's JIT instead")
             _prune(path)
     return _load(path) if path.exists() else None
 
@@ -203,7 +204,11 @@ class _Locked:
         except ImportError:
             return
         self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
-        fcntl.flock(self.fd, fcntl.LOCK_EX)
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX)
+        except OSError:  # a file system without locks
+            os.close(self.fd)
+            self.fd = -1
 
     def __exit__(self, *exc: object) -> None:
         if self.fd >= 0:
@@ -225,13 +230,15 @@ def _load(path: Path) -> ModuleType | None:
 
 def say_compiling(what: str) -> None:
     """The line a terminal gets before kernels are compiled for the first time."""
+    _tell(
+        f"air-sitl: compiling {what} for this machine, once (about half a minute; later runs "
+        "load it)"
+    )
+
+
+def _tell(line: str) -> None:
     if sys.stderr.isatty():
-        print(
-            f"air-sitl: compiling {what} for this machine, once (about half a minute; "
-            "later runs load it)",
-            file=sys.stderr,
-            flush=True,
-        )
+        print(line, file=sys.stderr, flush=True)
 
 
 # --- the build (in its own process) ---------------------------------------------------------

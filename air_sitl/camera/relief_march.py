@@ -1,8 +1,8 @@
 """Compiled kernels of the relief renderer (numba): exact first hits of rays on a height field.
 
-``relief`` holds the design; these are its loops, compiled once (seconds of CPU after an
-install; ``cache=True``: later processes load the machine code from ``__pycache__`` in well
-under a second) and run without the GIL. No fastmath: every operation rounds as written, so
+``relief`` holds the design; these are its loops, compiled once (``air_sitl.compiled``: built
+ahead of time, seconds of CPU after an install; later processes load the machine code in
+milliseconds) and run without the GIL. No fastmath: every operation rounds as written, so
 the same inputs give the same bytes.
 
 A ray is a straight line over the level-pixel grid of a height window: at altitude z it is

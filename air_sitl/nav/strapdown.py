@@ -279,7 +279,7 @@ def output_estimate(
 
 @functools.cache
 def warm() -> None:
-    """Compile every kernel now (or load it from numba's disk cache): see
+    """Run every kernel once (compiled now where numba's JIT compiles them): see
     :func:`air_sitl.nav.kernels.warm`."""
     x, o, P = np.zeros(NX), np.zeros(NO), np.eye(17)
     x[6] = o[6] = 1.0
