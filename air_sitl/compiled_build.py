@@ -303,15 +303,13 @@ def _compiler(path: Path) -> Any:
         """pycc's C runtime (the same for every group: one module name), compiled by the
         first build of this toolchain and kept beside the builds (renamed in complete)."""
         kept = path.parent / f"_air_sitl_mixins-{_toolchain_hash()}"
-        if not kept.is_dir():
-            temp = Path(tempfile.mkdtemp(prefix=".mixins-", dir=path.parent))
-            temp.chmod(0o755)
-            for k, obj in enumerate(compile_mixins(build_dir)):
-                shutil.copy(obj, temp / f"{k}-{Path(obj).name}")
-            try:
+        with _Locked(path.with_name("_air_sitl_mixins.lock")):  # builds of other groups wait
+            if not kept.is_dir():
+                temp = Path(tempfile.mkdtemp(prefix=".mixins-", dir=path.parent))
+                temp.chmod(0o755)
+                for k, obj in enumerate(compile_mixins(build_dir)):
+                    shutil.copy(obj, temp / f"{k}-{Path(obj).name}")
                 temp.rename(kept)
-            except OSError:  # another build kept its own meanwhile
-                shutil.rmtree(temp)
         return sorted(str(obj) for obj in kept.iterdir())
 
     cc._compile_mixins = shared_mixins

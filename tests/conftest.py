@@ -8,6 +8,8 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
+from air_sitl.compiled import build_all
+
 REPO = Path(__file__).resolve().parent.parent
 
 # No per-example deadline: Hypothesis times examples by the wall clock, which the other xdist
@@ -26,7 +28,10 @@ def pytest_configure(config: pytest.Config) -> None:
     The tests start hundreds of ``air-sitl`` processes; where PYTHONDONTWRITEBYTECODE is set
     (CI's machine sets it), each would compile every module it imports again (about 0.4 s of
     CPU a process). Python reads byte code already written whatever that variable says, so
-    the controller (not each xdist worker) writes it before the first test.
+    the controller (not each xdist worker) writes it before the first test. The same for the
+    compiled kernels (``air_sitl.compiled``): built once, before the workers start (the
+    groups side by side on the two cores), not in the first tests that need them, where a
+    process waiting on another's build could run past its test's timeout.
 
     The plugin (the ``air_sitl_vehicle`` fixture) as users get it:
 
@@ -36,5 +41,6 @@ def pytest_configure(config: pytest.Config) -> None:
     if not hasattr(config, "workerinput"):
         for folder in ("air_sitl", "bridges", "tests"):
             compileall.compile_dir(REPO / folder, quiet=1)
+        build_all()
     if not config.pluginmanager.has_plugin("air_sitl"):
         config.pluginmanager.import_plugin("air_sitl.testing.pytest_plugin")
