@@ -40,7 +40,7 @@ import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from types import ModuleType
-from typing import Any
+from typing import Any, overload
 
 from air_sitl import compiled_build
 
@@ -62,7 +62,11 @@ GROUPS = {
 _GROUP_OF = {module: name for name, group in GROUPS.items() for module in group.modules}
 
 
-def compiled(kernel: Any = None, /) -> Any:
+@overload
+def compiled(kernel: Callable[..., Any], /) -> Any: ...
+@overload
+def compiled(kernel: str, /) -> Callable[[Callable[..., Any]], Any]: ...
+def compiled(kernel: Callable[..., Any] | str, /) -> Any:
     """``@compiled`` or ``@compiled("signature")``: the function compiled with the project's
     numba options, or its machine code from its group's build (see the module)."""
     if callable(kernel):

@@ -10,9 +10,9 @@ the CPU (the code is compiled for it with its features, as numba's JIT does). A 
 finds it missing takes a lock on a file beside it (other processes wait there), builds it in
 a child process, written under a temporary name and renamed (no process ever loads a part of
 it), removes the builds of other versions there, and loads it. Where it cannot (no C
-compiler, numba without ``pycc`` or setuptools, no writable place) it returns None: numba's
-JIT then, as before. A build that fails leaves its output in a ``.failed`` file beside it
-and is not tried again for that version.
+compiler or no Python headers, numba without ``pycc`` or setuptools, no writable place) it
+returns None: numba's JIT then, as before. A build that fails leaves its output in a
+``.failed`` file beside it and is not tried again for that version.
 
 The builder imports the group's modules with ``AIR_SITL_BUILDING`` set: their kernels are
 numba's (not cached: each one the exported kernels call is compiled here, by this numba)
@@ -144,15 +144,17 @@ def _writable(place: Path) -> bool:
 
 
 def _can_build() -> bool:
-    """A C compiler, numba's ahead-of-time compiler and setuptools (which it uses) are
-    there."""
+    """A C compiler, Python's headers, numba's ahead-of-time compiler and setuptools (which
+    it uses) are there."""
     import sysconfig
 
     cc = (sysconfig.get_config_var("CC") or "cc").split()
     if sys.platform != "win32" and (not cc or shutil.which(cc[0]) is None):
         return False
+    headers = Path(sysconfig.get_paths()["include"]) / "Python.h"
     pycc = _package_dir("numba") / "pycc" / "__init__.py"
-    return pycc.exists() and importlib.util.find_spec("setuptools") is not None
+    setuptools = importlib.util.find_spec("setuptools") is not None
+    return headers.exists() and pycc.exists() and setuptools
 
 
 def _build(path: Path, modules: tuple[str, ...], what: str) -> ModuleType | None:
