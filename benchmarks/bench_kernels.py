@@ -13,6 +13,9 @@ Prints, each beside its floor measured in this run and the ratio to it:
 - the EKF's cost per 5 ms step fed as a flight feeds it (IMU, GNSS, baro, airspeed, compass,
   recorded from SECONDS of a JSBSim flight of UC-200), built and JIT; floor: the same feeding
   of a filter that does nothing;
+- a frame over relief (forest ``--dem builtin`` at 300 m, rolling 20 deg/s), and the same
+  frames over urban relief with every camera effect, ms CPU per frame (every render thread),
+  built and JIT; floor: the flat frame of the same states (built);
 - with ``--cold``: the first compile, as after an install: every group built into an empty
   cache (C runtime included), against numba's JIT compiling the same kernels into an empty
   cache; the CPU of the process and its children.
@@ -71,6 +74,37 @@ def best(make):
 
 
 print(best(lambda: NavFilter(rec.home)), best(NullFilter), "numba" in sys.modules)
+"""
+
+FRAMES = """
+import math, sys, time
+from dataclasses import replace
+from air_sitl.camera.effects import CameraEffects
+from air_sitl.camera.model import CameraModel
+from air_sitl.camera.render import Renderer, pose_state
+from air_sitl.maps.open import open_map, open_surface
+from air_sitl.state import GeoPoint
+
+home = GeoPoint(lat_deg=47.0, lon_deg=8.0, alt_amsl_m=400.0)
+every = CameraEffects(enabled=("blur", "rolling-shutter", "vignette", "exposure", "haze",
+                               "distortion"))
+out = []
+for kind, camera, relief in (("forest", CameraModel(), False), ("forest", CameraModel(), True),
+                             ("urban", CameraModel(effects=every), True)):
+    m = open_map(kind, home, seed=1)
+    r = Renderer(m, camera, seed=1, surface=open_surface("builtin", m) if relief else None)
+    states = [replace(pose_state(home.lat_deg, home.lon_deg + i * 2e-5, home.alt_amsl_m + 300.0,
+                                 alt_agl_m=300.0, roll_rad=0.09, pitch_rad=0.02, yaw_rad=0.3),
+                      rate_frd_rad_s=(math.radians(20.0), 0.0, 0.0)) for i in range(25)]
+    r.render(states[0])
+    best = float("inf")
+    for _ in range(3):
+        t = time.process_time()
+        for s in states:
+            r.render(s, noise_index=0)
+        best = min(best, (time.process_time() - t) / len(states) * 1e3)
+    out.append(best)
+print(*out)
 """
 
 WARM_ALL = """
@@ -134,13 +168,20 @@ def main() -> None:
                     start[name, mode] = min(start[name, mode], fly(flight, env, out / "f"))
         step: dict[str, tuple[float, float]] = {}
         script = PER_STEP.format(repo=str(REPO), seconds=args.seconds)
-        for _ in range(max(1, args.repeat - 1)):
+        for _ in range(args.repeat):
             for mode, env in modes.items():
                 _cpu, text = child_cpu_s([sys.executable, "-c", script], env)
                 ekf_us, null_us, numba = text.split()
                 assert (numba == "True") == (mode == "JIT"), (mode, numba)
                 best = step.get(mode, (float("inf"), float("inf")))
                 step[mode] = (min(best[0], float(ekf_us)), min(best[1], float(null_us)))
+        frames: dict[str, list[float]] = {}
+        for _ in range(max(1, args.repeat - 1)):
+            for mode, env in modes.items():
+                got = [
+                    float(v) for v in child_cpu_s([sys.executable, "-c", FRAMES], env)[1].split()
+                ]
+                frames[mode] = [min(a, b) for a, b in zip(frames.get(mode, got), got, strict=True)]
     print(f"load {load0:.1f} -> {os.getloadavg()[0]:.1f}; best of {args.repeat}; CPU s")
     print(f"{'start-up: a 2 s flight':44s} {'built':>7s} {'JIT':>7s} {'floor':>7s} "
           f"{'built/floor':>11s} {'JIT/floor':>9s} {'built/JIT':>9s}")  # fmt: skip
@@ -154,6 +195,12 @@ def main() -> None:
     print(f"{'fed IMU, GNSS, baro, airspeed, compass':44s} {b:7.2f} {j:7.2f} {floor_us:7.2f} "
           f"{b / floor_us:10.1f}x {j / floor_us:8.1f}x {b / j:8.2f}x"
           f"  (floor: a filter doing nothing, fed the same)")  # fmt: skip
+    flat = frames["built"][0]
+    for k, name in ((1, "frame over relief, forest 300 m, ms CPU"),
+                    (2, "urban relief, every effect, ms CPU")):  # fmt: skip
+        b, j = frames["built"][k], frames["JIT"][k]
+        print(f"{name:44s} {b:7.2f} {j:7.2f} {flat:7.2f} {b / flat:10.1f}x {j / flat:8.1f}x "
+              f"{b / j:8.2f}x  (floor: the flat frame)")  # fmt: skip
     if args.cold:
         cold()
 
