@@ -15,8 +15,8 @@ kernels that call them and are not callable from Python then. A process whose gr
 built loads it (milliseconds) and never imports numba (0.5 s of CPU, and up to 0.3 s more
 loading numba's cached machine code of a group). The first process to need a build makes
 it (half a minute; one line on a terminal) while the others wait for it; where none can be
-made (no C compiler, no writable cache, a numba without ``pycc``, a failed build), or with
-``AIR_SITL_JIT=1``: numba's JIT, as before, with the same bytes.
+made (no C compiler or Python headers, no writable cache, a numba without ``pycc``, a failed
+build), or with ``AIR_SITL_JIT=1``: numba's JIT, as before, with the same bytes.
 
 numba's JIT caches its machine code on disk where it finds a writable place (next to the
 module or in the user's cache directory), else compiles anew in each process rather than
