@@ -2,10 +2,13 @@
 (``georef_helpers``, ``short_plans``) whether or not their own folder is a package."""
 
 import compileall
+import os
 from pathlib import Path
 
 import pytest
 from hypothesis import settings
+
+from air_sitl.compiled import build_all
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -14,6 +17,10 @@ REPO = Path(__file__).resolve().parent.parent
 settings.register_profile("air-sitl", deadline=None)
 settings.load_profile("air-sitl")
 
+# Each call of a built kernel checked against its signature (air_sitl.compiled): an array of
+# another type or layout than declared fails here, rather than being read wrongly.
+os.environ.setdefault("AIR_SITL_CHECK_KERNELS", "1")
+
 
 def pytest_configure(config: pytest.Config) -> None:
     """Byte code of the checkout written once, and our own pytest plugin.
@@ -21,7 +28,10 @@ def pytest_configure(config: pytest.Config) -> None:
     The tests start hundreds of ``air-sitl`` processes; where PYTHONDONTWRITEBYTECODE is set
     (CI's machine sets it), each would compile every module it imports again (about 0.4 s of
     CPU a process). Python reads byte code already written whatever that variable says, so
-    the controller (not each xdist worker) writes it before the first test.
+    the controller (not each xdist worker) writes it before the first test. The same for the
+    compiled kernels (``air_sitl.compiled``): built once, before the workers start (the
+    groups side by side on the two cores), not in the first tests that need them, where a
+    process waiting on another's build could run past its test's timeout.
 
     The plugin (the ``air_sitl_vehicle`` fixture) as users get it:
 
@@ -31,5 +41,6 @@ def pytest_configure(config: pytest.Config) -> None:
     if not hasattr(config, "workerinput"):
         for folder in ("air_sitl", "bridges", "tests"):
             compileall.compile_dir(REPO / folder, quiet=1)
+        build_all()
     if not config.pluginmanager.has_plugin("air_sitl"):
         config.pluginmanager.import_plugin("air_sitl.testing.pytest_plugin")

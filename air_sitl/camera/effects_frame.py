@@ -103,8 +103,8 @@ class EffectsPath:
     """The effects part of a Renderer's per-pixel paths (``remap.RemapPaths`` holds it)."""
 
     def __init__(self, owner: FrameOwner, paths: RemapPaths) -> None:
-        # The compiled kernels (numba: about a second of start-up) load with the first
-        # camera that has effects, not with every camera.
+        # The compiled kernels (air_sitl.compiled: milliseconds built, numba's JIT about a
+        # second) load with the first camera that has effects, not with every camera.
         from air_sitl.camera import effects_kernel
 
         self._compiled = effects_kernel

@@ -15,9 +15,11 @@ F64 = npt.NDArray[np.float64]
 U8 = npt.NDArray[np.uint8]
 
 MISS = -1e7  # a map coordinate far off any mosaic: the fill colour
+# The kernels' signatures (numba's notation, air_sitl.compiled): f8[:, :] a float64 image,
+# a view (the pinhole points of the frame's cut), f4[:, :, ::1] a contiguous float32 one.
 
 
-@compiled
+@compiled("i8(f8[:, :], f8[:, :], f8[:, ::1], f8, f8, f4[:, :, ::1])")
 def row_maps(pu: F64, pv: F64, rows: F64, ox: float, oy: float, out: F32) -> int:
     """Mosaic coordinates of each pixel: pinhole point (pu, pv) through its row's
     homography ``rows[v]`` (image -> level px), less the mosaic's origin; MISS where the ray
@@ -39,7 +41,7 @@ def row_maps(pu: F64, pv: F64, rows: F64, ox: float, oy: float, out: F32) -> int
     return misses
 
 
-@compiled
+@compiled("f8(u1[:, :, ::1], f4[:, ::1], f4[:, ::1], f8[::1], f4[:, :, ::1])")
 def light(img: U8, keep: F32, vignette: F32, air: F64, out: F32) -> float:
     """Haze (``keep`` of the radiance, the rest airlight) and vignetting of a BGRA frame
     into BGR ``out``; returns the sum of ``out``."""

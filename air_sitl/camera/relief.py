@@ -23,8 +23,9 @@ search may read two windows). Rays that leave the window before reaching the low
 (views toward the horizon, where the window is clipped) are marched by fine steps instead
 (a one-pixel step and bisection). Then a remap from the map window (in strips, each from a
 copy of the map pixels it samples where the mosaic is large). The loops are compiled
-(``relief_march``, numba, imported and compiled or loaded from its cache by :func:`warm`
-when a renderer over relief is built, before the clock runs). Tried and slower here: a
+(``relief_march``, ``air_sitl.compiled``: imported, and where numba's JIT compiles them
+compiled or loaded from its cache, by :func:`warm` when a renderer over relief is built,
+before the clock runs). Tried and slower here: a
 second max-height grid of 4-cell tiles skipped per ray, 4 x 4-pixel blocks (or 4 x 4
 sub-blocks descending further inside a block), two rays walked in one loop, rays walked in
 lock-step a cell at a time (state in arrays), the patches solved in a pass of their own,
@@ -172,8 +173,8 @@ def ground_maps(
 
 
 def _kernels() -> ModuleType:
-    """The compiled kernels, imported on first use: numba's import (about a second) and
-    first compile are paid only by renderers over relief."""
+    """The compiled kernels, imported on first use: their load (and their first compile, or
+    numba's import where its JIT compiles them) is paid only by renderers over relief."""
     from air_sitl.camera import relief_march
 
     return relief_march
@@ -181,10 +182,11 @@ def _kernels() -> ModuleType:
 
 @functools.cache
 def warm() -> None:
-    """Compile every kernel a relief frame runs (or load it from numba's disk cache) through
-    the very calls a frame makes, on a small window: a renderer over relief calls this when
-    it is built, before the clock runs, so its first frame does not stall the render threads
-    (seconds compiling after an install, about a second loading the cache)."""
+    """Run every kernel a relief frame runs through the very calls a frame makes, on a small
+    window: where numba's JIT compiles them, this compiles them (seconds after an install)
+    or loads them from its disk cache (about a second); a renderer over relief calls this
+    when it is built, before the clock runs, so its first frame does not stall the render
+    threads."""
     values = np.zeros((2 * TILE_PX, 2 * TILE_PX), dtype=np.float32)
     values[TILE_PX:, :] = 5.0  # a step: every path of the walk is typed
     window = _window(values, 0, 0)

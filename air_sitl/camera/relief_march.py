@@ -1,8 +1,8 @@
 """Compiled kernels of the relief renderer (numba): exact first hits of rays on a height field.
 
-``relief`` holds the design; these are its loops, compiled once (seconds of CPU after an
-install; ``cache=True``: later processes load the machine code from ``__pycache__`` in well
-under a second) and run without the GIL. No fastmath: every operation rounds as written, so
+``relief`` holds the design; these are its loops, compiled once (``air_sitl.compiled``: built
+ahead of time, seconds of CPU after an install; later processes load the machine code in
+milliseconds) and run without the GIL. No fastmath: every operation rounds as written, so
 the same inputs give the same bytes.
 
 A ray is a straight line over the level-pixel grid of a height window: at altitude z it is
@@ -33,9 +33,12 @@ _MIN_DOWN = 1e-6
 _BIG = 1e30
 _TINY = 1e-12  # level pixels per metre: the slope a walk takes for a zero one
 _MINUS_ONE = np.uint64(0xFFFF_FFFF_FFFF_FFFF)  # a step back, as an unsigned cell index
+# The exported kernels' signatures (numba's notation, air_sitl.compiled): f4[:, ::1] a
+# contiguous float32 image (heights, tops), f8 float64, i8 int64, b1 bool.
+_TOPS = "f4[:, ::1](f4[:, ::1])"
 
 
-@compiled
+@compiled(_TOPS)
 def tile_max(values: F32) -> F32:
     """Highest post of each TILE x TILE-cell tile, its far edges included (the highest
     point the bilinear surface reaches over the tile)."""
@@ -54,7 +57,7 @@ def tile_max(values: F32) -> F32:
     return out
 
 
-@compiled
+@compiled(_TOPS)
 def cell_max(values: F32) -> F32:
     """Highest of the four posts of each cell (the highest point of its bilinear patch)."""
     h, w = values.shape
@@ -102,7 +105,7 @@ def _refine(
     return z_lo
 
 
-@compiled
+@compiled("Tuple((f8, b1))(f4[:, ::1], f4[:, ::1], f8, f8, f8, f8, f8, f8)")
 def march_ray(
     values: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
     z_top: float, z_bot: float,
@@ -292,7 +295,7 @@ def walk_rays(
                 break  # (only by rounding at the window's edge)
 
 
-@compiled
+@compiled("Tuple((f8, b1))(f4[:, ::1], f4[:, ::1], f4[:, ::1], f8, f8, f8, f8, f8, f8)")
 def first_hit(
     values: F32, cmax: F32, tmax: F32, px0: float, py0: float, ax: float, ay: float,
     z_top: float, z_bot: float,
@@ -366,7 +369,10 @@ def _block_top(
     return z
 
 
-@compiled
+@compiled(
+    "void(f4[:, ::1], f4[:, ::1], f4[:, ::1], f8[::1], f8[::1], f8, f8, f8, f8, f8, f8, i8, i8, "
+    "i8, f4[:, :, ::1], f4[:, ::1])"
+)
 def hit_maps(
     values: F32, cmax: F32, tmax: F32, r: F64, jac: F64, s: float, ox: float, oy: float,
     cam_z: float, h_min: float, h_max: float, width: int, height: int, rows: int,

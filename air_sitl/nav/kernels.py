@@ -30,6 +30,11 @@ from air_sitl.nav.quaternion import rotate_global, rotation, wrap_pi
 Matrix = npt.NDArray[np.float64]
 Vector = npt.NDArray[np.float64]
 HEADING, AIRSPEED, SIDESLIP = 0, 1, 2  # the compiled measurement models (fuse_model)
+# The exported kernels' signatures (numba's notation, air_sitl.compiled): f8 float64, i8
+# int64, b1 bool, f8[::1] a vector, f8[:, ::1] a matrix (both contiguous, as the filter's),
+# f8[:] and f8[:, :] any. An update takes P and x, its own arguments, then dx and pending.
+_UPDATE = "Tuple((f8, b1))(f8[:, ::1], f8[::1], {}, f8[::1], f8[::1])"
+_MODEL = "Tuple((b1, f8, f8[::1]))(f8[::1])"
 
 
 @compiled
@@ -48,7 +53,7 @@ def _f_times(M: Matrix, cols: npt.NDArray[np.int64], vals: Matrix) -> Matrix:
     return out
 
 
-@compiled
+@compiled("void(f8[:, ::1], UniTuple(f8, 9), f8, f8, f8, f8, f8[::1])")
 def predict_covariance(
     P: Matrix, r: tuple[float, ...], T: float, dvx: float, dvy: float, dvz: float,
     q_diag: Matrix,
@@ -92,7 +97,7 @@ def predict_covariance(
             P[j, i] = s
 
 
-@compiled
+@compiled("void(f8[::1], f8[::1])")
 def inject(x: Vector, dx: Vector) -> None:
     """Add an error-state correction to the nominal state (attitude: exp(dtheta) * q)."""
     for i in range(6):  # position, velocity
@@ -126,7 +131,7 @@ def _update(
     return ratio, True
 
 
-@compiled
+@compiled(_UPDATE.format("i8, f8, f8, f8, b1"))
 def fuse_column(
     P: Matrix, x: Vector, first: int, R: float, innovation: float, gate: float, force: bool,
     dx: Matrix, pending: Matrix,
@@ -136,7 +141,7 @@ def fuse_column(
     return _update(P, x, pht, pht[first] + R, innovation, gate, force, dx, pending)  # type: ignore[no-any-return]
 
 
-@compiled
+@compiled(_UPDATE.format("f8[::1], f8, f8, f8, b1"))
 def fuse_row(
     P: Matrix, x: Vector, h: Matrix, R: float, innovation: float, gate: float, force: bool,
     dx: Matrix, pending: Matrix,
@@ -157,7 +162,7 @@ def fuse_row(
     return _update(P, x, pht, s, innovation, gate, force, dx, pending)  # type: ignore[no-any-return]
 
 
-@compiled
+@compiled(_UPDATE.format("i8, f8[:], f8[:, :], f8, b1"))
 def fuse_block(
     P: Matrix, x: Vector, first: int, y: Matrix, R: Matrix, gate: float, force: bool,
     dx: Matrix, pending: Matrix,
@@ -223,7 +228,7 @@ def fuse_block(
     return ratio, True
 
 
-@compiled
+@compiled(_UPDATE.format("f8, f8, f8, f8"))
 def fuse_height(
     P: Matrix, x: Vector, height_m: float, lag_s: float, R: float, gate: float, dx: Vector,
     pending: Vector,
@@ -236,7 +241,7 @@ def fuse_height(
     return fuse_column(P, x, 2, R, y, gate, False, dx, pending)  # type: ignore[no-any-return]
 
 
-@compiled
+@compiled(_UPDATE.format("f8, f8, f8, f8, f8, f8, f8"))
 def fuse_position(
     P: Matrix, x: Vector, north: float, east: float, lag_s: float, vnn: float, vne: float,
     vee: float, gate: float, dx: Vector, pending: Vector,
@@ -251,7 +256,7 @@ def fuse_position(
     return fuse_block(P, x, 0, y, R, gate, False, dx, pending)  # type: ignore[no-any-return]
 
 
-@compiled
+@compiled(_UPDATE.format("f8, f8, f8, f8, f8"))
 def fuse_velocity(
     P: Matrix, x: Vector, vn: float, ve: float, vd: float, var: float, gate: float, dx: Vector,
     pending: Vector,
@@ -264,7 +269,7 @@ def fuse_velocity(
     return fuse_block(P, x, 3, y, R, gate, False, dx, pending)  # type: ignore[no-any-return]
 
 
-@compiled
+@compiled(_MODEL)
 def heading_model(x: Vector) -> tuple[bool, float, Vector]:
     """(defined, yaw (ZYX) of the attitude, its Jacobian on the error state): undefined when
     the body x axis is vertical."""
@@ -280,7 +285,7 @@ def heading_model(x: Vector) -> tuple[bool, float, Vector]:
     return True, math.atan2(r10, r00), h
 
 
-@compiled
+@compiled(_MODEL)
 def airspeed_model(x: Vector) -> tuple[bool, float, Vector]:
     """(defined, true airspeed |v - wind| with the wind horizontal, its Jacobian): undefined
     below 1 m/s of air (no direction to measure along)."""
@@ -296,7 +301,7 @@ def airspeed_model(x: Vector) -> tuple[bool, float, Vector]:
     return True, pred, h
 
 
-@compiled
+@compiled(_MODEL)
 def sideslip_model(x: Vector) -> tuple[bool, float, Vector]:
     """(defined, sideslip = body y / body x air velocity, its Jacobian): undefined when the
     air does not come from ahead (below 1 m/s along the body x axis)."""
@@ -324,7 +329,7 @@ def sideslip_model(x: Vector) -> tuple[bool, float, Vector]:
     return True, beta, h
 
 
-@compiled
+@compiled("Tuple((f8, i8))(f8[:, ::1], f8[::1], i8, f8, f8, f8, f8[::1], f8[::1])")
 def fuse_model(
     P: Matrix, x: Vector, model: int, measured: float, R: float, gate: float, dx: Vector,
     pending: Vector,
@@ -352,9 +357,11 @@ def fuse_model(
 
 @functools.cache
 def warm() -> None:
-    """Compile every kernel now (or load it from numba's disk cache): a flight's filter calls
-    this when it is built, before the clock runs, so the first measurement update does not
-    stall the simulation thread mid-flight (0.4 s from the cache, seconds compiling)."""
+    """Run every kernel once: where numba's JIT compiles them (``air_sitl.compiled``) this
+    compiles them now or loads them from numba's disk cache (0.4 s from the cache, seconds
+    compiling); a flight's filter calls it when it is built, before the clock runs, so the
+    first measurement update does not stall the simulation thread mid-flight. Built
+    kernels are ready: microseconds."""
     n = 17
     P, dx, pending = np.eye(n), np.zeros(n), np.zeros(n)
     x = np.zeros(18)

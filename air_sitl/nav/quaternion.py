@@ -17,7 +17,7 @@ from air_sitl.compiled import compiled
 Vector = npt.NDArray[np.float64]
 
 
-@compiled
+@compiled("UniTuple(f8, 4)(f8, f8, f8, f8, f8, f8, f8, f8)")
 def unit_product(
     aw: float, ax: float, ay: float, az: float, bw: float, bx: float, by: float, bz: float
 ) -> tuple[float, float, float, float]:
@@ -32,7 +32,7 @@ def unit_product(
     return (qw * inv, qx * inv, qy * inv, qz * inv)
 
 
-@compiled
+@compiled("UniTuple(f8, 9)(f8, f8, f8, f8)")
 def rotation(w: float, x: float, y: float, z: float) -> tuple[float, ...]:
     """Row-major body->NED rotation matrix of the quaternion (9 floats)."""
     return (
@@ -48,7 +48,7 @@ def rotation(w: float, x: float, y: float, z: float) -> tuple[float, ...]:
     )
 
 
-@compiled
+@compiled("void(f8[::1], i8, f8, f8, f8)")
 def rotate_global(s: Vector, k: int, ax: float, ay: float, az: float) -> None:
     """q = exp(dtheta) * q for the quaternion at ``s[k:k + 4]``: a small rotation expressed in
     NED applied to an attitude."""
@@ -63,7 +63,7 @@ def rotate_global(s: Vector, k: int, ax: float, ay: float, az: float) -> None:
     )
 
 
-@compiled
+@compiled("f8(f8)")
 def wrap_pi(a: float) -> float:
     """``a`` wrapped to [-pi, pi] (exact, as math.remainder(a, 2 pi), for |a| <= 3 pi)."""
     two_pi = 2.0 * math.pi

@@ -47,9 +47,11 @@ NE = 20  # the estimate output_estimate writes
 RING_COLS = 13
 LAST = 6  # the running sums of the last delta the delayed filter took
 NEVER = 2**62  # the end time of a delta after the last one: after any simulated time
+# The exported kernels' signatures: as in air_sitl.nav.kernels; the ring a matrix, ri a
+# vector of int64 (i8[::1]).
 
 
-@compiled
+@compiled("UniTuple(f8, 3)(f8[::1], f8, f8, f8, f8, f8, f8, f8, f8)")
 def integrate(
     s: Vector, dax: float, day: float, daz: float, dvx: float, dvy: float, dvz: float,
     dt: float, g: float,
@@ -111,7 +113,7 @@ def _integrate_unbiased(
     )
 
 
-@compiled
+@compiled("i8(f8[::1], f8[::1], f8[:, ::1], i8[::1], i8, f8, f8, f8, f8, f8, f8, f8, f8)")
 def advance(
     o: Vector, x: Vector, ring: Matrix, ri: Index, t_ns: int, a0: float, a1: float, a2: float,
     a3: float, a4: float, a5: float, dt: float, g: float,
@@ -139,7 +141,9 @@ def advance(
     return ri[2 + ri[0]]  # type: ignore[no-any-return]
 
 
-@compiled
+@compiled(
+    "Tuple((i8, f8, i8))(f8[::1], f8[:, ::1], f8[::1], f8[:, ::1], i8[::1], f8[::1], f8[::1])"
+)
 def delayed_predict(
     x: Vector, P: Matrix, cov: Vector, ring: Matrix, ri: Index, consts: Vector, last: Vector
 ) -> tuple[int, float, int]:
@@ -169,7 +173,7 @@ def delayed_predict(
     return t_ns, dt, ri[2 + ri[0]] if ri[1] > 0 else NEVER
 
 
-@compiled
+@compiled("void(f8[::1], f8[:, ::1], f8[::1], f8[::1])")
 def covariance_step(x: Vector, P: Matrix, cov: Vector, consts: Vector) -> None:
     """P over the deltas summed in ``cov`` (then emptied), Q from the densities in ``consts``."""
     T = cov[0]
@@ -180,7 +184,7 @@ def covariance_step(x: Vector, P: Matrix, cov: Vector, consts: Vector) -> None:
     cov[:] = 0.0
 
 
-@compiled
+@compiled("void(f8[::1], f8[::1], f8, f8[::1])")
 def carry(o: Vector, pending: Vector, window_s: float, last: Vector) -> None:
     """Apply the corrections ``pending`` made to the delayed state ``window_s`` ago to the
     output (first order), then empty ``pending``. ``last`` holds the output's running sums at
@@ -226,7 +230,7 @@ def carry(o: Vector, pending: Vector, window_s: float, last: Vector) -> None:
     pending[:] = 0.0
 
 
-@compiled
+@compiled("void(f8[::1], f8[::1], f8[:, ::1], i8[::1], f8, f8[::1])")
 def replay(o: Vector, x: Vector, ring: Matrix, ri: Index, g: float, pending: Vector) -> None:
     """Recompute the output exactly from the delayed state and the ring (the corrections
     pending for the output are in it now: emptied)."""
@@ -239,7 +243,7 @@ def replay(o: Vector, x: Vector, ring: Matrix, ri: Index, g: float, pending: Vec
     pending[:] = 0.0
 
 
-@compiled
+@compiled("void(f8[::1], f8[::1], f8[:, ::1], f8, f8, f8, f8, f8, f8, f8, f8, f8[::1])")
 def output_estimate(
     o: Vector, x: Vector, P: Matrix, a0: float, a1: float, a2: float, a3: float, a4: float,
     a5: float, dt: float, g: float, res: Vector,
@@ -275,7 +279,7 @@ def output_estimate(
 
 @functools.cache
 def warm() -> None:
-    """Compile every kernel now (or load it from numba's disk cache): see
+    """Run every kernel once (compiled now where numba's JIT compiles them): see
     :func:`air_sitl.nav.kernels.warm`."""
     x, o, P = np.zeros(NX), np.zeros(NO), np.eye(17)
     x[6] = o[6] = 1.0
