@@ -44,3 +44,13 @@ def pytest_configure(config: pytest.Config) -> None:
         build_all()
     if not config.pluginmanager.has_plugin("air_sitl"):
         config.pluginmanager.import_plugin("air_sitl.testing.pytest_plugin")
+
+
+# The longest test file, first: the docs' commands run in order, one after the other (about 200
+# s of one worker); started last, the others would wait for it at the end.
+LONGEST_FIRST = ("tests/docs/test_doc_blocks.py",)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Files in :data:`LONGEST_FIRST` before the rest (xdist hands out files in this order)."""
+    items.sort(key=lambda item: item.nodeid.split("::")[0] not in LONGEST_FIRST)
