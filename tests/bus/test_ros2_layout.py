@@ -34,7 +34,7 @@ from air_sitl.frames import q_flu_enu_to_frd_ned as frd_to_ned
 from air_sitl.frames import q_frd_ned_to_flu_enu as flu_to_enu
 
 from .helpers import HOME, free_endpoint, make_sample, wait_until
-from .ros2_peer import RosPeer, data_key
+from .ros2_peer import STORE, RosPeer, data_key
 
 STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
 
@@ -137,6 +137,19 @@ def test_a_vehicle_name_ros2_cannot_take_is_one_line(
     assert "'uav-1' is not a ROS 2 name" in one_line_error(argv, capsys)
 
 
+IMU, CLOCK = "sensor_msgs/msg/Imu", "rosgraph_msgs/msg/Clock"
+
+
+def stamps(peer: RosPeer, key: str, kind: str) -> set[int]:
+    """The stamps (ns) of the messages the peer received on ``key``."""
+    out = set()
+    for sample in peer.received(key):
+        m = STORE.deserialize_cdr(sample.payload, kind)
+        stamp = m.clock if kind == CLOCK else m.header.stamp
+        out.add(stamp.sec * 1_000_000_000 + stamp.nanosec)
+    return out
+
+
 def test_namespace_and_domain_id_place_node_and_topics() -> None:
     endpoint = free_endpoint()
     peer = RosPeer(listen=(endpoint,), domain=7)
@@ -147,10 +160,24 @@ def test_namespace_and_domain_id_place_node_and_topics() -> None:
         imu_key = data_key(7, "/sim/a/air/uav0/imu", "sensor_msgs/msg/Imu")
         clock_key = data_key(7, "/clock", "rosgraph_msgs/msg/Clock")
         assert wait_until(lambda: len([t for t in peer.tokens if t.kind == "MP"]) == 3)
-        for i in range(10):
-            view.on_sample(make_sample(i * 5_000_000))
+        # The peer's subscriptions may reach this session after its tokens (a loaded machine):
+        # samples put before are not routed. Put samples until one arrives, then ten more:
+        # each of the ten, by its stamp, must arrive on both topics.
+        step = iter(range(0, 10**12, 5_000_000))
+
+        def one_through() -> bool:
+            view.on_sample(make_sample(next(step)))
+            return bool(peer.received(imu_key)) and bool(peer.received(clock_key))
+
+        assert wait_until(one_through)
+        ten = [next(step) for _ in range(10)]
+        for t_ns in ten:
+            view.on_sample(make_sample(t_ns))
         assert wait_until(
-            lambda: len(peer.received(imu_key)) == len(peer.received(clock_key)) == 10
+            lambda: (
+                set(ten) <= stamps(peer, imu_key, IMU)
+                and set(ten) <= stamps(peer, clock_key, CLOCK)
+            )
         )
     finally:
         bus.close()
