@@ -47,7 +47,6 @@ SAFETY_S = 120.0  # wall seconds: only a stuck peer gets there (the machine may 
 WAIT_SAFETY = ("--wait-timeout", str(SAFETY_S))
 # Frames whose pixels nobody looks at (a truth aid, dead reckoning, a counting subscriber):
 # 160 x 120 without noise. A 640 x 480 frame's render and JPEG were most of such a flight's CPU.
-SMALL_FRAMES = ("--camera-width", "160", "--camera-height", "120", "--noise-sigma", "0")
 
 
 def wait_until(cond: Callable[[], bool], timeout_s: float = SAFETY_S) -> bool:

@@ -13,7 +13,7 @@ import threading
 from pathlib import Path
 
 import pytest
-from short_plans import write_short_plan
+from short_plans import SMALL_CAMERA, write_short_plan
 
 from air_sitl.bus import codec
 from air_sitl.bus import estimate_contract as contract
@@ -23,7 +23,7 @@ from air_sitl.bus.publisher import FrameLedger
 from air_sitl.bus.session import BusConfig, Message, open_bus
 from air_sitl.clock import CAMERA_PERIOD_NS
 
-from .helpers import HOME, SMALL_FRAMES, cli, free_endpoint, pair, wait_until
+from .helpers import HOME, cli, free_endpoint, pair, wait_until
 
 KEYS = KeySpace("uav0")
 DEEP = b"[" * 200_000 + b"]" * 200_000
@@ -153,7 +153,7 @@ def test_a_flight_reports_rejections_and_unanswered_frames(tmp_path: Path) -> No
         out = tmp_path / "out"
         flown = subprocess.run(
             cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out), "--zenoh",
-                "--zenoh-connect", endpoint, "--svo-columns", "odd", *SMALL_FRAMES),
+                "--zenoh-connect", endpoint, "--svo-columns", "odd", *SMALL_CAMERA),
             capture_output=True, text=True, timeout=300, check=False,
         )  # fmt: skip
     assert flown.returncode == 0, flown.stderr
@@ -182,7 +182,7 @@ def test_a_flight_says_when_the_awaited_estimator_never_spoke(tmp_path: Path) ->
     out = tmp_path / "out"
     flown = subprocess.run(
         cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out), "--speed", "1",
-            "--zenoh-listen", free_endpoint(), "--svo-columns", "nobody", *SMALL_FRAMES),
+            "--zenoh-listen", free_endpoint(), "--svo-columns", "nobody", *SMALL_CAMERA),
         capture_output=True, text=True, timeout=300, check=False,
     )  # fmt: skip
     assert flown.returncode == 0, flown.stderr

@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
-from short_plans import write_short_plan
+from short_plans import SMALL_CAMERA, write_short_plan
 
 from air_sitl.bus import codec
 from air_sitl.bus.keys import KeySpace
@@ -30,7 +30,6 @@ from air_sitl.state import CameraFrame
 from .helpers import (
     HOME,
     REPO,
-    SMALL_FRAMES,
     WAIT_SAFETY,
     cli,
     free_endpoint,
@@ -160,7 +159,7 @@ def test_a_slow_subscriber_does_not_slow_the_simulation(plan: Path, tmp_path: Pa
                 sub = start([sys.executable, str(script), endpoint])
                 wait_for_line(sub, "ready")
             t0 = time.monotonic()
-            run = fly(plan, tmp_path / f"{case}{k}", "--zenoh-connect", endpoint, *SMALL_FRAMES)
+            run = fly(plan, tmp_path / f"{case}{k}", "--zenoh-connect", endpoint, *SMALL_CAMERA)
             walls[case].append(time.monotonic() - t0)
             assert run.returncode == 0, run.stderr
             if sub is not None:
@@ -254,7 +253,7 @@ def test_gps_stops_in_the_denial_window_and_the_archive_records_it(
     try:
         wait_for_line(listener, "ready")
         denial = ("--gps-denied-window", "2:4")
-        run = fly(plan, tmp_path / "a", "--zenoh-connect", endpoint, *denial, *SMALL_FRAMES)
+        run = fly(plan, tmp_path / "a", "--zenoh-connect", endpoint, *denial, *SMALL_CAMERA)
     finally:
         code, out, err = stop(listener)
     assert run.returncode == 0, run.stderr

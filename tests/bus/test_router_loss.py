@@ -11,9 +11,8 @@ import time
 from pathlib import Path
 
 import pytest
-from short_plans import write_short_plan
+from short_plans import SMALL_CAMERA, write_short_plan
 
-from . import helpers
 from .helpers import HOME, cli, free_endpoint, start, stop, wait_for_line, wait_until
 
 pytestmark = pytest.mark.integration
@@ -42,7 +41,7 @@ def test_a_router_restarted_mid_flight(tmp_path: Path, lockstep: bool) -> None:
     # Paced at 4x (a lockstep flight waits for the localizer anyway): the outage falls inside
     # the capture leg.
     fly = start(cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out),
-                    "--speed", "4", *mode, *net, *helpers.SMALL_FRAMES))  # fmt: skip
+                    "--speed", "4", *mode, *net, *SMALL_CAMERA))  # fmt: skip
     try:
         assert wait_until(lambda: rows(out / "estimates" / "dr.csv") >= 50), "no estimates"
         router.send_signal(signal.SIGKILL)

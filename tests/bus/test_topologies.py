@@ -22,7 +22,7 @@ import pytest
 import yaml
 from ports import free_port
 from pymavlink import mavutil
-from short_plans import write_short_plan
+from short_plans import SMALL_CAMERA, write_short_plan
 
 from air_sitl.bus.keys import KeySpace
 from air_sitl.bus.session import BusConfig, Message, open_bus
@@ -32,7 +32,6 @@ from tests.mavlink.gcs import Gcs
 from .helpers import (
     HOME,
     REPO,
-    SMALL_FRAMES,
     WAIT_SAFETY,
     cli,
     free_endpoint,
@@ -72,7 +71,7 @@ def fly_beside_deadreckon(
     try:
         flown = subprocess.run(
             cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out), "--wait-for",
-                "dr", *WAIT_SAFETY, *fly_net, *SMALL_FRAMES),
+                "dr", *WAIT_SAFETY, *fly_net, *SMALL_CAMERA),
             capture_output=True, text=True, timeout=300, check=False,
         )  # fmt: skip
         # The localizer leaves by itself once the capture window is over (a signal then could

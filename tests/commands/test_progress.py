@@ -14,14 +14,13 @@ import sys
 from pathlib import Path
 
 import pytest
-from short_plans import write_short_plan
+from short_plans import SMALL_CAMERA, write_short_plan
 
 from air_sitl.progress import LINE_EVERY_S, JobsProgress, Progress
 from air_sitl.state import GeoPoint
 
 REPO = Path(__file__).resolve().parents[2]
 HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
-SMALL_CAMERA = ["--camera-width", "160", "--camera-height", "120", "--noise-sigma", "0"]
 
 
 class FakeClock:
@@ -183,7 +182,7 @@ def test_dataset_with_two_workers_reports_each_scenarios_frames_when_piped(
 @pytest.mark.parametrize("camera", [True, False], ids=["camera", "no-camera"])
 def test_the_summary_says_frames_only_with_the_camera(tmp_path: Path, camera: bool) -> None:
     plan = write_short_plan(tmp_path / "short.plan", HOME, leg_m=60.0)
-    extra = SMALL_CAMERA if camera else ["--no-camera"]
+    extra = [*SMALL_CAMERA] if camera else ["--no-camera"]
     run = subprocess.run(
         [sys.executable, "-m", "air_sitl", "fly", str(plan), "--out", str(tmp_path / "out"),
          "--air-start", *extra],

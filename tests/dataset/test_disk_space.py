@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 from cli_errors import one_line_error
-from short_plans import write_short_plan
+from short_plans import SMALL_CAMERA, write_short_plan
 from tmpfs import tmpfs
 
 from air_sitl.cli import main
@@ -24,7 +24,6 @@ from air_sitl.state import GeoPoint
 
 REPO = Path(__file__).resolve().parents[2]
 HOME = GeoPoint(lat_deg=47.3769, lon_deg=8.5417, alt_amsl_m=400.0)
-SMALL_CAMERA = ["--camera-width", "160", "--camera-height", "120", "--noise-sigma", "0"]
 
 
 def _need(err_line: str) -> str:

@@ -14,14 +14,13 @@ import sys
 from pathlib import Path
 
 import pytest
-from short_plans import write_short_plan
+from short_plans import SMALL_CAMERA, write_short_plan
 
 from air_sitl.state import GeoPoint
 
 REPO = Path(__file__).resolve().parents[2]
 HOME = GeoPoint(lat_deg=38.5387, lon_deg=-121.4935, alt_amsl_m=20.0)
 # Scoring reads the rows, never the pixels: small noiseless frames halve the flights' CPU.
-SMALL_CAMERA = ("--camera-width", "160", "--camera-height", "120", "--noise-sigma", "0")
 
 
 def _fly(plan: Path, out: Path) -> Path:

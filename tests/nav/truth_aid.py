@@ -25,6 +25,8 @@ def fly_with_truth_aid(plan: Path, out: Path, *options: str, shift_east_m: float
     """``fly PLAN --out OUT OPTIONS`` aided by the truth (``--nav-aid aid --wait-for aid``, in
     lockstep); the estimator's output (``answered``, ``images``). Asserts both exit 0. Small
     frames: the truth answers them whatever they show."""
+    from short_plans import SMALL_CAMERA
+
     from tests.bus import helpers
     from tests.bus.helpers import cli, free_endpoint, start, stop, wait_for_line
 
@@ -36,7 +38,7 @@ def fly_with_truth_aid(plan: Path, out: Path, *options: str, shift_east_m: float
         run = subprocess.run(
             cli("fly", str(plan), "--out", str(out), "--quiet", "--zenoh-connect", endpoint,
                 "--publish-truth", "--nav-aid", "aid", "--wait-for", "aid", *helpers.WAIT_SAFETY,
-                *helpers.SMALL_FRAMES, *options),
+                *SMALL_CAMERA, *options),
             capture_output=True, text=True, timeout=300, check=False,
         )  # fmt: skip
     finally:
