@@ -1,7 +1,7 @@
 """Change over the years between the procedural maps' surveys: new streets and parking lots in
 town, logging tracks to the forest's clear-cuts (none at the reference date, more seven years
-on than three, kept once built, flat ground in the built-in surface); and autumn turning the
-broadleaves while the conifers stay green."""
+on than three, kept once built, flat ground in the built-in surface); autumn turning the
+broadleaves while the conifers stay green; spring's bare crowns, dead grass and high water."""
 
 from __future__ import annotations
 
@@ -13,10 +13,11 @@ from georef_helpers import HOME
 
 from air_sitl.maps.procedural import ProceduralMap
 from air_sitl.maps.procedural.canvas import DATES
-from air_sitl.maps.procedural.forest import ForestWorld
-from air_sitl.maps.procedural.forest_cuts import logging_tracks
+from air_sitl.maps.procedural.forest import SPRING_POND_FILL, ForestWorld
+from air_sitl.maps.procedural.forest_cuts import clear_cut, logging_tracks
 from air_sitl.maps.procedural.urban import UrbanWorld
 from air_sitl.maps.procedural.urban_blocks import Block
+from air_sitl.maps.procedural.yeargap import ponds
 
 GSD = 0.5
 BLOCKS = range(-12, 12)  # 24 x 24 blocks of 105 m: about 6 km2
@@ -176,3 +177,39 @@ def test_new_paving_is_the_same_whichever_window_draws_it() -> None:
             assert np.array_equal(big[road], small[road]), (kx, ky)
             checked += 1
     assert checked > 0
+
+
+def test_spring_bares_the_broadleaves_brown_and_cuts_show_dead_grass() -> None:
+    """The April survey: bare broadleaf crowns are grey-brown over the litter, not mauve
+    under the survey's cool white balance; young growth on a cut felled by 2012 is last
+    year's dead grass, straw (red at least blue), where summer's would be green."""
+    world = ForestWorld(0)
+    g = world._ground(0, 0, 512, GSD, DATES[2])
+    img = ProceduralMap("forest", HOME, seed=0, date=2, gsd_m=GSD).render_abs(0, 0, 512)
+    dec = cv2.erode(((g.cover > 0.5) & (g.conifer < 0.5)).astype(np.uint8), np.ones((9, 9)))
+    hsv = cv2.cvtColor(img[dec > 0].reshape(-1, 1, 3), cv2.COLOR_BGR2HSV)[:, 0, :]
+    assert dec.sum() > 5000
+    mauve = (hsv[:, 0].astype(float) * 2.0 > 250.0) & (hsv[:, 1] > 25)
+    assert float(mauve.mean()) < 0.02
+    assert 20.0 < float(np.median(hsv[:, 0])) * 2.0 < 75.0  # orange-brown to olive
+    i, j = next((i, j) for i in range(-6, 6) for j in range(-6, 6) if clear_cut(0, i, j).at == 1)
+    e, n = clear_cut(0, i, j).centre
+    x0, y0 = math.floor(e / GSD) - 64, math.floor(-n / GSD) - 64
+    g = world._ground(x0, y0, 128, GSD, DATES[2])
+    on_cut = cv2.erode((g.cut > 0.3).astype(np.uint8), np.ones((9, 9))) > 0
+    assert on_cut.sum() > 4000 and 0.5 < float(g.cut[on_cut].mean()) < 0.8  # growing again
+    b, gr, r = (
+        ProceduralMap("forest", HOME, seed=0, date=2, gsd_m=GSD)
+        .render_abs(x0, y0, 128)[on_cut]
+        .astype(float)
+        .mean(axis=0)
+    )
+    assert r >= b + 8.0 and r > gr - 6.0, (b, gr, r)
+
+
+def test_spring_high_water_fills_more_hollows() -> None:
+    """Ponds: the same hollows every survey; the spring survey's high water fills shallower
+    ones too, none on the reference date."""
+    low, high = (ponds(0, DATES[2], 0, 0, 1024, 2.4, f) > 0.5 for f in (0.0, SPRING_POND_FILL))
+    assert not ponds(0, DATES[0], 0, 0, 256, 2.4, SPRING_POND_FILL).any()
+    assert bool(np.all(high[low])) and float(high.mean()) > 2.0 * float(low.mean()) > 0.01

@@ -49,7 +49,9 @@ _AUTUMN_LEAVES = ((52, 108, 66), (48, 150, 170), (38, 100, 168), (50, 82, 112))
 # survey's cool white balance and bluish haze leave them brown, not mauve.
 _BARE: Color = (66, 98, 112)
 _LITTER: Color = (46, 84, 106)  # last year's leaves on the forest floor
-_REGROWTH: Color = (64, 120, 104)  # young growth on clear-cuts a few years old
+# Young growth on clear-cuts a few years old (BGR): green in summer, turning in autumn; in
+# the April survey last year's dead grass among bare shrubs and saplings, straw-brown.
+_REGROWTH = {"summer": (64, 120, 104), "autumn": (62, 116, 124), "spring": (74, 120, 150)}
 _BOAT: Color = (214, 218, 222)  # white hulls
 BOAT_CELL_M = 45.0  # one boat at most per cell of open water
 BOAT_SHARE = 0.08  # share of the cells with a boat during a survey
@@ -67,6 +69,11 @@ CROWN_MAX_GSD_M = 10.0  # coarser pixels draw each stand's mean instead of its c
 SHADOW_REACH_M = 12.0  # crowns this far toward the sun may shade a pixel
 SHADOW_STEPS_M = (0.6, 1.2, 1.8, 2.5, 3.5, 4.8, 6.5, 9.0, 12.0)
 STREAM_HALF = 0.012  # streams where a 520 m noise is within this of zero
+# The April survey sees the year's high water (snowmelt, spring rain): streams run wider,
+# over their open banks (at-a-station width ~ discharge^0.26, spring discharge ~3x summer's),
+# and the wet hollows of the meadows hold water (``yeargap.ponds``' wetness, raised).
+SPRING_STREAM_WIDTH = 1.3
+SPRING_POND_FILL = 1.0
 # Coarse levels (crowns below a pixel), measured on the crowns drawn at 0.6 m: crown cover per
 # unit tree density, mean canopy height over the stand height, the mean radial position on a
 # crown, mean shadow on crowns and in the gaps between them.
@@ -143,7 +150,7 @@ class ForestWorld:
         meadow = meadow_look(self.seed, date, x0, y0, size, gsd_m, _MEADOW[season], meadow_tex)
         soil = np.array(_SOIL, dtype=np.float32) * (1.0 + 0.12 * fine)[:, :, None]
         young = np.clip((0.9 - g.cut) * 3.0, 0.0, 1.0) * (g.cut > 0.3)  # older cuts: regrowth
-        growth = np.array(_REGROWTH, dtype=np.float32) * (1.0 + 0.25 * fine)[:, :, None]
+        growth = np.array(_REGROWTH[season], dtype=np.float32) * (1.0 + 0.25 * fine)[:, :, None]
         soil = soil * (1.0 - young[:, :, None]) + growth * young[:, :, None]
         if date.leaf_off:
             under = under * 0.4 + np.array(_LITTER, dtype=np.float32) * 0.6
@@ -195,14 +202,16 @@ class ForestWorld:
         meadow = np.clip((clear_px - thr + 0.08) * 6.0, 0.0, 1.0)
         stream_px = _sample(value_noise, k + 20, x0, y0, size, gsd_m, 520.0)
         stream_on = _sample(value_noise, k + 21, x0, y0, size, gsd_m, 1400.0) > -0.3
-        stream = np.clip((STREAM_HALF - np.abs(stream_px)) * 80.0 * stream_on, 0.0, 1.0)
+        half = STREAM_HALF * (SPRING_STREAM_WIDTH if date.leaf_off else 1.0)
+        stream = np.clip((half - np.abs(stream_px)) * 80.0 * stream_on, 0.0, 1.0)
         # Lakes stand higher or lower each year than at the reference survey (a higher lake
         # drowns its shore's trees; the shore a lower one left is grass); ponds fill and dry
         # in the clearings.
         lake = self._lake(x0, y0, size, gsd_m, date)
         lake_ref = self._lake(x0, y0, size, gsd_m)
         meadow = np.maximum(meadow, lake_ref - lake)
-        pond = ponds(self.seed, date, x0, y0, size, gsd_m) * meadow
+        fill = SPRING_POND_FILL if date.leaf_off else 0.0
+        pond = ponds(self.seed, date, x0, y0, size, gsd_m, fill) * meadow
         water: FloatImage = np.maximum(np.maximum(stream, lake), pond).astype(np.float32)
         felled = cut_mask(self.seed, x0, y0, size, gsd_m, d)
         cut = np.zeros((size, size), np.float32) if felled is None else felled

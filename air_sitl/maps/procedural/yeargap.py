@@ -102,11 +102,15 @@ def water_level(seed: int, date: DateLook, x0: int, y0: int, size: int, gsd_m: f
     return out
 
 
-def ponds(seed: int, date: DateLook, x0: int, y0: int, size: int, gsd_m: float) -> FloatImage:
+def ponds(
+    seed: int, date: DateLook, x0: int, y0: int, size: int, gsd_m: float, fill: float = 0.0
+) -> FloatImage:
     """0..1: small ponds standing on open land during this survey. The same hollows every
     year; how many hold water is the year's (wet years fill more, dry years leave them dry),
-    departing from the reference survey's more the more years lie between. The reference
-    survey (date 0) was flown in a dry summer: its hollows hold no water."""
+    departing from the reference survey's more the more years lie between, and the season's
+    (``fill``: how much shallower a hollow may be and still hold water, in the hollows' noise
+    units; a spring survey's high water). The reference survey (date 0) was flown in a dry
+    summer: its hollows hold no water."""
     if years_since_reference(date) <= 0.0:
         return np.zeros((size, size), np.float32)
     k = key_of(seed, 0x7A4)
@@ -114,7 +118,7 @@ def ponds(seed: int, date: DateLook, x0: int, y0: int, size: int, gsd_m: float) 
     swing = POND_SWING * min(1.0, years_since_reference(date) / 7.0)
     k_wet = key_of(seed, 0x7A5, date.index)
     wet = value_noise(k_wet, x0 + 0.5, y0 + 0.5, size, 4.0 * POND_CELL_M / gsd_m) / NOISE_STD
-    thr = np.float32(POND_THRESHOLD) - np.float32(swing) * np.clip(wet, -1.5, 1.5)
+    thr = np.float32(POND_THRESHOLD - fill) - np.float32(swing) * np.clip(wet, -1.5, 1.5)
     out: FloatImage = np.clip((hollow - thr) * np.float32(12.0), 0.0, 1.0)
     return out
 
