@@ -476,7 +476,11 @@ def main(argv: list[str] | None = None) -> int:
     frames_help = "matcher frames per world, date and height (default 20; 0: none)"
     p.add_argument("--frames", type=int, default=20, help=frames_help)
     p.add_argument("--sheet", type=Path, help="save crops side by side as this PNG")
+    p.add_argument(
+        "--heights", default="200,300,3000", help="matcher heights m (default 200,300,3000)"
+    )
     args = p.parse_args(argv)
+    heights = tuple(float(h) for h in args.heights.split(",") if h)
     for kind in [k for k in args.maps.split(",") if k]:
         if kind not in KINDS:
             p.error(f"--maps: {kind!r} is not a procedural map ({', '.join(KINDS)})")
@@ -493,9 +497,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.frames > 0:
         mrows: list[tuple[str, dict[str, float]]] = []
         for kind in [k for k in args.maps.split(",") if k]:
-            mrows += matcher_rows(kind, args.frames, args.seed, args.map_seed)
+            mrows += matcher_rows(kind, args.frames, args.seed, args.map_seed, heights)
         if args.real_tifs:
-            mrows += real_tif_rows(args.real_tifs[0], args.real_tifs[1], args.frames, args.seed)
+            a_tif, b_tif = args.real_tifs
+            mrows += real_tif_rows(a_tif, b_tif, args.frames, args.seed, heights)
         print_matcher_table(mrows, print)
     if args.sheet:
         contact_sheet(keep_p or [], keep_r or [], args.sheet)
