@@ -232,13 +232,28 @@ def print_rows(rows: list[tuple[str, dict[str, float]]]) -> None:
         print(f"{name:<28}" + "".join(cells))
 
 
+def save_sheet(rows: list[list[tuple[str, Img]]], path: Path) -> None:
+    """Rows of labelled images side by side, at half size (10 m a pixel)."""
+    out = []
+    for row in rows:
+        cells = []
+        for label, img in row:
+            small = cv2.resize(
+                img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA
+            )
+            cv2.putText(small, label, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 2)
+            cells.append(small)
+        out.append(np.hstack(cells))
+    cv2.imwrite(str(path), np.vstack(out), [cv2.IMWRITE_JPEG_QUALITY, 85])
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--naip", type=Path, help="folder of one place's NAIP GeoTIFFs (4 bands, 5 m)")
     p.add_argument("--pairs", default=PAIRS, help="real year pairs A:B (default: 9 of 1-11 years)")
     p.add_argument("--map-seed", type=int, default=0, help="seed of the farmland map (default 0)")
     p.add_argument("--seed", type=int, default=0, help="seed of the crops (default 0)")
-    p.add_argument("--sheet", type=Path, help="save our three dates beside NAIP's as this PNG")
+    p.add_argument("--sheet", type=Path, help="save our three dates beside NAIP's (.jpg, .png)")
     args = p.parse_args(argv)
     rows: list[tuple[str, dict[str, float]]] = []
     shape = (723, 934)
@@ -263,11 +278,11 @@ def main(argv: list[str] | None = None) -> int:
         rows.append((f"farmland 0-{d} ({labels[d][:4]})", stats))
     print_rows(rows)
     if args.sheet:
-        sheet_rows = [np.hstack([ours[k][0] for k in labels])]
         picks = [k for k in real if k[:4] in ("2009", "2012", "2016")]
+        rows_of = [[(f"farmland {k}", ours[k][0]) for k in labels]]
         if len(picks) == 3:
-            sheet_rows.append(np.hstack([real[k][0] for k in picks]))
-        cv2.imwrite(str(args.sheet), np.vstack(sheet_rows))
+            rows_of.append([(f"NAIP {k}", real[k][0]) for k in picks])
+        save_sheet(rows_of, args.sheet)
         print(f"sheet: {args.sheet}")
     return 0
 
