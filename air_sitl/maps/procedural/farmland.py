@@ -113,7 +113,7 @@ CANOPY_MAX_GSD_M = 3.0  # coarser: trees as their stand's mean
 PIVOT_RING_M = 54.0  # spacing of a pivot's towers: its wheel tracks
 FIELD_EVERY_YEARS = 4.0  # mean years between changes of how a field is farmed (yeargap)
 FIELD_TONE = 0.35  # largest relative brightness change of a field farmed otherwise
-FIELD_YEAR_TONE = 0.16  # every field's own brightness each year (+-8 %: stand, variety, planting date)
+FIELD_YEAR_TONE = 0.16  # each field's own brightness a year (+-8 %: stand, variety, sowing)
 # What stays inside a field from year to year (docs/map-dates.md, "What persists inside
 # fields"): the soil's zones (eroded light knobs, dark wet swales) show in bare soil and
 # through the crop, whose vigour follows them with the year's sign; grassed waterways; the
