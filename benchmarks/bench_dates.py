@@ -2,6 +2,7 @@
 
     python benchmarks/bench_dates.py [--crops 48] [--seed 0] [--maps urban,forest]
         [--real A_DIR B_DIR] [--real-tifs A.tif B.tif] [--frames 20] [--sheet OUT.png]
+        [--heights 200,300,3000]
 
 For each procedural map, random 256 x 256 crops at 0.5 m per pixel of date 0 against the same
 place at date 1 and date 2 (and date 0 against itself: the same-date check), in grey:
@@ -34,7 +35,9 @@ Matcher figure (``--frames N``, default 20; 0 skips it): N frames per world, dat
 (200, 300, 3000 m; random places, headings, roll and pitch up to 5 degrees) rendered from date
 k and matched against date 0 by the mapmatch baseline's matcher from a prior 10-30 m off:
 share accepted within 5 m and the median response. ``--real-tifs A.tif B.tif``: the same for
-two real GeoTIFFs of one place (frames of B against A; and A against itself).
+two real GeoTIFFs of one place (frames of B against A; and A against itself). ``--heights``:
+the matcher's heights above ground (a 5 m NAIP quarter quad, 4.67 x 3.6 km, holds frames up
+to about 2000 m with their search).
 ``--sheet`` saves crops of dates 0/1/2 of each map side by side with real pairs, to look
 at. Deterministic with ``--seed``.
 """
