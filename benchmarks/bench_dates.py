@@ -2,6 +2,7 @@
 
     python benchmarks/bench_dates.py [--crops 48] [--seed 0] [--maps urban,forest]
         [--real A_DIR B_DIR] [--real-tifs A.tif B.tif] [--frames 20] [--sheet OUT.png]
+        [--heights 200,300,3000]
 
 For each procedural map, random 256 x 256 crops at 0.5 m per pixel of date 0 against the same
 place at date 1 and date 2 (and date 0 against itself: the same-date check), in grey:
@@ -34,7 +35,9 @@ Matcher figure (``--frames N``, default 20; 0 skips it): N frames per world, dat
 (200, 300, 3000 m; random places, headings, roll and pitch up to 5 degrees) rendered from date
 k and matched against date 0 by the mapmatch baseline's matcher from a prior 10-30 m off:
 share accepted within 5 m and the median response. ``--real-tifs A.tif B.tif``: the same for
-two real GeoTIFFs of one place (frames of B against A; and A against itself).
+two real GeoTIFFs of one place (frames of B against A; and A against itself). ``--heights``:
+the matcher's heights above ground (a 5 m NAIP quarter quad, 4.67 x 3.6 km, holds frames up
+to about 2000 m with their search).
 ``--sheet`` saves crops of dates 0/1/2 of each map side by side with real pairs, to look
 at. Deterministic with ``--seed``.
 """
@@ -476,7 +479,11 @@ def main(argv: list[str] | None = None) -> int:
     frames_help = "matcher frames per world, date and height (default 20; 0: none)"
     p.add_argument("--frames", type=int, default=20, help=frames_help)
     p.add_argument("--sheet", type=Path, help="save crops side by side as this PNG")
+    p.add_argument(
+        "--heights", default="200,300,3000", help="matcher heights m (default 200,300,3000)"
+    )
     args = p.parse_args(argv)
+    heights = tuple(float(h) for h in args.heights.split(",") if h)
     for kind in [k for k in args.maps.split(",") if k]:
         if kind not in KINDS:
             p.error(f"--maps: {kind!r} is not a procedural map ({', '.join(KINDS)})")
@@ -493,9 +500,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.frames > 0:
         mrows: list[tuple[str, dict[str, float]]] = []
         for kind in [k for k in args.maps.split(",") if k]:
-            mrows += matcher_rows(kind, args.frames, args.seed, args.map_seed)
+            mrows += matcher_rows(kind, args.frames, args.seed, args.map_seed, heights)
         if args.real_tifs:
-            mrows += real_tif_rows(args.real_tifs[0], args.real_tifs[1], args.frames, args.seed)
+            a_tif, b_tif = args.real_tifs
+            mrows += real_tif_rows(a_tif, b_tif, args.frames, args.seed, heights)
         print_matcher_table(mrows, print)
     if args.sheet:
         contact_sheet(keep_p or [], keep_r or [], args.sheet)

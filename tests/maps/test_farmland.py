@@ -126,14 +126,19 @@ def test_crops_rotate_and_field_looks_change_between_the_years() -> None:
 
 def test_water_varies_from_year_to_year() -> None:
     """Open water (potholes, the creek) over a 20 km square at each survey: its share differs
-    between the years by more than half of the smaller one, and water is found in all."""
-    shares = []
+    between the years by more than a third of the smaller one, water is found in all, and
+    most of the reference survey's water is water again (the basins keep several years'
+    water: in the NAIP series of one North Dakota quad 1.0-1.7 times the area, 94-99 % kept)."""
+    water = []
     for date in (0, 1, 2):
         m = _map(date, seed=1)
         codes = m.world.land_cover(-500, -2250, 512, 38.4, m.date)  # type: ignore[union-attr]
-        shares.append(float((codes == WATER).mean()))
+        water.append(codes == WATER)
+    shares = [float(w.mean()) for w in water]
     assert min(shares) > 0.0005
-    assert max(shares) > 1.5 * min(shares), shares
+    assert max(shares) > 1.3 * min(shares), shares
+    for later in water[1:]:
+        assert float((water[0] & later).sum() / water[0].sum()) > 0.8
 
 
 def test_farmland_is_surveyed_in_the_growing_season_as_naip() -> None:

@@ -46,6 +46,7 @@ from air_sitl.maps.procedural.farmland_layout import (
     Fields,
     Grid,
     band,
+    basin_wetness,
     creek_distance_m,
     crop_in,
     drainage,
@@ -112,6 +113,7 @@ CANOPY_MAX_GSD_M = 3.0  # coarser: trees as their stand's mean
 PIVOT_RING_M = 54.0  # spacing of a pivot's towers: its wheel tracks
 FIELD_EVERY_YEARS = 4.0  # mean years between changes of how a field is farmed (yeargap)
 FIELD_TONE = 0.35  # largest relative brightness change of a field farmed otherwise
+FIELD_YEAR_TONE = 0.16  # each field's own brightness a year (+-8 %: stand, variety, sowing)
 # What stays inside a field from year to year (docs/map-dates.md, "What persists inside
 # fields"): the soil's zones (eroded light knobs, dark wet swales) show in bare soil and
 # through the crop, whose vigour follows them with the year's sign; grassed waterways; the
@@ -202,7 +204,10 @@ class FarmlandWorld:
         # year's own (12 m: stand, weeds; DSIFN's fields share 0.02 of their 3-12 m texture).
         # The texture of annual plants and tilled clods is each year's own too.
         ref = year == REFERENCE_YEAR
-        vigour = 0.12 * value_noise(k + 1, x0 + 0.5, y0 + 0.5, size, 45.0 / gsd_m)
+        # The soil's zones show through the crop with each field's and year's own sign and
+        # strength (ZONE_RESPONSE): the knob thin or lush, the 45 m vigour pattern either way.
+        resp = (2.0 * field_unit(seed, f.key, year, 16) - 1.0)[f.fid]
+        vigour = 0.12 * resp * value_noise(k + 1, x0 + 0.5, y0 + 0.5, size, 45.0 / gsd_m)
         kv = k + 2 if ref else key_of(seed, 0xF14, year)
         vigour += 0.06 * value_noise(kv, x0 + 0.5, y0 + 0.5, size, 12.0 / gsd_m)
         share = changed_share(years_since_reference(date), FIELD_EVERY_YEARS)
@@ -213,7 +218,7 @@ class FarmlandWorld:
             grown = 0.2 * value_noise(ky, x0 + 0.5, y0 + 0.5, size, 30.0 / gsd_m)
             grown += 0.1 * value_noise(ky + 1, x0 + 0.5, y0 + 0.5, size, 9.0 / gsd_m)
             vigour = np.where(managed, grown, vigour)
-        vigour -= KNOB_CROP * (soil_v - 0.5)
+        vigour -= KNOB_CROP * resp * (soil_v - 0.5)
         if stage == "midsummer":  # a dry summer: dryland crops thin, irrigated ones green
             vigour -= 0.8 * max(0.0, 0.45 - wet)
         cover = np.clip(cover * (1.0 + vigour) + 0.15 * (f.pivot * running * (cover > 0.2)), 0, 1)
@@ -228,7 +233,7 @@ class FarmlandWorld:
         ground = (
             soil / dark[:, :, None] * (1.0 - 0.5 * rows_amp * stripes * (cover < 0.3))[:, :, None]
         )
-        tone = 1.0 + 0.16 * (field_unit(seed, f.key, year, 9)[f.fid] - 0.5)
+        tone = 1.0 + FIELD_YEAR_TONE * (field_unit(seed, f.key, year, 9)[f.fid] - 0.5)
         if managed is not None:
             swing = FIELD_TONE * (2.0 * field_unit(seed, f.key, year, 12) - 1.0)
             tone *= 1.0 + managed * swing[f.fid]
@@ -246,7 +251,7 @@ class FarmlandWorld:
         lay.code = code
         lay.height = (height * (cover > 0.3) * (grassed < 0.5)).astype(np.float32)
         self._pivots(lay, g, f, date)
-        self._water(lay, date, wet)
+        self._water(lay, date, wet, basin_wetness(seed, year))
         gravel, paved, ditch = roads(seed, g, gsd_m)
         lay.paint(ditch.astype(np.float32), _DITCH[season], GRASS)
         lay.height *= (1.0 - ditch).astype(np.float32)
@@ -284,13 +289,14 @@ class FarmlandWorld:
         lay.paint((arm * is_pivot).astype(np.float32), (200, 204, 206), 10)
         lay.paint((hub * is_pivot).astype(np.float32), GRAVEL_BGR, GRAVEL)
 
-    def _water(self, lay: Layers, date: DateLook, wet: float) -> None:
+    def _water(self, lay: Layers, date: DateLook, wet: float, full: float) -> None:
         """The creek (water, trees and grass along it) and the potholes: cattails round the
-        basin, mud where the water receded, open water up to the year's level."""
+        basin, mud where the water receded, open water up to the level of the basins'
+        several years (``full``); a dry year (``wet``) farms the shallow basins through."""
         seed, x0, y0, size, gsd = self.seed, lay.x0, lay.y0, lay.size, lay.gsd_m
         season = date.season
         p = pothole(seed, x0, y0, size, gsd)
-        level = water_level(wet)
+        level = water_level(full)
         if float(p.max()) > -0.05:
             soft = max(0.02, 0.6 * gsd / 60.0)
             basin = np.clip((p + 0.05) / soft, 0.0, 1.0)
@@ -314,7 +320,7 @@ class FarmlandWorld:
         )
         lay.trees = np.maximum(lay.trees, 0.8 * woods).astype(np.float32)
         lay.tree_h = np.maximum(lay.tree_h, 15.0 * (woods > 0)).astype(np.float32)
-        half = (1.5 + 5.0 * wet) * (
+        half = (1.5 + 5.0 * full) * (
             1.0 + 0.3 * value_noise(k + 2, x0 + 0.5, y0 + 0.5, size, 80.0 / gsd)
         )
         bank = np.clip((half + 2.5 - d) / gsd + 0.5, 0, 1)
