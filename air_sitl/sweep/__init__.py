@@ -27,6 +27,7 @@ from air_sitl.files import write_json_atomic
 from air_sitl.progress import Progress
 from air_sitl.sweep.errors import SweepError
 from air_sitl.sweep.executors import PoolExecutor, RayExecutor
+from air_sitl.sweep.groups import Group, group_tasks
 from air_sitl.sweep.measurements import archive_id, load
 from air_sitl.sweep.results import RESULTS, ResultsFile, latest_rows
 from air_sitl.sweep.run import RunTask
@@ -52,7 +53,7 @@ RUNS_DIR = "runs"
 
 
 class Executor(Protocol):
-    def run(self, tasks: Sequence[RunTask], on_row: Any) -> None: ...
+    def run(self, groups: Sequence[Group], on_row: Any) -> None: ...
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -254,8 +255,8 @@ def run_tasks(
                 on_row(task_of[row["id"]], row)
 
         try:
-            if todo:
-                executor.run(todo, take_row)
+            if todo:  # the map dates of one flight fly once (groups), longest first
+                executor.run(group_tasks(todo), take_row)
         except KeyboardInterrupt:
             interrupted = True
         finally:
