@@ -1,7 +1,8 @@
 """``air-sitl sweep``: pool speed-up and Ray overhead on 16 short runs.
 
 Run: ``python benchmarks/bench_sweep.py [--runs 16] [--leg-m 100] [--methods deadreckon]
-[--no-ray] [--repeat N]``.
+[--no-ray] [--repeat N]``, or ``python benchmarks/bench_sweep.py --air-cut --base-code DIR``
+(below).
 
 Sixteen short runs (an air-started capture leg of 100 m, about 330 frames, then deadreckon
 localized and scored: the whole work of a sweep run) are swept three times into fresh

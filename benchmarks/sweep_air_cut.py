@@ -66,7 +66,7 @@ def _rows(out: Path) -> list[dict[str, Any]]:
 
 
 def _localize_alone(out: Path, rows: list[dict[str, Any]]) -> dict[str, float]:
-    """Each method run alone (in this process) over every date's archive: wall s per frame."""
+    """Each method run alone (in this process) over every date's archive: CPU s per frame."""
     sys.path.insert(0, str(ROOT))
     from air_sitl.localize.archive import run_archive
 
@@ -76,9 +76,9 @@ def _localize_alone(out: Path, rows: list[dict[str, Any]]) -> dict[str, float]:
         archive = out / row["archive"]
         frames += int(row["summary"]["capture_frames"])
         for method in ("mapmatch", "vo"):
-            start = time.perf_counter()
+            start = time.process_time()
             run_archive(archive, method, name=f"{method}-again", reference_date=0, seed=1)
-            took[method] = took.get(method, 0.0) + time.perf_counter() - start
+            took[method] = took.get(method, 0.0) + time.process_time() - start
     return {m: s / frames for m, s in took.items()}
 
 
@@ -108,16 +108,20 @@ def air_cut(scenario: str, base_code: Path | None) -> None:
                 parts[part] = parts.get(part, 0.0) + float(seconds)
         text = ", ".join(f"{k} {v:.1f} s ({1000 * v / frames:.2f} ms)" for k, v in parts.items())
         print(f"after -j 1, {len(rows)} runs, {frames} frames; time_s (per frame): {text}")
+        # The parts are wall seconds of a worker sharing the cores with whatever else runs:
+        # scaled by the sweep's CPU over its wall, they are CPU seconds.
+        cores = figures["after", 1][1] / max(sum(parts.values()), 1e-9)
+        print(f"after -j 1 used {cores:.2f} cores while in its runs (CPU / the parts' wall)")
         alone = _localize_alone(root / "after-j1", rows)
         text = ", ".join(f"{m} {1000 * s:.2f} ms" for m, s in alone.items())
-        print(f"localize alone, wall per frame over the three dates: {text}")
-        _estimate(parts, frames, alone)
+        print(f"localize alone, CPU per frame over the three dates: {text}")
+        _estimate({k: v * cores for k, v in parts.items()}, frames, alone)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 
 
 def _estimate(parts: dict[str, float], frames: int, alone: dict[str, float]) -> None:
-    """The 108-run sweep from the cut's parts per frame: every run's frames at these costs
-    (the flight's share counted once per flight, each date's render, localize and eval once
+    """The 108-run sweep from the cut's parts (CPU s) per frame of a run: every run's frames at
+    these costs (the flight's share as the cut's, each date's render, localize and eval once
     per run), on two cores."""
     per_run_frames = sum(AIR_FRAMES.values()) * ALTITUDES * SEEDS  # per map date
     total_frames = per_run_frames * DATES
@@ -126,9 +130,10 @@ def _estimate(parts: dict[str, float], frames: int, alone: dict[str, float]) -> 
     whole = sum(seconds.values())
     text = ", ".join(f"{k} {v / 3600:.2f} h" for k, v in seconds.items())
     print(
-        f"108-run estimate: {total_frames:,} frames of runs; run time {whole / 3600:.2f} h "
+        f"108-run estimate: {total_frames:,} frames of runs; CPU {whole / 3600:.2f} h "
         f"({text}); on -j 2 about {whole / 2 / 3600:.2f} h of wall on two free cores "
-        "(target 1 h)"
+        "(target 1 h: 7,200 s of CPU, "
+        f"{7200 / total_frames * 1000:.2f} ms per frame of a run)"
     )
     for method, rate in alone.items():
-        print(f"  of localize: {method} {rate * total_frames / 3600:.2f} h of run time")
+        print(f"  localize {method} alone: {rate * total_frames / 3600:.2f} h of CPU")

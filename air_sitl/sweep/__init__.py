@@ -5,7 +5,8 @@
     write_report(Path("out/sweep"))                            # report.md + report.png
 
 One concern per module: :mod:`.spec` (the SPEC and each run's options, checked by fly's own
-parser), :mod:`.run` (the work of one run in a worker), :mod:`.executors` (process pool, Ray),
+parser), :mod:`.run` (the work of one run in a worker), :mod:`.groups` (runs that differ only
+in the map date, one task flying once), :mod:`.executors` (process pool, Ray),
 :mod:`.results` (``results.jsonl``: whole lines, resume), :mod:`.report` (tables and plots).
 The driver here turns runs into tasks, skips the done ones, and writes each row as it comes.
 ``air-sitl bench`` is a preset of it (:mod:`air_sitl.bench`): one run per AIR scenario, the tasks
