@@ -115,6 +115,7 @@ def main() -> None:
     parser.add_argument("--air-cut", action="store_true", help="the AIR sweep's cut (see above)")
     parser.add_argument("--scenario", default="UC-200", help="--air-cut's scenario")
     parser.add_argument("--base-code", type=Path, help="--air-cut's floor: the code before")
+    parser.add_argument("--cut-jobs", default="1,2", help="--air-cut's -j values (1,2)")
     parser.add_argument("--runs", type=int, default=16)
     parser.add_argument("--leg-m", type=float, default=100.0, help="capture leg (m)")
     parser.add_argument("--methods", default="deadreckon")
@@ -126,7 +127,7 @@ def main() -> None:
     if args.air_cut:
         from sweep_air_cut import air_cut  # benchmarks/sweep_air_cut.py
 
-        air_cut(args.scenario, args.base_code)
+        air_cut(args.scenario, args.base_code, tuple(int(j) for j in args.cut_jobs.split(",")))
         return
     methods = [m for m in args.methods.split(",") if m]
     print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")

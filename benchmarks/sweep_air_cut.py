@@ -82,8 +82,8 @@ def _localize_alone(out: Path, rows: list[dict[str, Any]]) -> dict[str, float]:
     return {m: s / frames for m, s in took.items()}
 
 
-def air_cut(scenario: str, base_code: Path | None) -> None:
-    """Measure and print (see the module docstring)."""
+def air_cut(scenario: str, base_code: Path | None, jobs_list: tuple[int, ...] = (1, 2)) -> None:
+    """Measure and print (see the module docstring); ``jobs_list``: the ``-j`` values."""
     if base_code is None:
         sys.exit("bench_sweep --air-cut: give --base-code DIR (the code before, the floor)")
     print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
@@ -92,27 +92,28 @@ def air_cut(scenario: str, base_code: Path | None) -> None:
         spec = _write_cut(root, scenario)
         figures: dict[tuple[str, int], tuple[float, float]] = {}
         for label, code in (("before", base_code.resolve()), ("after", ROOT)):
-            for jobs in (1, 2):
+            for jobs in jobs_list:
                 figures[label, jobs] = _sweep(code, spec, root / f"{label}-j{jobs}", jobs)
                 wall, cpu = figures[label, jobs]
                 print(f"{label:6s} -j {jobs}: {wall:7.1f} s wall, {cpu:7.1f} s CPU "
                       f"(load {os.getloadavg()[0]:.1f})")  # fmt: skip
-        for jobs in (1, 2):
+        for jobs in jobs_list:
             (bw, bc), (aw, ac) = figures["before", jobs], figures["after", jobs]
             print(f"-j {jobs}: after / before: wall {aw / bw:.2f}x, CPU {ac / bc:.2f}x")
-        rows = _rows(root / "after-j1")
+        first = jobs_list[0]
+        rows = _rows(root / f"after-j{first}")
         frames = sum(int(r["summary"]["capture_frames"]) for r in rows)
         parts: dict[str, float] = {}
         for row in rows:
             for part, seconds in row["time_s"].items():
                 parts[part] = parts.get(part, 0.0) + float(seconds)
         text = ", ".join(f"{k} {v:.1f} s ({1000 * v / frames:.2f} ms)" for k, v in parts.items())
-        print(f"after -j 1, {len(rows)} runs, {frames} frames; time_s (per frame): {text}")
+        print(f"after -j {first}, {len(rows)} runs, {frames} frames; time_s (per frame): {text}")
         # The parts are wall seconds of a worker sharing the cores with whatever else runs:
         # scaled by the sweep's CPU over its wall, they are CPU seconds.
-        cores = figures["after", 1][1] / max(sum(parts.values()), 1e-9)
-        print(f"after -j 1 used {cores:.2f} cores while in its runs (CPU / the parts' wall)")
-        alone = _localize_alone(root / "after-j1", rows)
+        cores = figures["after", first][1] / max(sum(parts.values()), 1e-9)
+        print(f"after -j {first} used {cores:.2f} cores in its runs (CPU / the parts' wall)")
+        alone = _localize_alone(root / f"after-j{first}", rows)
         text = ", ".join(f"{m} {1000 * s:.2f} ms" for m, s in alone.items())
         print(f"localize alone, CPU per frame over the three dates: {text}")
         _estimate({k: v * cores for k, v in parts.items()}, frames, alone)

@@ -54,6 +54,8 @@ RUNS_DIR = "runs"
 
 
 class Executor(Protocol):
+    workers: int  # runs at once (tasks are split to keep them busy), 1 when unknown
+
     def run(self, groups: Sequence[Group], on_row: Any) -> None: ...
 
 
@@ -257,7 +259,7 @@ def run_tasks(
 
         try:
             if todo:  # the map dates of one flight fly once (groups), longest first
-                executor.run(group_tasks(todo), take_row)
+                executor.run(group_tasks(todo, executor.workers), take_row)
         except KeyboardInterrupt:
             interrupted = True
         finally:

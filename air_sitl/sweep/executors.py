@@ -72,6 +72,7 @@ class PoolExecutor:
 
     def __init__(self, jobs: int) -> None:
         self.jobs = jobs
+        self.workers = jobs
         self._shared_ground: Path | None = None
 
     def _pool(self) -> ProcessPoolExecutor:
@@ -180,6 +181,8 @@ class RayExecutor:
     def __init__(self, address: str | None, *, num_cpus: int | None = None) -> None:
         self.address = address
         self.num_cpus = num_cpus
+        # A local Ray runs this many at once; a cluster's size is not known before it is joined.
+        self.workers = (num_cpus or os.cpu_count() or 1) if address is None else 1
         self.init_s = 0.0
 
     def run(self, groups: Sequence[Group], on_row: OnRow) -> None:

@@ -9,7 +9,8 @@ date alone. Only the runs still to do are grouped: a group partly done before (`
 flies again for the dates it misses, not the others.
 
 Groups come longest first (``-j N``: the workers finish together): a group's cost is taken as
-its plan's forecast frames (:mod:`air_sitl.mission.forecast`) times its runs.
+its plan's forecast frames (:mod:`air_sitl.mission.forecast`) times its runs. With fewer
+groups than workers, the largest groups are split until every worker has a task.
 """
 
 from __future__ import annotations
@@ -69,8 +70,10 @@ def _frames(task: RunTask, cache: dict[tuple[str, str], int]) -> int:
     return cache[key]
 
 
-def group_tasks(tasks: Sequence[RunTask]) -> list[Group]:
-    """``tasks`` as groups (one run each, or the dates of one flight), longest first."""
+def group_tasks(tasks: Sequence[RunTask], workers: int = 1) -> list[Group]:
+    """``tasks`` as groups (one run each, or the dates of one flight), longest first. Fewer
+    groups than ``workers``: the largest are split in two until each worker has one (a second
+    flight costs less than an idle core)."""
     groups: dict[tuple[str, str], list[RunTask]] = {}
     alone: list[list[RunTask]] = []
     for task in tasks:
@@ -78,8 +81,11 @@ def group_tasks(tasks: Sequence[RunTask]) -> list[Group]:
             groups.setdefault(_key(task), []).append(task)
         else:
             alone.append([task])
+    every = [*groups.values(), *alone]
+    while len(every) < workers and (big := max(every, key=len, default=[])) and len(big) > 1:
+        every.remove(big)
+        every += [big[: len(big) // 2], big[len(big) // 2 :]]
     cache: dict[tuple[str, str], int] = {}
     place = {task.id: n for n, task in enumerate(tasks)}
-    every = [*groups.values(), *alone]
     every.sort(key=lambda g: (-_frames(g[0], cache) * len(g), place[g[0].id]))
     return [tuple(g) for g in every]

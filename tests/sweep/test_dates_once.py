@@ -91,6 +91,10 @@ def test_runs_whose_flight_may_depend_on_the_imagery_are_not_grouped(folder: Pat
         spec = load_spec(_spec(folder, f"{name}.yaml", extra))
         groups = group_tasks(make_tasks(spec, folder / name))
         assert [len(g) for g in groups] == sizes, name
+        if name == "plain":  # more workers than groups: the largest split to keep them busy
+            split = group_tasks(make_tasks(spec, folder / name), workers=4)
+            assert [len(g) for g in split] == [2, 2, 1, 1]
+            assert sorted(t.id for g in split for t in g) == sorted(t.id for g in groups for t in g)
         for group in groups:  # a group is one flight: every option but the date is the same
             others = {json.dumps({k: v for k, v in t.options.items() if k != "map-date"},
                                  sort_keys=True) for t in group}  # fmt: skip
