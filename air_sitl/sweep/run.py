@@ -6,10 +6,12 @@ a worker on another host needs no copy of the SPEC's folder) and returns the row
 worker's filesystem. A run's failure is its row's one-line ``error``, never an exception:
 the sweep goes on. Wall-clock figures of ``summary.json`` (``wall_time_s``,
 ``realtime_factor``) stay in the archive and out of the row, which is the same on every
-executor but for ``wall_s`` and ``host``. A task with ``reuse`` flies nothing and scores the
-archive already in its folder (``air-sitl bench``: a sweep over the archives ``dataset`` made);
-one with ``measurements`` saves each entry's measurement as it finishes
-(:mod:`~air_sitl.sweep.measurements`) and skips the entries measured before.
+executor but for ``wall_s``, ``host`` and ``time_s``. :func:`execute_group` runs the map dates
+of one flight (:mod:`.groups`): flown once, every date's archive rendered from the same
+samples, then each run localized and scored as :func:`execute` does. A task with ``reuse``
+flies nothing and scores the archive already in its folder (``air-sitl bench``: a sweep over
+the archives ``dataset`` made); one with ``measurements`` saves each entry's measurement as
+it finishes (:mod:`~air_sitl.sweep.measurements`) and skips the entries measured before.
 
 Per worker process, one core: a procedural map is opened once and kept for every later run
 over the same map (:data:`_MAPS`); BLAS and OpenCV run one thread (:func:`pin_threads`); the
