@@ -405,14 +405,14 @@ def execute_group(group: Sequence[RunTask]) -> list[dict[str, Any]]:
     their dates (:func:`~air_sitl.recording.dates.record_dates`: each archive the bytes of
     flying its date alone), then each localized and scored. A run's ``fly`` is its share of
     the flight (the group's flying less every date's own time, split equally), its
-    ``render`` its own date's camera and archive. One run, or runs that turn out not to share
-    a flight: each flown on its own (:func:`execute`)."""
+    ``render`` its own date's camera and archive. One run, runs that turn out not to share a
+    flight, or a shared flight that failed: each flown on its own (:func:`execute`), so that
+    each row says why it failed and the others go on."""
     if len(group) < 2:
         return [execute(task) for task in group]
     start = time.perf_counter()
     clocks = [OwnTime() for _ in group]
-    summaries: list[dict[str, Any] | None] = [None] * len(group)
-    error: str | None = None
+    shared = False
     try:
         outs = [_fresh_folder(task) for task in group]
         with _work_folder(group[0], outs[0]) as plan:
@@ -423,17 +423,21 @@ def execute_group(group: Sequence[RunTask]) -> list[dict[str, Any]]:
             for bus in (r.bus for r in requests if r.bus is not None):  # none when shared
                 with bus:
                     pass
-        if not shared:
-            return [execute(task) for task in group]
         summaries = [_row_summary(_read_summary(Path(t.archive)), t.plan_label) for t in group]
-    except Exception as err:  # every run of the group failed with its flight
-        error = _one_line(err)
+    except Exception:  # a date's map that cannot open, a bug: each run alone says which
+        shared = False
     flying_s = time.perf_counter() - start
+    if not shared:  # each run on its own, the time tried first shared among their rows
+        rows = [execute(task) for task in group]
+        for row in rows:
+            row["wall_s"] = round(row["wall_s"] + flying_s / len(group), 3)
+            row["time_s"]["fly"] = round(row["time_s"]["fly"] + flying_s / len(group), 3)
+        return rows
     own_s = sum(c.seconds for c in clocks)
     share_s = max(0.0, flying_s - own_s) / len(group)
     rows = []
     for task, clock, summary in zip(group, clocks, summaries, strict=True):
         times = _new_times()
         times["fly"], times["render"] = share_s, clock.seconds
-        rows.append(_finish(task, summary, error, times, share_s + clock.seconds))
+        rows.append(_finish(task, summary, None, times, share_s + clock.seconds))
     return rows

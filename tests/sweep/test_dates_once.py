@@ -99,3 +99,17 @@ def test_runs_whose_flight_may_depend_on_the_imagery_are_not_grouped(folder: Pat
             others = {json.dumps({k: v for k, v in t.options.items() if k != "map-date"},
                                  sort_keys=True) for t in group}  # fmt: skip
             assert len(others) == 1, name
+
+
+def test_a_group_whose_flight_fails_gives_each_run_its_own_reason(folder: Path) -> None:
+    base = {"plan": "plans/UT-200.plan", "air-start": True, "map": "nowhere/urban.tif"}
+    spec = _spec(folder, "broken.yaml", {"base": base, "axes": {"map-date": [0, 1]}})
+    assert [len(g) for g in group_tasks(make_tasks(load_spec(spec), folder / "broken"))] == [2]
+    assert main(["sweep", str(spec), "--out", str(folder / "broken"), "--quiet"]) == 1
+    rows = latest_rows(folder / "broken" / RESULTS)
+    assert len(rows) == 2
+    errors = {row["options"]["map-date"]: row["error"] for row in rows.values()}
+    # Each tried alone after the shared flight failed: its own reason, one line.
+    assert "nowhere/urban.tif" in errors[0] and "--map-date 1" in errors[1], errors
+    for row in rows.values():
+        assert "\n" not in row["error"] and row["wall_s"] > 0 and row["time_s"]["fly"] > 0
