@@ -1,7 +1,8 @@
 """``air-sitl sweep``: pool speed-up and Ray overhead on 16 short runs.
 
 Run: ``python benchmarks/bench_sweep.py [--runs 16] [--leg-m 100] [--methods deadreckon]
-[--no-ray] [--repeat N]``.
+[--no-ray] [--repeat N]``, or ``python benchmarks/bench_sweep.py --air-cut --base-code DIR``
+(below).
 
 Sixteen short runs (an air-started capture leg of 100 m, about 330 frames, then deadreckon
 localized and scored: the whole work of a sweep run) are swept three times into fresh
@@ -19,6 +20,14 @@ included:
 
 The machine's load average is printed before and after: other processes on the same cores
 take their share of every figure.
+
+``--air-cut [--scenario UC-200] [--base-code DIR]``: a cut of ``examples/air_sweep.yaml`` (one
+scenario x map dates 0, 1, 2 x altitude offset 0 x seed 1; mapmatch and vo against date 0),
+swept with ``-j 1`` and ``-j 2`` by this code and by the code in DIR (``git archive`` of the
+commit before, the floor), each ``air-sitl sweep`` a process of its own: wall, CPU of the
+process and its workers, and this code's runs' ``time_s`` parts per capture frame; then each
+method's localize timed alone on every date's archive, and the 108-run sweep estimated from
+the parts (see docs/performance.md).
 """
 
 from __future__ import annotations
@@ -103,6 +112,10 @@ def ray_task_floor(n: int = 50) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--air-cut", action="store_true", help="the AIR sweep's cut (see above)")
+    parser.add_argument("--scenario", default="UC-200", help="--air-cut's scenario")
+    parser.add_argument("--base-code", type=Path, help="--air-cut's floor: the code before")
+    parser.add_argument("--cut-jobs", default="1,2", help="--air-cut's -j values (1,2)")
     parser.add_argument("--runs", type=int, default=16)
     parser.add_argument("--leg-m", type=float, default=100.0, help="capture leg (m)")
     parser.add_argument("--methods", default="deadreckon")
@@ -111,6 +124,11 @@ def main() -> None:
         "--repeat", type=int, default=1, help="pairs of -j 1 and -j 2 sweeps (the best of each)"
     )
     args = parser.parse_args()
+    if args.air_cut:
+        from sweep_air_cut import air_cut  # benchmarks/sweep_air_cut.py
+
+        air_cut(args.scenario, args.base_code, tuple(int(j) for j in args.cut_jobs.split(",")))
+        return
     methods = [m for m in args.methods.split(",") if m]
     print(f"load average before: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
     with tempfile.TemporaryDirectory(prefix="bench-sweep-") as tmp:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -39,6 +40,7 @@ from air_sitl.maps.dates import date_fields
 from air_sitl.mission.items import Mission
 from air_sitl.outdir import claim_folder, empty_folder, is_nonempty_folder
 from air_sitl.recording.inputs import GPS_DENIAL_JSON, archive_info_for, gps_denial_record
+from air_sitl.recording.timing import OwnTime, timed_sinks, timed_source
 from air_sitl.runner import Flight
 from air_sitl.sinks import FrameSource, Sink
 from air_sitl.state import SimSample
@@ -66,6 +68,9 @@ class RecordingRequest:
     # What summary.json's ``plan`` names: None, the file flown (``setup.plan``); a sweep run
     # flies a copy of its SPEC's plan from its working folder and names the SPEC's plan here.
     summary_plan: str | None = None
+    # Set: the wall seconds of the archive's own parts (camera, checks, trajectory, writer)
+    # are added to it, the rest is the flight's (:mod:`.timing`: a sweep row's time_s).
+    own_time: OwnTime | None = None
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -241,10 +246,22 @@ def open_archive(
 
 
 def finish_archive(
-    side: ArchiveSide, summary: dict[str, Any], capture_ticks: int
+    side: ArchiveSide, summary: dict[str, Any], capture_ticks: int, clock: OwnTime | None = None
 ) -> dict[str, Any]:
     """Check one archive's frames against the flight's ticks, add its own lines to
-    ``summary`` (a copy), and write its manifest; returns the manifest."""
+    ``summary`` (a copy), and write its manifest; returns the manifest (its wall time added
+    to ``clock``)."""
+    start = time.perf_counter()
+    try:
+        return _finish_archive(side, summary, capture_ticks)
+    finally:
+        if clock is not None:
+            clock.seconds += time.perf_counter() - start
+
+
+def _finish_archive(
+    side: ArchiveSide, summary: dict[str, Any], capture_ticks: int
+) -> dict[str, Any]:
     assert side.writer is not None
     writer, out = side.writer, side.out
     summary = dict(summary)
@@ -300,7 +317,7 @@ def record_flight(
         if side.done is not None:
             return side.done
         first_frame = side.first_frame
-        sinks.extend(side.sinks)
+        sinks.extend(timed_sinks(side.sinks, request.own_time))
     else:
         if request.resume and is_nonempty_folder(out) and not request.overwrite:
             msg = f"{out}: --resume needs a camera archive (without --no-camera)"
@@ -309,7 +326,7 @@ def record_flight(
         if options.gps_denied_ns:
             # Without a camera there is no manifest: the windows get a file of their own.
             write_json_atomic(out / GPS_DENIAL_JSON, gps_denial_record(options.gps_denied_ns))
-    camera_source = side.camera if side is not None else None
+    camera_source = timed_source(side.camera if side is not None else None, request.own_time)
     writer = side.writer if side is not None else None
 
     try:
@@ -325,9 +342,8 @@ def record_flight(
         sinks.extend(request.sinks)
         trajectory_kind = NavTrajectoryWriter if options.nav == "ekf" else TrajectoryWriter
         trajectory = trajectory_kind(out / TRAJECTORY_CSV)
-        sinks.append(trajectory)
-        if writer is not None:
-            sinks.append(writer)
+        own: list[Sink] = [trajectory] if writer is None else [trajectory, writer]
+        sinks.extend(timed_sinks(own, request.own_time if side is not None else None))
         flight = build_flight(setup, sinks=sinks, camera=camera_source)
         if request.bus is not None and flight.nav is not None and options.nav_aid is not None:
             flight.nav.aid_feed = request.bus.nav_aid_feed(options.nav_aid)
@@ -350,7 +366,7 @@ def record_flight(
         summary.update(request.bus.after_flight())
     manifest = None
     if side is not None:
-        manifest = finish_archive(side, summary, flight.counters.capture_ticks)
+        manifest = finish_archive(side, summary, flight.counters.capture_ticks, request.own_time)
         summary = side.summary
         if request.bus is not None:
             _add_estimates(out, request.bus)

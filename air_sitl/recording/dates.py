@@ -15,10 +15,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from air_sitl.builder import build_flight
+from air_sitl.builder import FlightSetup, build_flight
 from air_sitl.clock import NS_PER_S
 from air_sitl.dataset.air_schema import TRAJECTORY_CSV
 from air_sitl.flightlog import NavTrajectoryWriter, TrajectoryWriter
+from air_sitl.options import FlightOptions
 from air_sitl.recording.archive import (
     ArchiveSide,
     ProgressFn,
@@ -27,6 +28,7 @@ from air_sitl.recording.archive import (
     finish_archive,
     open_archive,
 )
+from air_sitl.recording.timing import timed_sinks, timed_source
 from air_sitl.sinks import FlightResult, FrameSource, Sink
 from air_sitl.state import CameraFrame, SimSample
 
@@ -82,18 +84,31 @@ class _DateSinks:
             sink.close(result)
 
 
+def open_loop(options: FlightOptions, *, camera: bool, bus: bool) -> bool:
+    """Whether a flight's trajectory cannot depend on its imagery, so that another map date
+    changes its frames only: a camera archive, no aid from the camera (``--nav-aid``) and no
+    bus (a lockstep localizer, or anything answering frames over it). The one rule of
+    flying dates once (:func:`shares_flight`; the sweep groups its runs by it)."""
+    return camera and not bus and options.nav_aid is None
+
+
+def _but_the_date(setup: FlightSetup, date: str | None) -> FlightSetup:
+    """``setup`` at map date ``date``, its open map left out (each date's map is its own)."""
+    return replace(setup, map=replace(setup.map, date=date), map_source=None)
+
+
 def shares_flight(requests: Sequence[RecordingRequest]) -> bool:
-    """Whether ``requests`` may be flown once: new camera archives, no bus, no aid from the
-    camera, and setups equal but for the map date."""
+    """Whether ``requests`` may be flown once: new camera archives of open-loop flights
+    (:func:`open_loop`) whose setups are equal but for the map date (and its open map)."""
     if len(requests) < 2:
         return False
-    first = requests[0].setup
+    first = _but_the_date(requests[0].setup, requests[0].setup.map.date)
     for r in requests:
-        if r.bus is not None or r.setup.camera is None or r.setup.options.nav_aid is not None:
+        if not open_loop(r.setup.options, camera=r.setup.camera is not None, bus=r.bus is not None):
             return False
         if r.resume and r.out.is_dir() and any(r.out.iterdir()):
             return False
-        if replace(r.setup, map=replace(r.setup.map, date=first.map.date)) != first:
+        if _but_the_date(r.setup, first.map.date) != first:
             return False
     return True
 
@@ -117,8 +132,10 @@ def record_dates(
             kind = NavTrajectoryWriter if options.nav == "ekf" else TrajectoryWriter
             trajectories.append(kind(r.out / TRAJECTORY_CSV))
             assert side.writer is not None
-            routers.append(_DateSinks(slot, [*side.sinks, trajectories[-1], side.writer]))
-        camera = _DatesCamera([s.camera for s in sides if s.camera is not None])
+            router = _DateSinks(slot, [*side.sinks, trajectories[-1], side.writer])
+            routers.extend(timed_sinks([router], r.own_time))  # each date's own time apart
+        cameras = [timed_source(s.camera, r.own_time) for s, r in zip(sides, requests, strict=True)]
+        camera = _DatesCamera([c for c in cameras if c is not None])
         flight = build_flight(setup, sinks=routers, camera=camera)  # type: ignore[arg-type]
     except BaseException:
         for side in sides:
@@ -134,7 +151,7 @@ def record_dates(
         trajectory.raise_if_failed()
         summary = dict(result.summary)
         summary["plan"] = r.summary_plan if r.summary_plan is not None else str(r.setup.plan)
-        manifest = finish_archive(side, summary, flight.counters.capture_ticks)
+        manifest = finish_archive(side, summary, flight.counters.capture_ticks, r.own_time)
         results.append(
             RecordingResult(
                 out=r.out, summary=side.summary, manifest=manifest, resumed_from_frame=0

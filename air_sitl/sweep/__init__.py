@@ -5,7 +5,8 @@
     write_report(Path("out/sweep"))                            # report.md + report.png
 
 One concern per module: :mod:`.spec` (the SPEC and each run's options, checked by fly's own
-parser), :mod:`.run` (the work of one run in a worker), :mod:`.executors` (process pool, Ray),
+parser), :mod:`.run` (the work of one run in a worker), :mod:`.groups` (runs that differ only
+in the map date, one task flying once), :mod:`.executors` (process pool, Ray),
 :mod:`.results` (``results.jsonl``: whole lines, resume), :mod:`.report` (tables and plots).
 The driver here turns runs into tasks, skips the done ones, and writes each row as it comes.
 ``air-sitl bench`` is a preset of it (:mod:`air_sitl.bench`): one run per AIR scenario, the tasks
@@ -27,6 +28,7 @@ from air_sitl.files import write_json_atomic
 from air_sitl.progress import Progress
 from air_sitl.sweep.errors import SweepError
 from air_sitl.sweep.executors import PoolExecutor, RayExecutor
+from air_sitl.sweep.groups import Group, group_tasks
 from air_sitl.sweep.measurements import archive_id, load
 from air_sitl.sweep.results import RESULTS, ResultsFile, latest_rows
 from air_sitl.sweep.run import RunTask
@@ -52,7 +54,9 @@ RUNS_DIR = "runs"
 
 
 class Executor(Protocol):
-    def run(self, tasks: Sequence[RunTask], on_row: Any) -> None: ...
+    workers: int  # runs at once (tasks are split to keep them busy), 1 when unknown
+
+    def run(self, groups: Sequence[Group], on_row: Any) -> None: ...
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -254,8 +258,8 @@ def run_tasks(
                 on_row(task_of[row["id"]], row)
 
         try:
-            if todo:
-                executor.run(todo, take_row)
+            if todo:  # the map dates of one flight fly once (groups), longest first
+                executor.run(group_tasks(todo, executor.workers), take_row)
         except KeyboardInterrupt:
             interrupted = True
         finally:

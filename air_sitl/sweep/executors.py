@@ -1,6 +1,7 @@
 """Where the runs of a sweep execute: a local process pool (default) or Ray tasks.
 
-Both take :class:`~air_sitl.sweep.run.RunTask` objects and hand each finished row to
+Both take groups of :class:`~air_sitl.sweep.run.RunTask` objects (one run, or the map dates
+of one flight: :mod:`~air_sitl.sweep.groups`), one group a task, and hand each finished row to
 ``on_row`` in the driver, in completion order; the driver alone writes ``results.jsonl``.
 
 - :class:`PoolExecutor`: ``-j N`` spawned worker processes (forked workers can hang on the
@@ -8,7 +9,7 @@ Both take :class:`~air_sitl.sweep.run.RunTask` objects and hand each finished ro
   kept per worker, its drawn ground shared by the workers (a folder of the sweep). A worker
   dies with the driver (Linux ``PR_SET_PDEATHSIG``), so a killed sweep leaves no orphan
   writing into a run folder; a worker that dies mid-run (killed, out of memory) is replaced
-  and its run tried once more, then recorded as failed.
+  and its group tried once more, then its runs recorded as failed.
 - :class:`RayExecutor`: the same runs as Ray tasks (``ray`` is the optional extra
   ``air-sitl[ray]``): a local Ray (``--ray``) or a cluster (``--ray ADDRESS``). Each task
   carries its own plan text and seed, each bus takes a free loopback port, rows come back
@@ -31,7 +32,14 @@ from typing import Any
 
 from air_sitl.maps.procedural.shared_tiles import shared_folder
 from air_sitl.sweep.errors import SweepError
-from air_sitl.sweep.run import THREAD_ENV, RunTask, execute, pin_threads, share_ground_through
+from air_sitl.sweep.groups import Group
+from air_sitl.sweep.run import (
+    THREAD_ENV,
+    RunTask,
+    execute_group,
+    pin_threads,
+    share_ground_through,
+)
 from air_sitl.workers import die_with_parent
 
 OnRow = Callable[[dict[str, Any]], None]
@@ -60,10 +68,11 @@ def _crashed_row(task: RunTask, why: str) -> dict[str, Any]:
 
 
 class PoolExecutor:
-    """``jobs`` spawned worker processes; one run per task."""
+    """``jobs`` spawned worker processes; one group per task."""
 
     def __init__(self, jobs: int) -> None:
         self.jobs = jobs
+        self.workers = jobs
         self._shared_ground: Path | None = None
 
     def _pool(self) -> ProcessPoolExecutor:
@@ -74,14 +83,14 @@ class PoolExecutor:
             initargs=(self._shared_ground,),
         )
 
-    def run(self, tasks: Sequence[RunTask], on_row: OnRow) -> None:
-        """Run every task; ``on_row`` gets each row as it finishes. Ctrl-C stops the workers."""
+    def run(self, groups: Sequence[Group], on_row: OnRow) -> None:
+        """Run every group; ``on_row`` gets each row as it finishes. Ctrl-C stops the workers."""
         saved = {name: os.environ.get(name) for name in THREAD_ENV}
         os.environ.update(dict.fromkeys(THREAD_ENV, "1"))  # inherited by the spawned workers
         try:
             # The workers draw each square of procedural ground once for all of them.
             with shared_folder() as self._shared_ground:
-                self._run(list(tasks), on_row)
+                self._run(list(groups), on_row)
         finally:
             for name, value in saved.items():
                 if value is None:
@@ -89,33 +98,39 @@ class PoolExecutor:
                 else:
                     os.environ[name] = value
 
-    def _run(self, todo: list[RunTask], on_row: OnRow) -> None:
+    def _run(self, todo: list[Group], on_row: OnRow) -> None:
         crashes: dict[str, int] = {}
         while todo:
             pool = self._pool()
-            futures: dict[Future[dict[str, Any]], RunTask] = {}
-            broken: list[RunTask] = []
+            futures: dict[Future[list[dict[str, Any]]], Group] = {}
+            broken: list[Group] = []
             try:
-                futures = {pool.submit(execute, task): task for task in todo}
+                futures = {pool.submit(execute_group, group): group for group in todo}
                 pending = set(futures)
                 while pending:
                     done, pending = wait(pending, return_when=FIRST_COMPLETED)
                     for fut in done:
                         try:
-                            on_row(fut.result())
+                            rows = fut.result()
                         except BrokenProcessPool:
                             broken.append(futures[fut])
+                            continue
+                        for row in rows:
+                            on_row(row)
             except BaseException:
                 _terminate(pool)
                 raise
             pool.shutdown(wait=True)
             todo = []
-            for task in broken:
-                crashes[task.id] = crashes.get(task.id, 0) + 1
-                if crashes[task.id] > CRASHES_ALLOWED:
-                    on_row(_crashed_row(task, "its worker process died (killed or out of memory)"))
+            for group in broken:
+                key = group[0].id
+                crashes[key] = crashes.get(key, 0) + 1
+                if crashes[key] > CRASHES_ALLOWED:
+                    why = "its worker process died (killed or out of memory)"
+                    for task in group:
+                        on_row(_crashed_row(task, why))
                 else:
-                    todo.append(task)
+                    todo.append(group)
 
 
 def _terminate(pool: ProcessPoolExecutor) -> None:
@@ -154,9 +169,9 @@ def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
         raise SweepError(msg) from None
 
 
-def _ray_execute(task: RunTask) -> dict[str, Any]:
+def _ray_execute(group: Group) -> list[dict[str, Any]]:
     pin_threads()
-    return execute(task)
+    return execute_group(group)
 
 
 class RayExecutor:
@@ -166,10 +181,12 @@ class RayExecutor:
     def __init__(self, address: str | None, *, num_cpus: int | None = None) -> None:
         self.address = address
         self.num_cpus = num_cpus
+        # A local Ray runs this many at once; a cluster's size is not known before it is joined.
+        self.workers = (num_cpus or os.cpu_count() or 1) if address is None else 1
         self.init_s = 0.0
 
-    def run(self, tasks: Sequence[RunTask], on_row: OnRow) -> None:
-        """Run every task on Ray; ``on_row`` gets each row as it finishes."""
+    def run(self, groups: Sequence[Group], on_row: OnRow) -> None:
+        """Run every group on Ray; ``on_row`` gets each row as it finishes."""
         try:
             import ray  # the optional extra air-sitl[ray]
         except ImportError:
@@ -195,18 +212,20 @@ class RayExecutor:
                 raise SweepError(msg) from None
         self.init_s = time.perf_counter() - start
         remote = ray.remote(num_cpus=1, max_retries=0)(_ray_execute)
-        refs: dict[Any, RunTask] = {remote.remote(task): task for task in tasks}
+        refs: dict[Any, Group] = {remote.remote(group): group for group in groups}
         pending = list(refs)
         try:
             while pending:
                 done, pending = ray.wait(pending, num_returns=1)
                 for ref in done:
                     try:
-                        on_row(ray.get(ref))
+                        rows = ray.get(ref)
                     except ray.exceptions.RayError as err:
                         why = str(err).strip().splitlines()
                         line = why[-1] if why else type(err).__name__
-                        on_row(_crashed_row(refs[ref], f"Ray: {line}"))
+                        rows = [_crashed_row(task, f"Ray: {line}") for task in refs[ref]]
+                    for row in rows:
+                        on_row(row)
         except BaseException:
             for ref in pending:
                 with contextlib.suppress(Exception):

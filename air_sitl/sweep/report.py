@@ -207,6 +207,37 @@ def date_gaps(rows: Sequence[dict[str, Any]]) -> str:
     return f"Map dates (map-based methods): {text}."
 
 
+def time_table(rows: Sequence[dict[str, Any]]) -> list[str]:
+    """``## Where the time went``: each part of the rows' ``time_s`` summed over the runs, its
+    share and its median per run (a run of dates flown once: its share of the flight in
+    ``fly``, its own date in ``render``); none when no row has them."""
+    timed = [r for r in rows if isinstance(r.get("time_s"), dict)]
+    parts: dict[str, list[float]] = {}
+    for row in timed:
+        for part, seconds in row["time_s"].items():
+            if isinstance(seconds, int | float):
+                parts.setdefault(str(part), []).append(float(seconds))
+    total = sum(sum(v) for v in parts.values())
+    if not parts or total <= 0:
+        return []
+    lines = [
+        "## Where the time went",
+        "",
+        f"{len(timed)} runs, {total:,.0f} s of run time in all (wall seconds inside the runs; "
+        "the runs of one flight over several map dates share its `fly` equally, each its "
+        "own `render`).",
+        "",
+        "| part | s | share | median per run s |",
+        "|---|---|---|---|",
+    ]
+    for part, values in parts.items():
+        share = sum(values) / total
+        lines.append(
+            f"| {part} | {sum(values):,.1f} | {share:.0%} | {float(np.median(values)):.2f} |"
+        )
+    return [*lines, ""]
+
+
 def markdown(
     rows: Sequence[dict[str, Any]],
     axes: Sequence[str],
@@ -251,6 +282,7 @@ def markdown(
                 f"| {_text(value)} | {entry} | {n} | {nfail} | " + " | ".join(shown) + " |"
             )
         lines.append("")
+    lines += time_table(rows)
     if failed:
         lines += ["## Failed runs", ""]
         for row in failed:

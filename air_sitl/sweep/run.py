@@ -6,10 +6,12 @@ a worker on another host needs no copy of the SPEC's folder) and returns the row
 worker's filesystem. A run's failure is its row's one-line ``error``, never an exception:
 the sweep goes on. Wall-clock figures of ``summary.json`` (``wall_time_s``,
 ``realtime_factor``) stay in the archive and out of the row, which is the same on every
-executor but for ``wall_s`` and ``host``. A task with ``reuse`` flies nothing and scores the
-archive already in its folder (``air-sitl bench``: a sweep over the archives ``dataset`` made);
-one with ``measurements`` saves each entry's measurement as it finishes
-(:mod:`~air_sitl.sweep.measurements`) and skips the entries measured before.
+executor but for ``wall_s``, ``host`` and ``time_s``. :func:`execute_group` runs the map dates
+of one flight (:mod:`.groups`): flown once, every date's archive rendered from the same
+samples, then each run localized and scored as :func:`execute` does. A task with ``reuse``
+flies nothing and scores the archive already in its folder (``air-sitl bench``: a sweep over
+the archives ``dataset`` made); one with ``measurements`` saves each entry's measurement as
+it finishes (:mod:`~air_sitl.sweep.measurements`) and skips the entries measured before.
 
 Per worker process, one core: a procedural map is opened once and kept for every later run
 over the same map (:data:`_MAPS`); BLAS and OpenCV run one thread (:func:`pin_threads`); the
@@ -28,7 +30,7 @@ import shutil
 import socket
 import time
 from collections import OrderedDict
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -53,6 +55,8 @@ from air_sitl.maps.open import default_map_for_plan
 from air_sitl.maps.procedural import KINDS
 from air_sitl.options import flight_options_from_args, int_in_range
 from air_sitl.recording import RecordingRequest, record_flight
+from air_sitl.recording.dates import record_dates, shares_flight
+from air_sitl.recording.timing import OwnTime
 from air_sitl.sweep.measurements import EntryResult, archive_id, load, save
 from air_sitl.sweep.spec import fly_parser
 
@@ -156,9 +160,8 @@ def _with_free_port(argv: list[str]) -> list[str]:
     return argv
 
 
-def _fly(task: RunTask, plan: Path, out: Path) -> dict[str, Any]:
-    """Fly the run into ``out``, as ``air-sitl fly`` would; its summary.json."""
-
+def _request(task: RunTask, plan: Path, own_time: OwnTime) -> RecordingRequest:
+    """The recording of the run into its folder, as ``air-sitl fly`` would make it."""
     args = fly_parser().parse_args([str(plan), *_with_free_port(list(task.argv))])
     setup = load_setup(
         plan,
@@ -169,16 +172,23 @@ def _fly(task: RunTask, plan: Path, out: Path) -> dict[str, Any]:
     )
     if setup.camera is not None:
         setup = replace(setup, map_source=_cached_map(setup))
-    request = RecordingRequest(
+    hookup = bus_sinks_from_args(args)
+    return RecordingRequest(
         setup=setup,
-        out=out,
-        bus=bus_sinks_from_args(args),
+        out=Path(task.archive),
+        bus=hookup if hookup.options is not None else None,
         io_thread=False,
         summary_plan=task.plan_path,
+        own_time=own_time,
     )
+
+
+def _fly(task: RunTask, plan: Path, own_time: OwnTime) -> dict[str, Any]:
+    """Fly the run into its folder, as ``air-sitl fly`` would; its summary.json."""
+    request = _request(task, plan, own_time)
     with request.bus or contextlib.nullcontext():
         record_flight(request)
-    return _read_summary(out)
+    return _read_summary(request.out)
 
 
 def _read_summary(out: Path) -> dict[str, Any]:
@@ -313,34 +323,36 @@ def _keep(out: Path, keep: str) -> None:
             path.unlink()
 
 
-def execute(task: RunTask) -> dict[str, Any]:
-    """Fly, localize and score one run; its row (errors included, never raised)."""
-    start = time.perf_counter()
+def _fresh_folder(task: RunTask) -> Path:
+    """The run's folder, emptied: what a killed sweep left of it is done again from the start."""
     out = Path(task.archive)
-    summary: dict[str, Any] | None = None
+    if out.exists():
+        shutil.rmtree(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _finish(
+    task: RunTask,
+    summary: dict[str, Any] | None,
+    error: str | None,
+    times: dict[str, float],
+    flying_s: float,
+) -> dict[str, Any]:
+    """Localize and score a flown run (nothing after a failed flight), keep what ``--keep``
+    says; its row. ``flying_s``: the run's share of the flying, before this."""
+    start = time.perf_counter()
     reports: dict[str, Any] = {}
-    error: str | None = None
-    # Where the run's time went, wall seconds: the flight with its camera's rendering (none
-    # over a reused archive), the methods and localizers, the scoring.
-    times = {"fly": 0.0, "localize": 0.0, "eval": 0.0}
-    try:
-        if task.reuse:
-            summary = _row_summary(_read_summary(out), task.plan_label)
-        else:
-            if out.exists():  # what a killed sweep left of this run: done again from the start
-                shutil.rmtree(out)
-            out.parent.mkdir(parents=True, exist_ok=True)
-            fly_start = time.perf_counter()
-            with _work_folder(task, out) as plan:
-                summary = _row_summary(_fly(task, plan, out), task.plan_label)
-            times["fly"] = time.perf_counter() - fly_start
-        if task.methods or task.localizers:
-            reports, error = _localize(task, out, times)
-        _keep(out, task.keep)
-    except AirSitlError as err:
-        error = _one_line(err)
-    except Exception as err:  # a bug in one run must not stop the others; its line says which
-        error = _one_line(err)
+    out = Path(task.archive)
+    if error is None:
+        try:
+            if task.methods or task.localizers:
+                reports, error = _localize(task, out, times)
+            _keep(out, task.keep)
+        except AirSitlError as err:
+            error = _one_line(err)
+        except Exception as err:  # a bug in one run must not stop the others; its line says which
+            error = _one_line(err)
     row: dict[str, Any] = _finite(
         {
             "id": task.id,
@@ -348,7 +360,7 @@ def execute(task: RunTask) -> dict[str, Any]:
             "summary": summary,
             "eval": reports,
             "error": error,
-            "wall_s": round(time.perf_counter() - start, 3),
+            "wall_s": round(flying_s + time.perf_counter() - start, 3),
             "time_s": {k: round(v, 3) for k, v in times.items()},
             "host": socket.gethostname(),
             "archive": task.archive_label,
@@ -356,3 +368,76 @@ def execute(task: RunTask) -> dict[str, Any]:
         }
     )
     return row
+
+
+def _new_times() -> dict[str, float]:
+    # Where the run's wall time went: the flight (its share of one flown for several dates),
+    # the rendering and archive writing of its own date, the methods and localizers, the
+    # scoring. Nothing flies over a reused archive.
+    return {"fly": 0.0, "render": 0.0, "localize": 0.0, "eval": 0.0}
+
+
+def execute(task: RunTask) -> dict[str, Any]:
+    """Fly, localize and score one run; its row (errors included, never raised)."""
+    start = time.perf_counter()
+    summary: dict[str, Any] | None = None
+    error: str | None = None
+    times = _new_times()
+    own = OwnTime()
+    try:
+        if task.reuse:
+            summary = _row_summary(_read_summary(Path(task.archive)), task.plan_label)
+        else:
+            out = _fresh_folder(task)
+            with _work_folder(task, out) as plan:
+                summary = _row_summary(_fly(task, plan, own), task.plan_label)
+    except Exception as err:  # AirSitlError: its message; a bug in one run: its type too
+        error = _one_line(err)
+    flying_s = time.perf_counter() - start
+    if not task.reuse:
+        times["render"] = own.seconds
+        times["fly"] = max(0.0, flying_s - own.seconds)
+    return _finish(task, summary, error, times, flying_s)
+
+
+def execute_group(group: Sequence[RunTask]) -> list[dict[str, Any]]:
+    """The rows of runs that differ only in the map date (:mod:`.groups`), flown once for all
+    their dates (:func:`~air_sitl.recording.dates.record_dates`: each archive the bytes of
+    flying its date alone), then each localized and scored. A run's ``fly`` is its share of
+    the flight (the group's flying less every date's own time, split equally), its
+    ``render`` its own date's camera and archive. One run, runs that turn out not to share a
+    flight, or a shared flight that failed: each flown on its own (:func:`execute`), so that
+    each row says why it failed and the others go on."""
+    if len(group) < 2:
+        return [execute(task) for task in group]
+    start = time.perf_counter()
+    clocks = [OwnTime() for _ in group]
+    shared = False
+    try:
+        outs = [_fresh_folder(task) for task in group]
+        with _work_folder(group[0], outs[0]) as plan:
+            requests = [_request(t, plan, c) for t, c in zip(group, clocks, strict=True)]
+            shared = shares_flight(requests)
+            if shared:
+                record_dates(requests)
+            for bus in (r.bus for r in requests if r.bus is not None):  # none when shared
+                with bus:
+                    pass
+        summaries = [_row_summary(_read_summary(Path(t.archive)), t.plan_label) for t in group]
+    except Exception:  # a date's map that cannot open, a bug: each run alone says which
+        shared = False
+    flying_s = time.perf_counter() - start
+    if not shared:  # each run on its own, the time tried first shared among their rows
+        rows = [execute(task) for task in group]
+        for row in rows:
+            row["wall_s"] = round(row["wall_s"] + flying_s / len(group), 3)
+            row["time_s"]["fly"] = round(row["time_s"]["fly"] + flying_s / len(group), 3)
+        return rows
+    own_s = sum(c.seconds for c in clocks)
+    share_s = max(0.0, flying_s - own_s) / len(group)
+    rows = []
+    for task, clock, summary in zip(group, clocks, summaries, strict=True):
+        times = _new_times()
+        times["fly"], times["render"] = share_s, clock.seconds
+        rows.append(_finish(task, summary, None, times, share_s + clock.seconds))
+    return rows

@@ -161,3 +161,18 @@ def test_worlds_with_their_own_calendars_are_named_each() -> None:
         "Map dates (map-based methods): reference date 0 (2009-06-20) -> flight date 1 "
         "(2012-10-08) / reference date 0 (2009-06-20) -> flight date 1 (2012-07-24) (3 runs)."
     )
+
+
+def test_the_time_table_sums_each_part_over_the_runs(tmp_path: Path) -> None:
+    folder = _sweep(tmp_path / "timed", [1.0, 0.8, 0.9, 0.7])
+    rows = [json.loads(line) for line in (folder / RESULTS).read_text().splitlines()]
+    for k, row in enumerate(rows):  # a run's share of a flight, its own date, its methods
+        row["time_s"] = {"fly": 2.0, "render": 1.0 + k, "localize": 3.0, "eval": 0.5}
+    (folder / RESULTS).write_text("".join(json.dumps(r) + "\n" for r in rows))
+    assert main(["sweep", "report", str(folder), "--quiet"]) == 0
+    md = (folder / "report.md").read_text()
+    assert "## Where the time went" in md and "4 runs, 32 s of run time in all" in md
+    assert "| fly | 8.0 | 25% | 2.00 |" in md
+    assert "| render | 10.0 | 31% | 2.50 |" in md
+    assert "| localize | 12.0 | 38% | 3.00 |" in md
+    assert "| eval | 2.0 | 6% | 0.50 |" in md
