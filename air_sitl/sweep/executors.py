@@ -71,13 +71,12 @@ class PoolExecutor:
     """``jobs`` spawned worker processes; one group per task."""
 
     def __init__(self, jobs: int) -> None:
-        self.jobs = jobs
         self.workers = jobs
         self._shared_ground: Path | None = None
 
     def _pool(self) -> ProcessPoolExecutor:
         return ProcessPoolExecutor(
-            max_workers=self.jobs,
+            max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
             initializer=_init_worker,
             initargs=(self._shared_ground,),
