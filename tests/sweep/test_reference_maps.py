@@ -1,6 +1,6 @@
 """A sweep worker's reference maps (issue 34): kept from run to run, their ground drawn once
-for the pool through its shared folder, the pixels of drawing alone; and the row of a run
-whose worker died."""
+for the pool through its shared folder, the pixels of drawing alone; a run's methods in one
+pass, each alone when the pass fails; and the row of a run whose worker died."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from air_sitl.errors import DatasetError
+from air_sitl.localize.archive import LocalizeRun
 from air_sitl.maps import procedural
 from air_sitl.maps.procedural import ProceduralMap
 from air_sitl.state import GeoPoint
@@ -61,8 +63,8 @@ def test_a_reference_drawn_by_one_worker_is_read_by_the_other(
     assert reference_map("urban", HOME, seed=0, date=1) is not mine
 
 
-def test_a_crashed_runs_row_has_every_key() -> None:
-    task = RunTask(
+def _task() -> RunTask:
+    return RunTask(
         id="abc",
         options={"scenario": "UC-200"},
         plan_label="UC-200.plan",
@@ -75,6 +77,38 @@ def test_a_crashed_runs_row_has_every_key() -> None:
         archive_label="runs/abc",
         reference_date=0,
     )
+
+
+def test_a_crashed_runs_row_has_every_key() -> None:
+    task = _task()
     row = _crashed_row(task, "its worker process died (killed or out of memory)")
     assert set(row) == set(ROW_KEYS)
     assert row["reference_date"] == 0 and row["time_s"] is None and row["error"]
+
+
+def test_a_failing_pass_runs_each_method_alone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A pass one method fails: each method alone, so the others are measured and the failing
+    one's row says its own reason."""
+    passes: list[list[str]] = []
+
+    def one_pass(
+        out: Path, methods: list[tuple[str, str, dict[str, object]]], **_: object
+    ) -> list[LocalizeRun]:
+        passes.append([m for m, _, _ in methods])
+        if any(m == "broken" for m, _, _ in methods):
+            raise DatasetError(f"{out}: broken cannot read this archive")
+        return [
+            LocalizeRun(
+                path=out / f"{n}.csv", method=m, name=n, frames=3, estimated_frames=3, wall_s=0.1
+            )
+            for m, n, _ in methods
+        ]
+
+    monkeypatch.setattr(sweep_run, "run_archive_methods", one_pass)
+    task = _task()
+    got = sweep_run._run_methods(task, tmp_path, ["vo", "broken", "deadreckon"])
+    assert passes == [["vo", "broken", "deadreckon"], ["vo"], ["broken"], ["deadreckon"]]
+    assert isinstance(got["vo"], LocalizeRun) and isinstance(got["deadreckon"], LocalizeRun)
+    assert got["broken"] == f"localize broken: {tmp_path}: broken cannot read this archive"
