@@ -251,7 +251,7 @@ def rendered_frames(
     method). The same-date rows are the gate's control (see ``--calibrate``)."""
     from air_sitl.camera.render import Renderer, pose_state
     from air_sitl.frames import ned2geodetic
-    from air_sitl.localize.mapmatch_core import decode_gray
+    from air_sitl.localize.decode import decode_gray
     from air_sitl.maps import open_map
 
     home, out = FRAMES_HOME, []

@@ -66,20 +66,59 @@ def _rows(out: Path) -> list[dict[str, Any]]:
 
 
 def _localize_alone(out: Path, rows: list[dict[str, Any]]) -> dict[str, float]:
-    """Each method run alone (in this process) over every date's archive: CPU s per frame."""
+    """Each method run alone (in this process) over every date's archive, then both in one
+    pass as a sweep's worker runs them (its reference map kept from archive to archive): CPU
+    s per frame."""
     sys.path.insert(0, str(ROOT))
-    from air_sitl.localize.archive import run_archive
+    from air_sitl.localize.archive import run_archive, run_archive_methods
+    from air_sitl.sweep.run import reference_map
 
     took: dict[str, float] = {}
     frames = 0
+    methods = ("mapmatch", "vo")
     for row in rows:
         archive = out / row["archive"]
         frames += int(row["summary"]["capture_frames"])
-        for method in ("mapmatch", "vo"):
+        for method in methods:
             start = time.process_time()
             run_archive(archive, method, name=f"{method}-again", reference_date=0, seed=1)
             took[method] = took.get(method, 0.0) + time.process_time() - start
+        start = time.process_time()
+        run_archive_methods(
+            archive,
+            [(m, f"{m}-pass", {}) for m in methods],
+            reference_date=0,
+            seed=1,
+            open_map=reference_map,
+        )
+        took["one pass"] = took.get("one pass", 0.0) + time.process_time() - start
     return {m: s / frames for m, s in took.items()}
+
+
+def _same_estimates(before: Path, after: Path, rows: list[dict[str, Any]]) -> None:
+    """Each run's estimates files of this code against the code before's: the same bytes?"""
+    same = differ = 0
+    for row in rows:
+        for path in sorted((after / row["archive"] / "estimates").glob("*.csv")):
+            old = before / row["archive"] / "estimates" / path.name
+            if old.read_bytes() == path.read_bytes():
+                same += 1
+            else:
+                differ += 1
+                print(f"  estimates differ: {row['archive']}/estimates/{path.name}")
+    print(f"estimates files identical to the code before's: {same} of {same + differ}")
+
+
+def _parts(label: str, jobs: int, rows: list[dict[str, Any]]) -> tuple[dict[str, float], int]:
+    """The rows' ``time_s`` parts summed (wall s), printed per capture frame."""
+    frames = sum(int(r["summary"]["capture_frames"]) for r in rows)
+    parts: dict[str, float] = {}
+    for row in rows:
+        for part, seconds in row["time_s"].items():
+            parts[part] = parts.get(part, 0.0) + float(seconds)
+    text = ", ".join(f"{k} {v:.1f} s ({1000 * v / frames:.2f} ms)" for k, v in parts.items())
+    print(f"{label} -j {jobs}, {len(rows)} runs, {frames} frames; time_s (per frame): {text}")
+    return parts, frames
 
 
 def air_cut(scenario: str, base_code: Path | None, jobs_list: tuple[int, ...] = (1, 2)) -> None:
@@ -101,21 +140,18 @@ def air_cut(scenario: str, base_code: Path | None, jobs_list: tuple[int, ...] = 
             (bw, bc), (aw, ac) = figures["before", jobs], figures["after", jobs]
             print(f"-j {jobs}: after / before: wall {aw / bw:.2f}x, CPU {ac / bc:.2f}x")
         first = jobs_list[0]
+        _parts("before", first, _rows(root / f"before-j{first}"))
         rows = _rows(root / f"after-j{first}")
-        frames = sum(int(r["summary"]["capture_frames"]) for r in rows)
-        parts: dict[str, float] = {}
-        for row in rows:
-            for part, seconds in row["time_s"].items():
-                parts[part] = parts.get(part, 0.0) + float(seconds)
-        text = ", ".join(f"{k} {v:.1f} s ({1000 * v / frames:.2f} ms)" for k, v in parts.items())
-        print(f"after -j {first}, {len(rows)} runs, {frames} frames; time_s (per frame): {text}")
+        parts, frames = _parts("after", first, rows)
         # The parts are wall seconds of a worker sharing the cores with whatever else runs:
         # scaled by the sweep's CPU over its wall, they are CPU seconds.
         cores = figures["after", first][1] / max(sum(parts.values()), 1e-9)
         print(f"after -j {first} used {cores:.2f} cores in its runs (CPU / the parts' wall)")
+        _same_estimates(root / f"before-j{first}", root / f"after-j{first}", rows)
         alone = _localize_alone(root / f"after-j{first}", rows)
         text = ", ".join(f"{m} {1000 * s:.2f} ms" for m, s in alone.items())
         print(f"localize alone, CPU per frame over the three dates: {text}")
+        alone.pop("one pass")
         _estimate({k: v * cores for k, v in parts.items()}, frames, alone)
     print(f"load average after: {os.getloadavg()[0]:.2f}")
 

@@ -13,6 +13,10 @@ Builds one :class:`~air_sitl.localize.base.Observation` per capture frame from t
 
 ``bus_inputs=True`` gives only what the bus carries (no barometer, no airspeed), so that an
 offline run reproduces an online one frame for frame.
+
+:func:`run_archive_methods` runs several methods in one pass: each frame read, and decoded
+(:mod:`air_sitl.localize.decode`), once for all of them; each method's estimates are the bytes
+of its run alone (:func:`run_archive`).
 """
 
 from __future__ import annotations
@@ -21,8 +25,8 @@ import csv
 import io
 import math
 import time
-from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +42,7 @@ from air_sitl.dataset.reader import Archive, open_archive
 from air_sitl.errors import DatasetError
 from air_sitl.localize import base
 from air_sitl.localize.inputs import AirspeedModel, BaroModel
+from air_sitl.localize.mapmatch import OPEN_MAP_EXTRA, MapOpener
 from air_sitl.localize.methods import make_method
 from air_sitl.localize.output import write_estimates
 from air_sitl.state import Quat
@@ -84,8 +89,10 @@ def context_of(
     reference_map: str | None = None,
     reference_date: int | None = None,
     seed: int = 0,
+    open_map: MapOpener | None = None,
 ) -> base.LocalizerContext:
-    """The method's view of an archive before the first frame (home, camera, map, manifest)."""
+    """The method's view of an archive before the first frame (home, camera, map, manifest);
+    ``open_map``: how map-based methods open their reference map (None: they open it)."""
     where = f"{archive.path}/{MANIFEST_JSON}"
     manifest = archive.manifest
     if manifest is None:
@@ -113,6 +120,9 @@ def context_of(
         di = map_info.get("date_index")
         map_date = int(di) if isinstance(di, int) else None
         map_name = str(map_info.get("kind") or map_info.get("source") or "") or None
+    extras: dict[str, Any] = {"archive": archive.path}
+    if open_map is not None:
+        extras[OPEN_MAP_EXTRA] = open_map
     return base.LocalizerContext(
         home=home,
         camera=camera,
@@ -123,7 +133,7 @@ def context_of(
         reference_date=reference_date,
         seed=seed,
         manifest=manifest,
-        extras={"archive": archive.path},
+        extras=extras,
     )
 
 
@@ -288,16 +298,38 @@ def run_method(
     progress: ProgressFn | None = None,
 ) -> list[base.Estimate]:
     """Feed every observation to ``method`` (reset first); one estimate per frame."""
-    method.reset(context)
-    out: list[base.Estimate] = []
+    return run_methods([method], context, source, total=total, progress=progress)[0][0]
+
+
+def run_methods(
+    methods: Sequence[base.Localizer],
+    context: base.LocalizerContext,
+    source: Iterator[base.Observation],
+    *,
+    total: int,
+    progress: ProgressFn | None = None,
+) -> tuple[list[list[base.Estimate]], list[float]]:
+    """Feed every observation to each method in turn (each reset first): one estimate per
+    frame and method, and the seconds each method took (its reset and steps). A method that
+    needs no image is given none, as when it runs alone."""
+    seconds = [0.0] * len(methods)
+    for i, method in enumerate(methods):
+        start = time.perf_counter()
+        method.reset(context)
+        seconds[i] += time.perf_counter() - start
+    out: list[list[base.Estimate]] = [[] for _ in methods]
     for done, obs in enumerate(source, start=1):
-        est = method.step(obs)
-        if est is None:
-            est = base.Estimate(frame=obs.frame, sim_time_ns=obs.sim_time_ns, enu_m=None)
-        out.append(est)
+        bare = obs if obs.image_bgr is None else replace(obs, image_bgr=None)
+        for i, method in enumerate(methods):
+            start = time.perf_counter()
+            est = method.step(obs if method.needs_image else bare)
+            seconds[i] += time.perf_counter() - start
+            if est is None:
+                est = base.Estimate(frame=obs.frame, sim_time_ns=obs.sim_time_ns, enu_m=None)
+            out[i].append(est)
         if progress is not None and (done % 50 == 0 or done == total):
             progress(done, total)
-    return out
+    return out, seconds
 
 
 def run_archive(
@@ -311,29 +343,66 @@ def run_archive(
     bus_inputs: bool = False,
     progress: ProgressFn | None = None,
     options: Mapping[str, Any] | None = None,
+    open_map: MapOpener | None = None,
 ) -> LocalizeRun:
     """Localize every capture frame of ``archive`` with ``method`` (built with ``options``, e.g.
-    ``{"every": 4}``); write the estimates file."""
-    name = check_chunk("--name", name or method)
+    ``{"every": 4}``); write the estimates file. ``open_map``: see :func:`context_of`."""
+    return run_archive_methods(
+        archive,
+        [(method, name or method, options or {})],
+        reference_map=reference_map,
+        reference_date=reference_date,
+        seed=seed,
+        bus_inputs=bus_inputs,
+        progress=progress,
+        open_map=open_map,
+    )[0]
+
+
+def run_archive_methods(
+    archive: Path,
+    methods: Sequence[tuple[str, str, Mapping[str, Any]]],
+    *,
+    reference_map: str | None = None,
+    reference_date: int | None = None,
+    seed: int = 0,
+    bus_inputs: bool = False,
+    progress: ProgressFn | None = None,
+    open_map: MapOpener | None = None,
+) -> list[LocalizeRun]:
+    """Several methods, each ``(method, name, options)``, over ``archive`` in one pass (each
+    frame read and decoded once); each writes its estimates file, the bytes of its run alone.
+    A run's ``wall_s`` is its method's own time and an equal share of the reading."""
+    names = [check_chunk("--name", name or method) for method, name, _ in methods]
     check_writable(archive)
-    loc = make_method(method, **(options or {}))
+    locs = [make_method(method, **options) for method, _, options in methods]
     with open_archive(archive) as arch:
         context = context_of(
-            arch, reference_map=reference_map, reference_date=reference_date, seed=seed
+            arch,
+            reference_map=reference_map,
+            reference_date=reference_date,
+            seed=seed,
+            open_map=open_map,
         )
         start = time.perf_counter()
-        source = observations(arch, needs_image=loc.needs_image, seed=seed, bus_inputs=bus_inputs)
-        estimates = run_method(loc, context, source, total=len(arch), progress=progress)
-        wall = time.perf_counter() - start
-    path = write_estimates(archive, name, estimates, context.home)
-    return LocalizeRun(
-        path=path,
-        method=method,
-        name=name,
-        frames=len(estimates),
-        estimated_frames=sum(1 for e in estimates if e.enu_m is not None),
-        wall_s=wall,
-    )
+        needs_image = any(loc.needs_image for loc in locs)
+        source = observations(arch, needs_image=needs_image, seed=seed, bus_inputs=bus_inputs)
+        estimates, own_s = run_methods(locs, context, source, total=len(arch), progress=progress)
+        reading_s = max(0.0, time.perf_counter() - start - sum(own_s)) / max(1, len(locs))
+    runs = []
+    for (method, _, _), name, found, seconds in zip(methods, names, estimates, own_s, strict=True):
+        path = write_estimates(archive, name, found, context.home)
+        runs.append(
+            LocalizeRun(
+                path=path,
+                method=method,
+                name=name,
+                frames=len(found),
+                estimated_frames=sum(1 for e in found if e.enu_m is not None),
+                wall_s=seconds + reading_s,
+            )
+        )
+    return runs
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:

@@ -18,18 +18,23 @@ Reference: ``reference_map`` (``urban``, ``forest`` or GeoTIFF path(s), as ``--m
 ``reference_date`` (default 0) from the driver's context; without one, the flight's own
 map (manifest ``map``: a procedural one, or the GeoTIFF dates its ``spec`` names) at date 0,
 or date 1 when the flight itself is at date 0: always another date than the imagery unless
-asked otherwise.
+asked otherwise. A driver may open the reference itself (``LocalizerContext.extras``
+:data:`OPEN_MAP_EXTRA`: a function with :func:`air_sitl.maps.open_map`'s signature): a sweep's
+worker keeps it from run to run and shares its drawn ground with the other workers, the same
+pixels as opening it here.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 from air_sitl.errors import OptionError
 from air_sitl.localize.base import Estimate, LocalizerContext, Observation
+from air_sitl.localize.decode import decode_gray
 from air_sitl.localize.inputs import fix_position_ned
-from air_sitl.localize.mapmatch_core import MapMatcher, MatchResult, decode_gray
+from air_sitl.localize.mapmatch_core import MapMatcher, MatchResult
 from air_sitl.localize.mapmatch_filter import (
     POSITION_NOISE_M2_S,
     PositionFilter,
@@ -48,6 +53,10 @@ RADIUS_SIGMAS = 3.0
 RADIUS_GROWTH_M = 1.0  # per consecutive refused match: 50 m per second of refusals at 50 Hz
 VAR_UP_BARO_M2 = 1.0
 VAR_UP_GNSS_M2 = 9.0
+# ``LocalizerContext.extras`` key: how the driver opens a reference map (``open_map``'s
+# signature: spec, home, keywords seed and date); absent: :func:`air_sitl.maps.open_map`.
+OPEN_MAP_EXTRA = "open_map"
+MapOpener = Callable[..., MapSource]
 
 
 def open_reference(context: LocalizerContext) -> MapSource:
@@ -69,7 +78,8 @@ def open_reference(context: LocalizerContext) -> MapSource:
             raise OptionError(msg)
         spec = str(kind)
     date = reference_date_for(context.map_date, context.reference_date)
-    return open_map(spec, context.home, seed=seed, date=date)
+    opener: MapOpener = context.extras.get(OPEN_MAP_EXTRA) or open_map
+    return opener(spec, context.home, seed=seed, date=date)
 
 
 def reference_date_for(flight_date: int | None, reference_date: int | None) -> int:
@@ -230,4 +240,11 @@ class MapMatchLocalizer(MapMatchBase):
         )
 
 
-__all__ = ["MapMatchBase", "MapMatchLocalizer", "decode_gray", "open_reference"]
+__all__ = [
+    "OPEN_MAP_EXTRA",
+    "MapMatchBase",
+    "MapMatchLocalizer",
+    "MapOpener",
+    "decode_gray",
+    "open_reference",
+]

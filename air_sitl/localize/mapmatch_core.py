@@ -36,6 +36,7 @@ import numpy.typing as npt
 
 from air_sitl.camera.model import CameraModel
 from air_sitl.frames import ned2geodetic, quat2matrix
+from air_sitl.localize.decode import decode_gray
 from air_sitl.maps.base import MapSource, map_px_jacobian
 from air_sitl.state import GeoPoint, Quat
 
@@ -76,21 +77,6 @@ class MatchResult:
         if not self.accepted:
             return 0.0
         return max(0.0, min(1.0, 1.0 - self.peak_ratio / MAX_PEAK_RATIO)) * 0.5 + 0.5
-
-
-def decode_gray(jpeg: bytes, reduce: int) -> Image:
-    """A JPEG decoded to grey at 1/``reduce`` size (1, 2, 4 or 8: libjpeg's DCT scaling)."""
-    flag = {
-        1: cv2.IMREAD_GRAYSCALE,
-        2: cv2.IMREAD_REDUCED_GRAYSCALE_2,
-        4: cv2.IMREAD_REDUCED_GRAYSCALE_4,
-        8: cv2.IMREAD_REDUCED_GRAYSCALE_8,
-    }[reduce]
-    img = cv2.imdecode(np.frombuffer(jpeg, np.uint8), flag)
-    if img is None:
-        msg = "not a decodable JPEG"
-        raise ValueError(msg)
-    return np.asarray(img, dtype=np.uint8)
 
 
 def _orientation(gray: Image, valid: Image) -> npt.NDArray[np.float32]:

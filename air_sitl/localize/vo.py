@@ -38,6 +38,7 @@ import numpy.typing as npt
 
 from air_sitl.frames import quat2matrix
 from air_sitl.localize.base import Estimate, LocalizerContext, Observation
+from air_sitl.localize.decode import decode_gray
 from air_sitl.localize.inputs import fix_position_ned
 from air_sitl.state import GeoPoint
 
@@ -114,8 +115,10 @@ class VisualOdometry:
 
     def _decode(self, obs: Observation) -> Gray | None:
         if obs.jpeg is not None:
-            flag = cv2.IMREAD_REDUCED_GRAYSCALE_2 if self.scale == 2 else cv2.IMREAD_GRAYSCALE
-            return cv2.imdecode(np.frombuffer(obs.jpeg, np.uint8), flag)
+            try:
+                return decode_gray(obs.jpeg, 2 if self.scale == 2 else 1)
+            except ValueError:
+                return None
         if obs.image_bgr is None:
             return None
         grey = cv2.cvtColor(obs.image_bgr, cv2.COLOR_BGR2GRAY)

@@ -55,6 +55,7 @@ def _init_worker(shared_ground: Path | None = None) -> None:
 
 
 def _crashed_row(task: RunTask, why: str) -> dict[str, Any]:
+    """The row of a run whose worker died: every key of a row, its times unknown (null)."""
     return {
         "id": task.id,
         "options": task.options,
@@ -64,6 +65,8 @@ def _crashed_row(task: RunTask, why: str) -> dict[str, Any]:
         "wall_s": None,
         "host": None,
         "archive": task.archive_label,
+        "reference_date": task.reference_date,
+        "time_s": None,
     }
 
 

@@ -14,7 +14,9 @@ the archives ``dataset`` made); one with ``measurements`` saves each entry's mea
 it finishes (:mod:`~air_sitl.sweep.measurements`) and skips the entries measured before.
 
 Per worker process, one core: a procedural map is opened once and kept for every later run
-over the same map (:data:`_MAPS`); BLAS and OpenCV run one thread (:func:`pin_threads`); the
+over the same map (:data:`_MAPS`), the flights' and the map matchers' reference maps alike,
+drawing their ground into the pool's shared folder; a run's methods go over its archive in one
+pass (each frame read and decoded once); BLAS and OpenCV run one thread (:func:`pin_threads`); the
 camera renders on the simulation thread (``--render-workers 0``) and the archive's files are
 written there too (no I/O thread: a second thread in a worker only competes for its core and
 the GIL).
@@ -43,15 +45,16 @@ from air_sitl.camera.options import camera_from_args, map_choice_from_args
 from air_sitl.dataset.air_schema import ESTIMATES_DIR, SUMMARY_JSON
 from air_sitl.errors import AirSitlError, DatasetError
 from air_sitl.eval import Scored, score_sources
-from air_sitl.localize.archive import LocalizeRun, run_archive
+from air_sitl.localize.archive import LocalizeRun, run_archive_methods
 from air_sitl.localize.external import (
     ExternalLocalizer,
     adopt_estimates,
     fly_in_lockstep,
     same_flight,
 )
+from air_sitl.maps.base import MapSource
 from air_sitl.maps.choose import open_chosen_map
-from air_sitl.maps.open import default_map_for_plan
+from air_sitl.maps.open import default_map_for_plan, open_map
 from air_sitl.maps.procedural import KINDS
 from air_sitl.options import flight_options_from_args, int_in_range
 from air_sitl.recording import RecordingRequest, record_flight
@@ -142,10 +145,33 @@ def _cached_map(setup: Any) -> Any:
         return None
     home = setup.home
     key = (spec.strip(), setup.map.seed, setup.map.date, home.lat_deg, home.lon_deg)
+    return _kept(
+        key,
+        lambda: open_chosen_map(replace(setup.map, shared_dir=_SHARED_GROUND[0]), home, setup.name),
+    )
+
+
+def reference_map(
+    spec: str, home: Any, *, seed: int = 0, date: str | int | None = None
+) -> MapSource:
+    """A map-matching method's reference map (``open_map``'s signature): a procedural one
+    opened once per worker and kept, drawing into the pool's shared ground (a run's date-0
+    flight has drawn most of it); a GeoTIFF opened as the method would."""
+    if spec.strip() not in KINDS:
+        return open_map(spec, home, seed=seed, date=date)
+    key = ("reference", spec.strip(), seed, str(date), home.lat_deg, home.lon_deg)
+    source: MapSource = _kept(
+        key, lambda: open_map(spec, home, seed=seed, date=date, shared_dir=_SHARED_GROUND[0])
+    )
+    return source
+
+
+def _kept(key: tuple[Any, ...], opener: Any) -> Any:
+    """The map kept under ``key`` (the least recently used one goes beyond MAPS_KEPT)."""
     if key in _MAPS:
         _MAPS.move_to_end(key)
         return _MAPS[key]
-    source = open_chosen_map(replace(setup.map, shared_dir=_SHARED_GROUND[0]), home, setup.name)
+    source = opener()
     _MAPS[key] = source
     while len(_MAPS) > MAPS_KEPT:
         _MAPS.popitem(last=False)
@@ -206,29 +232,52 @@ def _row_summary(summary: dict[str, Any], plan_label: str) -> dict[str, Any]:
     return dict(sorted(kept.items()))
 
 
+def _run_methods(task: RunTask, out: Path, methods: list[str]) -> dict[str, LocalizeRun | str]:
+    """The methods over the run's archive in one pass (each frame read and decoded once):
+    each method's run, or why it failed. When the pass fails, each method alone, so that
+    each says its own reason and the others are measured."""
+    if not methods:
+        return {}
+    try:
+        runs = run_archive_methods(
+            out,
+            [(method, method, {}) for method in methods],
+            reference_date=task.reference_date,
+            seed=task.seed,
+            open_map=reference_map,
+        )
+    except AirSitlError as err:
+        if len(methods) == 1:
+            return {methods[0]: f"localize {methods[0]}: {_one_line(err)}"}
+        return {m: got for one in methods for m, got in _run_methods(task, out, [one]).items()}
+    return {run.name: run for run in runs}
+
+
 def _measure(
-    task: RunTask, out: Path, entry: str | ExternalLocalizer, times: dict[str, float]
+    task: RunTask,
+    out: Path,
+    entry: str | ExternalLocalizer,
+    ran: dict[str, LocalizeRun | str],
+    times: dict[str, float],
 ) -> tuple[Scored | None, str | None, LocalizeRun | None]:
-    """One method over the archive, or one localizer program in lockstep, then its estimate
-    scored: (the score, why it failed, the method's run); the seconds each took are added
-    to ``times`` (``localize``, ``eval``)."""
+    """One method's run (from ``ran``), or one localizer program in lockstep, then its
+    estimate scored: (the score, why it failed, the method's run); the seconds each took
+    are added to ``times`` (``localize``, ``eval``)."""
     name = entry if isinstance(entry, str) else entry.name
     run = None
-    start = time.perf_counter()
-    try:
-        if isinstance(entry, str):
-            try:
-                run = run_archive(
-                    out, entry, name=entry, reference_date=task.reference_date, seed=task.seed
-                )
-            except AirSitlError as err:
-                return None, f"localize {entry}: {_one_line(err)}", None
-        else:
+    if isinstance(entry, str):
+        got = ran[entry]
+        if isinstance(got, str):
+            return None, got, None
+        run = got
+    else:
+        start = time.perf_counter()
+        try:
             why = _run_external(task, out, entry)
-            if why is not None:
-                return None, f"localizer {name}: {why}", None
-    finally:
-        times["localize"] += time.perf_counter() - start
+        finally:
+            times["localize"] += time.perf_counter() - start
+        if why is not None:
+            return None, f"localizer {name}: {why}", None
     start = time.perf_counter()
     try:
         scored = score_sources(out, [name], task.align)[0]
@@ -243,20 +292,28 @@ def _measure(
 def _localize(
     task: RunTask, out: Path, times: dict[str, float]
 ) -> tuple[dict[str, Any], str | None]:
-    """Each entry measured in turn (and saved as it finishes when the task keeps
-    measurements; those measured before are not measured again); (reports, first error)."""
+    """The methods in one pass, then each entry scored in turn (and saved as it finishes
+    when the task keeps measurements; those measured before are not measured again);
+    (reports, first error)."""
     folder = None if task.measurements is None else Path(task.measurements)
     ident = "" if folder is None else archive_id(out)
     reports: dict[str, Any] = {}
     error: str | None = None
     entries: list[str | ExternalLocalizer] = [*task.methods, *task.localizers]
+    before: dict[str, EntryResult | None] = {}
     for entry in entries:
         name = entry if isinstance(entry, str) else entry.name
-        done = None if folder is None else load(folder, task.scenario, name, ident)
+        before[name] = None if folder is None else load(folder, task.scenario, name, ident)
+    start = time.perf_counter()
+    ran = _run_methods(task, out, [m for m in task.methods if before[m] is None])
+    times["localize"] += time.perf_counter() - start
+    for entry in entries:
+        name = entry if isinstance(entry, str) else entry.name
+        done = before[name]
         if done is not None:  # measured by an earlier, interrupted run
             reports[name] = done.report
             continue
-        scored, why, run = _measure(task, out, entry, times)
+        scored, why, run = _measure(task, out, entry, ran, times)
         reports[name] = None if scored is None else scored.report
         error = error or why
         if folder is not None:
