@@ -52,10 +52,10 @@ def imu(
     lim = F[DRIFT_LIMIT]
     neg = -lim
     ds = F[DRIFT]
-    for k in range(3):
-        v = E[6 + k] + z[9 + k] * ds
+    for j in range(3):
+        v = E[6 + j] + z[9 + j] * ds
         v = v if v < lim else lim
-        E[6 + k] = v if v > neg else neg
+        E[6 + j] = v if v > neg else neg
     js = F[AHRS_NOISE]
     ex = (E[6] + z[12] * js) * 0.5
     ey = (E[7] + z[13] * js) * 0.5
