@@ -1,11 +1,11 @@
 """Kernels built ahead of time (``air_sitl.compiled``): the bytes of numba's JIT, without numba.
 
 A fresh process flies 10 s on the onboard filter and 5 s cruising from an air start, renders
-a frame over relief, and one with every camera effect, hashing each; with the built kernels it never imports numba, and
-it gives the same hashes as a process where numba's JIT compiles them (forced, or because no
-cache is writable: no error then, nothing on stderr). Two processes that find no build start
-at once: one builds (and says so on its terminal), both run on that build, and nothing
-half-written is left.
+a frame over relief, and one with every camera effect, hashing each; with the built kernels
+it never imports numba, and it gives the same hashes as a process where numba's JIT compiles
+them (forced, or because no cache is writable: no error then, nothing on stderr). Two
+processes that find no build start at once: one builds (and says so on its terminal), both
+run on that build, and nothing half-written is left.
 """
 
 from __future__ import annotations
@@ -42,7 +42,8 @@ h = hashlib.sha256()
 for _ in range(2000):  # 10 simulated seconds: prediction, GNSS, baro, compass, airspeed
     h.update(repr(flight.step()).encode())
 print("flight", h.hexdigest())
-cruise = build_flight(load_setup("missions/UC-200.plan", FlightOptions(nav="truth", air_start=True)))
+air = FlightOptions(nav="truth", air_start=True)
+cruise = build_flight(load_setup("missions/UC-200.plan", air))
 h = hashlib.sha256()
 for _ in range(1000):  # the controller's cruise law, the flight loop's kernels (group flight)
     h.update(repr(cruise.step()).encode())
