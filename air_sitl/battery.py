@@ -15,13 +15,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
+import numpy as np
+
+from air_sitl import battery_kernel as bk
 from air_sitl.state import BatteryState, battery_state
 
 NS_PER_S = 1_000_000_000
-MOTOR_MAX_POWER_W = 600.0  # shaft power at full throttle (a 2-3 kg fixed wing)
-AVIONICS_POWER_W = 6.0  # autopilot, GNSS, radio, camera
-DRIVE_EFFICIENCY = 0.8  # ESC and motor
-_isfinite, _sqrt = math.isfinite, math.sqrt
+MOTOR_MAX_POWER_W = bk.MOTOR_MAX_POWER_W
+AVIONICS_POWER_W = bk.AVIONICS_POWER_W
+DRIVE_EFFICIENCY = bk.DRIVE_EFFICIENCY
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -91,43 +93,26 @@ class Battery:
         self._last_ns: int | None = None
         self.consumed_mah = 0.0
         self.consumed_wh = 0.0
+        self._packed_spec: BatterySpec | None = None
+        self._pack = np.zeros(0)
 
     def step(self, sim_time_ns: int, throttle: float) -> BatteryState:
-        """The state after flying at ``throttle`` since the last step."""
-        # A 200 Hz path: electrical_power_w and terminal_voltage_v written out, operation for
-        # operation (min/max as the builtins choose).
+        """The state after flying at ``throttle`` since the last step (compiled: a 200 Hz
+        path, :mod:`air_sitl.battery_kernel`)."""
         spec = self._spec()
+        if spec is not self._packed_spec:
+            self._packed_spec = spec
+            self._pack = np.array(
+                [spec.capacity_mah, spec.cells, spec.v_charged_cell, spec.v_empty_cell,
+                 spec.r_internal_ohm, 2.0, 3.0], dtype=np.float64,
+            )  # fmt: skip
         last = self._last_ns
         dt_s = 0.0 if last is None else (sim_time_ns - last) / NS_PER_S
         self._last_ns = sim_time_ns
-        used = self.consumed_mah / spec.capacity_mah
-        used = used if used < 1.0 else 1.0  # min(1.0, used), as the builtin
-        cell_v = spec.v_charged_cell - (spec.v_charged_cell - spec.v_empty_cell) * used
-        v_oc = spec.cells * cell_v
-        if _isfinite(throttle):
-            t = throttle if throttle > 0.0 else 0.0
-            t = t if t < 1.0 else 1.0
-        else:
-            t = 0.0
-        power_w = AVIONICS_POWER_W + MOTOR_MAX_POWER_W * t**3 / DRIVE_EFFICIENCY
-        r_ohm = spec.r_internal_ohm
-        if r_ohm <= 0.0 or power_w <= 0.0:
-            voltage_v = v_oc
-        else:
-            disc = v_oc**2 - 4.0 * r_ohm * power_w
-            voltage_v = (v_oc + _sqrt(disc if disc > 0.0 else 0.0)) / 2.0
-        current_a = power_w / voltage_v if voltage_v > 0 else 0.0
-        if dt_s > 0:
-            self.consumed_mah += current_a * dt_s / 3.6  # A s -> mAh
-            self.consumed_wh += power_w * dt_s / 3600.0
-        remaining = 1.0 - self.consumed_mah / spec.capacity_mah
-        return battery_state(  # positional, in BatteryState's field order (a 200 Hz path)
-            voltage_v,
-            current_a,
-            self.consumed_mah,
-            self.consumed_wh,
-            remaining if remaining > 0.0 else 0.0,  # max(0.0, remaining), as the builtin
-        )
+        out = bk.step(self._pack, self.consumed_mah, self.consumed_wh, dt_s, throttle)
+        self.consumed_mah = out[2]
+        self.consumed_wh = out[3]
+        return battery_state(*out)  # BatteryState's field order
 
 
 # Warning levels, as MAV_BATTERY_CHARGE_STATE: OK 1, LOW 2, CRITICAL 3, EMERGENCY 4.

@@ -58,6 +58,9 @@ GROUPS = {
                  ("air_sitl.nav.quaternion", "air_sitl.nav.kernels", "air_sitl.nav.strapdown")),
     "relief": Group("the relief renderer", ("air_sitl.camera.relief_march",)),
     "effects": Group("the camera effects", ("air_sitl.camera.effects_kernel",)),
+    "flight": Group("the flight loop", ("air_sitl.autopilot.control_kernel",
+                                        "air_sitl.sensors_kernel", "air_sitl.battery_kernel",
+                                        "air_sitl.fdm.state_kernel")),
 }  # fmt: skip
 _GROUP_OF = {module: name for name, group in GROUPS.items() for module in group.modules}
 

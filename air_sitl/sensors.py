@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from air_sitl import sensors_kernel as sk
 from air_sitl.clock import NS_PER_S
 from air_sitl.frames import ned2geodetic
 from air_sitl.state import GeoPoint, GpsFix, ImuSample, VehicleState, imu_sample
@@ -54,22 +55,33 @@ class SensorNoise:
 
 class NormalRows:
     """Rows of standard normal draws served one at a time from pre-drawn blocks (fast, seeded;
-    the stream does not depend on the block size)."""
+    the stream does not depend on the block size): as lists (:meth:`row`) or as an index into
+    the block's array (:meth:`index`, for the compiled sensors)."""
 
-    __slots__ = ("_block", "_i", "_rng", "_width")
+    __slots__ = ("_block", "_i", "_rng", "_width", "array")
 
     def __init__(self, rng: np.random.Generator, width: int) -> None:
         self._rng = rng
         self._width = width
-        self._block: list[list[float]] = []
+        self.array = np.zeros((0, width))
+        self._block: list[list[float]] | None = []
         self._i = 0
 
-    def row(self) -> list[float]:
-        if self._i >= len(self._block):
-            self._block = self._rng.standard_normal((2048, self._width)).tolist()
+    def index(self) -> int:
+        """The next row's index in :attr:`array`."""
+        if self._i >= len(self.array):
+            self.array = self._rng.standard_normal((2048, self._width))
+            self._block = None
             self._i = 0
         self._i += 1
-        return self._block[self._i - 1]
+        return self._i - 1
+
+    def row(self) -> list[float]:
+        """The next row."""
+        i = self.index()
+        if self._block is None:
+            self._block = self.array.tolist()
+        return self._block[i]
 
 
 class SensorSuite:
@@ -93,15 +105,20 @@ class SensorSuite:
         bias_seq, step_seq, gps_seq = root.spawn(3)
         n = self.noise
         b = np.random.default_rng(bias_seq).standard_normal(6).tolist()
-        self._gyro_bias = [v * n.gyro_bias_rad_s for v in b[:3]]
-        self._accel_bias = [v * n.accel_bias_m_s2 for v in b[3:]]
+        # The slowly varying errors (sensors_kernel: gyro bias, accelerometer bias, AHRS
+        # drift) and the noise figures, as the compiled IMU takes them.
+        self._errors = np.array(
+            [v * n.gyro_bias_rad_s for v in b[:3]] + [v * n.accel_bias_m_s2 for v in b[3:]]
+            + [0.0, 0.0, 0.0]
+        )  # fmt: skip
         # Per step: bias walk (3), gyro noise (3), accel noise (3), AHRS drift (3), jitter (3).
         self._step_noise = NormalRows(np.random.default_rng(step_seq), 15)
         self._gps = NormalRows(np.random.default_rng(gps_seq), 6)
-        self._ahrs_drift = [0.0, 0.0, 0.0]
         sqrt_dt = math.sqrt(self.step_s)
-        self._walk_scale = n.gyro_bias_walk_rad_s_sqrt_s * sqrt_dt
-        self._drift_scale = n.ahrs_drift_rad_sqrt_s * sqrt_dt
+        self._figures = np.array(  # in sensors_kernel's order (WALK ... DRIFT_LIMIT)
+            [n.gyro_bias_walk_rad_s_sqrt_s * sqrt_dt, n.gyro_noise_rad_s, n.accel_noise_m_s2,
+             n.ahrs_drift_rad_sqrt_s * sqrt_dt, n.ahrs_noise_rad, n.ahrs_drift_limit_rad]
+        )  # fmt: skip
 
     def gps_denied(self, sim_time_ns: int) -> bool:
         """True inside any GNSS denial window [start, end)."""
@@ -109,50 +126,13 @@ class SensorSuite:
 
     def sample(self, state: VehicleState) -> tuple[ImuSample, GpsFix | None]:
         """Sensor readings for one physics step (call once per step, in order)."""
-        n = self.noise
-        z = self._step_noise.row()
-        gb = self._gyro_bias
-        walk = self._walk_scale
-        gb[0] += z[0] * walk
-        gb[1] += z[1] * walk
-        gb[2] += z[2] * walk
-        ab = self._accel_bias
-        gs = n.gyro_noise_rad_s
-        acs = n.accel_noise_m_s2
+        rows = self._step_noise
+        i = rows.index()
         p, q, r = state.rate_frd_rad_s
         fx, fy, fz = state.specific_force_frd_m_s2
-        gyro = (p + gb[0] + z[3] * gs, q + gb[1] + z[4] * gs, r + gb[2] + z[5] * gs)
-        accel = (fx + ab[0] + z[6] * acs, fy + ab[1] + z[7] * acs, fz + ab[2] + z[8] * acs)
-        # AHRS: truth rotated by a small error (bounded random-walk drift + white jitter).
-        # A 200 Hz path: clamps, frames.quat_multiply and frames.quat_normalize written out,
-        # operation for operation (min/max as the builtins choose).
-        lim = n.ahrs_drift_limit_rad
-        neg = -lim
-        d = self._ahrs_drift
-        ds = self._drift_scale
-        v = d[0] + z[9] * ds
-        v = v if v < lim else lim
-        d[0] = v if v > neg else neg
-        v = d[1] + z[10] * ds
-        v = v if v < lim else lim
-        d[1] = v if v > neg else neg
-        v = d[2] + z[11] * ds
-        v = v if v < lim else lim
-        d[2] = v if v > neg else neg
-        js = n.ahrs_noise_rad
-        ex = (d[0] + z[12] * js) * 0.5
-        ey = (d[1] + z[13] * js) * 0.5
-        ez = (d[2] + z[14] * js) * 0.5
         aw, ax, ay, az = state.q_body_to_ned_wxyz
-        qw = aw - ax * ex - ay * ey - az * ez  # the error's scalar part is 1
-        qx = aw * ex + ax + ay * ez - az * ey
-        qy = aw * ey - ax * ez + ay + az * ex
-        qz = aw * ez + ax * ey - ay * ex + az
-        norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
-        k = 1.0 / norm if qw >= 0 else -1.0 / norm
-        imu = imu_sample(  # positional, in ImuSample's field order
-            state.sim_time_ns, gyro, accel, (qw * k, qx * k, qy * k, qz * k)
-        )
+        o = sk.imu(rows.array, i, self._errors, self._figures, p, q, r, fx, fy, fz, aw, ax, ay, az)
+        imu = imu_sample(state.sim_time_ns, o[:3], o[3:6], o[6:])  # ImuSample's field order
         gps = None
         if state.sim_time_ns % self.gps_period_ns == 0:
             # Draw even while denied so denial windows do not shift later noise.

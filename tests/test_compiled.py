@@ -1,11 +1,11 @@
 """Kernels built ahead of time (``air_sitl.compiled``): the bytes of numba's JIT, without numba.
 
-A fresh process flies 10 s on the onboard filter and renders a frame over relief, and one
-with every camera effect, hashing each; with the built kernels it never imports numba, and
-it gives the same hashes as a process where numba's JIT compiles them (forced, or because no
-cache is writable: no error then, nothing on stderr). Two processes that find no build start
-at once: one builds (and says so on its terminal), both run on that build, and nothing
-half-written is left.
+A fresh process flies 10 s on the onboard filter and 5 s cruising from an air start, renders
+a frame over relief, and one with every camera effect, hashing each; with the built kernels
+it never imports numba, and it gives the same hashes as a process where numba's JIT compiles
+them (forced, or because no cache is writable: no error then, nothing on stderr). Two
+processes that find no build start at once: one builds (and says so on its terminal), both
+run on that build, and nothing half-written is left.
 """
 
 from __future__ import annotations
@@ -42,6 +42,12 @@ h = hashlib.sha256()
 for _ in range(2000):  # 10 simulated seconds: prediction, GNSS, baro, compass, airspeed
     h.update(repr(flight.step()).encode())
 print("flight", h.hexdigest())
+air = FlightOptions(nav="truth", air_start=True)
+cruise = build_flight(load_setup("missions/UC-200.plan", air))
+h = hashlib.sha256()
+for _ in range(1000):  # the controller's cruise law, the flight loop's kernels (group flight)
+    h.update(repr(cruise.step()).encode())
+print("cruise", h.hexdigest())
 home = GeoPoint(lat_deg=47.3769, lon_deg=8.5417, alt_amsl_m=408.0)
 m = open_map("urban", home, seed=3)
 s = pose_state(home.lat_deg, home.lon_deg, home.alt_amsl_m + 180.0, alt_agl_m=180.0,

@@ -30,11 +30,14 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
+from air_sitl.autopilot import control_kernel as ck
 from air_sitl.autopilot.target import ControlPhase, ControlTarget
 from air_sitl.clock import NS_PER_S, PHYSICS_STEP_NS
 from air_sitl.state import ActuatorCommand, VehicleState, actuator_command
 
-GRAVITY_M_S2 = 9.80665
+GRAVITY_M_S2 = ck.GRAVITY_M_S2
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -146,7 +149,8 @@ def _wrap_pi(a: float) -> float:
 
 
 class Controller:
-    """The control laws of every phase; state is a handful of plain floats (integrators).
+    """The control laws of every phase; state is a handful of floats (integrators, filters)
+    in one array that the compiled laws (:mod:`~air_sitl.autopilot.control_kernel`) update.
 
     ``trim`` (for example :attr:`JSBSimModel.trim_command` after an air start) seeds the
     elevator and throttle integrators so a trimmed start stays steady from the first step.
@@ -161,47 +165,53 @@ class Controller:
     ) -> None:
         self.gains = gains if gains is not None else ControlGains()
         self.dt_s = dt_s
-        self._pitch_lo = self.gains.min_pitch_rad
-        self._pitch_hi = self.gains.max_pitch_rad
+        self._g = ck.gains_array(self.gains, dt_s)
+        self._m = np.zeros(ck.MEMORY)
+        self._m[ck.PITCH_LO] = self.gains.min_pitch_rad
+        self._m[ck.PITCH_HI] = self.gains.max_pitch_rad
         self.reset(trim)  # the integrators and filters
 
     def reset(self, trim: ActuatorCommand | None = None) -> None:
         """Clear the integrators and filters; seed them from ``trim`` (an air start) if given."""
-        self._roll_i = 0.0
-        self._pitch_i = self.gains.trim_elevator
-        self._throttle_i = 0.0
-        self._balance_i = 0.0
-        self._vdot = 0.0
-        self._hdot_dem = 0.0
-        self._h_dem_prev = math.nan
-        self._h_dem_rate = 0.0
+        m = self._m
+        m[ck.ROLL_I] = 0.0
+        m[ck.PITCH_I] = self.gains.trim_elevator
+        m[ck.THROTTLE_I] = 0.0
+        m[ck.BALANCE_I] = 0.0
+        m[ck.VDOT] = 0.0
+        m[ck.HDOT_DEM] = 0.0
+        m[ck.H_DEM_PREV] = math.nan
+        m[ck.H_DEM_RATE] = 0.0
         # An air start (trim given) is already cruising; otherwise the aircraft is parked.
         self._prev_phase: ControlPhase = (
             ControlPhase.CRUISE if trim is not None else ControlPhase.IDLE
         )
         if trim is not None:
-            self._pitch_i = trim.elevator
-            self._throttle_i = trim.throttle - self.gains.trim_throttle
+            m[ck.PITCH_I] = trim.elevator
+            m[ck.THROTTLE_I] = trim.throttle - self.gains.trim_throttle
 
     # ------------------------------------------------------------------ entry point
 
     def update(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
         """One step of the control law of ``target.phase``."""
         phase = target.phase
+        if phase is ControlPhase.CRUISE and self._prev_phase is ControlPhase.CRUISE:
+            return self._cruise(state, target)  # the 200 Hz path: one compiled call
         g = self.gains
-        # max() and min() written out (a 200 Hz path), choosing as the builtins do.
+        m = self._m
+        # max() and min() written out, choosing as the builtins do.
         lo, hi = target.pitch_min_rad, target.pitch_max_rad
-        self._pitch_lo = lo if lo > g.min_pitch_rad else g.min_pitch_rad
-        self._pitch_hi = hi if hi < g.max_pitch_rad else g.max_pitch_rad
+        m[ck.PITCH_LO] = lo if lo > g.min_pitch_rad else g.min_pitch_rad
+        m[ck.PITCH_HI] = hi if hi < g.max_pitch_rad else g.max_pitch_rad
         if phase is ControlPhase.IDLE:
             self.reset()  # parked: nothing to remember
             return ActuatorCommand(brake=1.0)
         if phase is not self._prev_phase:
             # Entering a phase: its pitch offset integrator means something else there, and
             # the climb-rate demand starts from what the aircraft is doing.
-            self._balance_i = 0.0
-            self._hdot_dem = -state.vel_ned_m_s[2]
-            self._h_dem_prev = math.nan
+            m[ck.BALANCE_I] = 0.0
+            m[ck.HDOT_DEM] = -state.vel_ned_m_s[2]
+            m[ck.H_DEM_PREV] = math.nan
         if phase is ControlPhase.GROUND_ROLL:
             cmd = self._ground_roll(state, target)
         elif phase is ControlPhase.CLIMB:
@@ -217,66 +227,36 @@ class Controller:
 
     def _schedule(self, airspeed_m_s: float) -> float:
         """Surface-gain factor: (V_ref / V)^2, bounded for very slow and very fast flight."""
-        g = self.gains
-        slowest = 0.5 * g.min_airspeed_m_s
-        v = airspeed_m_s if airspeed_m_s > slowest else slowest
-        k = (g.ref_airspeed_m_s / v) ** 2
-        return 0.3 if k < 0.3 else 3.0 if k > 3.0 else k
+        return float(ck.schedule(self._g, airspeed_m_s))
 
     def _integrate(self, value: float, rate: float, limit: float) -> float:
         """One step of an integrator, kept within [-limit, limit]."""
         return _clamp(value + rate * self.dt_s, -limit, limit)
 
     def _aileron(self, state: VehicleState, bank_cmd_rad: float, scale: float) -> float:
-        # The inner loops run at 200 Hz: _clamp, _winding_up and _integrate written out.
-        g = self.gains
-        hi = g.max_bank_rad
-        lo = -hi
-        bank = lo if bank_cmd_rad < lo else hi if bank_cmd_rad > hi else bank_cmd_rad
-        err = bank - state.roll_rad
-        raw = g.roll_kp * err + self._roll_i - g.roll_kd * state.rate_frd_rad_s[0]
-        x = scale * raw
-        out = -1.0 if x < -1.0 else 1.0 if x > 1.0 else x
-        # Anti-windup: integrate only in the air and while the output is not pushed further
-        # into its limit.
-        if not (state.on_ground or (out >= 1.0 and err > 0.0) or (out <= -1.0 and err < 0.0)):
-            i = self._roll_i + (g.roll_ki * err) * self.dt_s
-            limit = g.roll_i_limit
-            self._roll_i = -limit if i < -limit else limit if i > limit else i
-        return out
+        return float(
+            ck.aileron(
+                self._g, self._m, state.roll_rad, state.rate_frd_rad_s[0], state.on_ground,
+                bank_cmd_rad, scale,
+            )
+        )  # fmt: skip
 
     def _elevator(self, state: VehicleState, pitch_cmd_rad: float, scale: float) -> float:
-        g = self.gains
-        lo, hi = self._pitch_lo, self._pitch_hi
-        pitch_cmd = lo if pitch_cmd_rad < lo else hi if pitch_cmd_rad > hi else pitch_cmd_rad
-        err = pitch_cmd - state.pitch_rad
-        # Steady pitch rate of a level turn: g/V * sin^2(phi) / cos(phi).
-        v = state.airspeed_m_s
-        v = g.min_airspeed_m_s if g.min_airspeed_m_s > v else v
-        phi = state.roll_rad
-        cos_phi = math.cos(phi)
-        cos_phi = 0.3 if cos_phi < 0.3 else cos_phi
-        q_ff = GRAVITY_M_S2 / v * math.sin(phi) ** 2 / cos_phi
-        fb = -g.pitch_kp * err + g.pitch_kd * (state.rate_frd_rad_s[1] - q_ff)
-        x = self._pitch_i + scale * fb
-        out = -1.0 if x < -1.0 else 1.0 if x > 1.0 else x
-        # The integrator is the elevator trim; elevator + = nose down, hence the minus signs.
-        push = -err
-        if not ((out >= 1.0 and push > 0.0) or (out <= -1.0 and push < 0.0)):
-            i = self._pitch_i + (-(scale * g.pitch_ki * err)) * self.dt_s
-            limit = g.pitch_i_limit
-            self._pitch_i = -limit if i < -limit else limit if i > limit else i
-        return out
+        return float(
+            ck.elevator(
+                self._g, self._m, state.pitch_rad, state.rate_frd_rad_s[1], state.roll_rad,
+                state.airspeed_m_s, pitch_cmd_rad, scale,
+            )
+        )  # fmt: skip
 
     def _rudder_air(self, state: VehicleState, scale: float) -> float:
         """``scale``: :meth:`_schedule` of the state's airspeed."""
-        g = self.gains
-        v = state.airspeed_m_s
-        v = g.min_airspeed_m_s if g.min_airspeed_m_s > v else v
-        r_turn = GRAVITY_M_S2 / v * math.sin(state.roll_rad) * math.cos(state.pitch_rad)
-        ay = state.specific_force_frd_m_s2[1]
-        out = (-g.yaw_ky * ay - g.yaw_kr * (state.rate_frd_rad_s[2] - r_turn)) * scale
-        return -1.0 if out < -1.0 else 1.0 if out > 1.0 else out
+        return float(
+            ck.rudder_air(
+                self._g, state.roll_rad, state.pitch_rad, state.airspeed_m_s,
+                state.specific_force_frd_m_s2[1], state.rate_frd_rad_s[2], scale,
+            )
+        )  # fmt: skip
 
     def _steer(self, state: VehicleState, heading_rad: float) -> float:
         g = self.gains
@@ -295,7 +275,7 @@ class Controller:
         if state.airspeed_m_s >= g.rotate_airspeed_m_s or not state.on_ground:
             elevator = self._elevator(state, g.rotate_pitch_rad, scale)
         else:
-            self._pitch_i = g.trim_elevator
+            self._m[ck.PITCH_I] = g.trim_elevator
             # Nose-down elevator keeps weight on the steerable nose wheel until rotation speed.
             elevator = g.roll_elevator
         rudder = self._steer(state, target.heading_rad)
@@ -311,10 +291,11 @@ class Controller:
         speed_dem = _clamp(target.airspeed_m_s, g.min_airspeed_m_s, g.max_airspeed_m_s)
         # Pitch for airspeed: too fast -> pitch up. The balance integrator trims the attitude.
         speed_err = state.airspeed_m_s - speed_dem
-        self._balance_i = self._integrate(
-            self._balance_i, g.climb_speed_k * 0.2 * speed_err, g.energy_i_limit
+        balance_i = self._integrate(
+            float(self._m[ck.BALANCE_I]), g.climb_speed_k * 0.2 * speed_err, g.energy_i_limit
         )
-        pitch_cmd = g.climb_pitch_rad + g.climb_speed_k * speed_err + self._balance_i
+        self._m[ck.BALANCE_I] = balance_i
+        pitch_cmd = g.climb_pitch_rad + g.climb_speed_k * speed_err + balance_i
         pitch_cmd = max(pitch_cmd, g.trim_pitch_rad)
         elevator = self._elevator(state, pitch_cmd, scale)
         aileron = self._aileron(state, target.roll_rad, scale)
@@ -327,99 +308,28 @@ class Controller:
                 g.climb_throttle - 3.0 * g.throttle_ff * over / max(state.airspeed_m_s, 1.0),
                 g.trim_throttle,
             )
-        self._throttle_i = 0.0
+        self._m[ck.THROTTLE_I] = 0.0
         return ActuatorCommand(aileron=aileron, elevator=elevator, rudder=rudder, throttle=throttle)
 
-    def _tecs(
-        self, state: VehicleState, height_dem_m: float, speed_dem_m_s: float, climb_limit: float
-    ) -> tuple[float, float]:
-        """Pitch command (rad) and throttle from the total-energy laws."""
-        # A 200 Hz path: _clamp, max, min, _winding_up and _integrate written out (max and
-        # min choosing as the builtins do).
-        g = self.gains
-        dt = self.dt_s
-        airspeed = state.airspeed_m_s
-        v_min, v_max = g.min_airspeed_m_s, g.max_airspeed_m_s
-        v = v_min if v_min > airspeed else airspeed
-        speed_dem = (
-            v_min if speed_dem_m_s < v_min else v_max if speed_dem_m_s > v_max else speed_dem_m_s
-        )
-        climb_max = 0.1 if climb_limit < 0.1 else climb_limit
-        sink_max = -climb_max
-        h = state.alt_amsl_m
-        hdot = -state.vel_ned_m_s[2]
-        # Feed forward how fast the demanded altitude moves (a glide slope, a ramped climb),
-        # low-pass filtered: guidance updates its target only every few steps.
-        if self._h_dem_prev == self._h_dem_prev:  # not NaN: a previous demand exists
-            rate = (height_dem_m - self._h_dem_prev) / dt
-            rate = sink_max if rate < sink_max else climb_max if rate > climb_max else rate
-            k = dt / g.demand_filter_s
-            self._h_dem_rate += (rate - self._h_dem_rate) * (1.0 if k > 1.0 else k)
-        self._h_dem_prev = height_dem_m
-        x = self._h_dem_rate + g.height_k * (height_dem_m - h)
-        hdot_dem = sink_max if x < sink_max else climb_max if x > climb_max else x
-        # Slew the demanded climb rate: a step in altitude gives a smooth pull-up.
-        slew = g.max_vert_accel_m_s2 * dt
-        lo, hi = self._hdot_dem - slew, self._hdot_dem + slew
-        hdot_dem = lo if hdot_dem < lo else hi if hdot_dem > hi else hdot_dem
-        self._hdot_dem = hdot_dem
-        acc_max = g.max_accel_m_s2
-        x = g.speed_k * (speed_dem - airspeed)
-        vdot_dem = -acc_max if x < -acc_max else acc_max if x > acc_max else x
-        # Along-path acceleration from the accelerometer: u_dot = f_x - g sin(theta), low-pass
-        # filtered: thrust shows in f_x at once, and unfiltered it closes a fast loop through
-        # the throttle that rings at the step rate.
-        vdot_raw = state.specific_force_frd_m_s2[0] - GRAVITY_M_S2 * math.sin(state.pitch_rad)
-        k = dt / g.accel_filter_s
-        self._vdot += (vdot_raw - self._vdot) * (1.0 if k > 1.0 else k)
-        vdot = self._vdot
-        gamma_dem = hdot_dem / v
-        gamma = hdot / v
-        acc_dem = vdot_dem / GRAVITY_M_S2
-        acc = vdot / GRAVITY_M_S2
-        # Total energy rate -> throttle.
-        ste_dem = gamma_dem + acc_dem
-        ste_err = ste_dem - (gamma + acc)
-        # Extra drag in a turn: the lift rises by 1/cos(phi), the induced drag with its square.
-        cos_roll = math.cos(state.roll_rad)
-        turn = 1.0 / (0.5 if cos_roll < 0.5 else cos_roll) ** 2 - 1.0
-        thr_ff = g.trim_throttle + g.throttle_ff * ste_dem + 0.25 * turn * g.trim_throttle
-        throttle = thr_ff + g.throttle_kp * ste_err + self._throttle_i
-        throttle_out = 0.0 if throttle < 0.0 else 1.0 if throttle > 1.0 else throttle
-        limit = g.energy_i_limit
-        if not ((throttle >= 1.0 and ste_err > 0.0) or (throttle <= 0.0 and ste_err < 0.0)):
-            i = self._throttle_i + (g.throttle_ki * ste_err) * dt
-            self._throttle_i = -limit if i < -limit else limit if i > limit else i
-        # Energy balance -> pitch.
-        seb_err = (gamma_dem - acc_dem) - (gamma - acc)
-        pitch = g.trim_pitch_rad + gamma_dem + g.balance_kp * seb_err + self._balance_i
-        if not (
-            (pitch >= g.max_pitch_rad and seb_err > 0.0)
-            or (pitch <= g.min_pitch_rad and seb_err < 0.0)
-        ):
-            i = self._balance_i + (g.balance_ki * seb_err) * dt
-            self._balance_i = -limit if i < -limit else limit if i > limit else i
-        return pitch, throttle_out
-
     def _cruise(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
-        scale = self._schedule(state.airspeed_m_s)
-        pitch_cmd, throttle = self._tecs(
-            state, target.altitude_amsl_m, target.airspeed_m_s, target.climb_rate_limit_m_s
-        )
+        p, q, r = state.rate_frd_rad_s
+        fx, fy, _ = state.specific_force_frd_m_s2
         return actuator_command(  # positional, in ActuatorCommand's field order
-            self._aileron(state, target.roll_rad, scale),
-            self._elevator(state, pitch_cmd, scale),
-            self._rudder_air(state, scale),
-            throttle,
+            *ck.cruise(
+                self._g, self._m, state.roll_rad, state.pitch_rad, p, q, r,
+                state.vel_ned_m_s[2], fx, fy, state.airspeed_m_s, state.alt_amsl_m,
+                state.on_ground, target.roll_rad, target.altitude_amsl_m, target.airspeed_m_s,
+                target.climb_rate_limit_m_s, target.pitch_min_rad, target.pitch_max_rad,
+            ),
             0.0,
-        )
+        )  # fmt: skip
 
     def _land(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
         g = self.gains
         scale = self._schedule(state.airspeed_m_s)
         if state.on_ground:
             # Roll-out: nose down onto the wheel, brakes, steer the heading, wings level.
-            self._pitch_i = g.trim_elevator
+            self._m[ck.PITCH_I] = g.trim_elevator
             return ActuatorCommand(
                 aileron=self._aileron(state, 0.0, scale),
                 elevator=0.3,
@@ -432,8 +342,9 @@ class Controller:
             # Glide: pitch for the approach airspeed, throttle idle.
             speed_dem = _clamp(target.airspeed_m_s, g.min_airspeed_m_s, g.max_airspeed_m_s)
             speed_err = state.airspeed_m_s - speed_dem
-            self._balance_i = self._integrate(self._balance_i, 0.01 * speed_err, 0.2)
-            pitch_cmd = g.trim_pitch_rad - 0.06 + 0.05 * speed_err + self._balance_i
+            balance_i = self._integrate(float(self._m[ck.BALANCE_I]), 0.01 * speed_err, 0.2)
+            self._m[ck.BALANCE_I] = balance_i
+            pitch_cmd = g.trim_pitch_rad - 0.06 + 0.05 * speed_err + balance_i
             bank = target.roll_rad
         else:
             # Flare: sink rate proportional to height, pitch up to hold it; wings level.

@@ -16,9 +16,11 @@ from pathlib import Path
 from typing import Any
 
 import jsbsim
+import numpy as np
 
 from air_sitl.clock import NS_PER_S, PHYSICS_STEP_NS
 from air_sitl.errors import AircraftError
+from air_sitl.fdm import state_kernel
 from air_sitl.fdm.base import InitialCondition, Terrain, Wind
 from air_sitl.frames import WGS84_A_M, WGS84_E2
 from air_sitl.state import ActuatorCommand, GeoPoint, VehicleState, vehicle_state
@@ -27,9 +29,6 @@ FT_M = 0.3048
 M_FT = 1.0 / FT_M
 DEFAULT_AIRCRAFT = "airsitl_uav"
 OWN_AIRCRAFT_DIR = Path(__file__).resolve().parent / "aircraft"
-_TWO_PI = 2.0 * math.pi
-_PI = math.pi
-_sin, _cos, _sqrt, _radians = math.sin, math.cos, math.sqrt, math.radians
 
 # Properties read every step, in the order _build_state unpacks them.
 _STATE_PROPERTIES = (
@@ -98,7 +97,7 @@ def _wind_ned_fps(wind: Wind) -> tuple[float, float]:
 
 class _LocalNed:
     """The origin of the local NED frame: its ECEF position and rotation, for ``_build_state``
-    (which turns each geodetic position into NED from these, written out at 200 Hz)."""
+    (which turns each geodetic position into NED from these, compiled: state_kernel)."""
 
     def __init__(self, origin: GeoPoint) -> None:
         lat = math.radians(origin.lat_deg)
@@ -107,6 +106,7 @@ class _LocalNed:
         sl, cl = math.sin(lat), math.cos(lat)
         so, co = math.sin(lon), math.cos(lon)
         self.m = (-sl * co, -sl * so, cl, -so, co, -cl * co, -cl * so, -sl)
+        self.array = np.array([self.x0, self.y0, self.z0, *self.m])  # state_kernel's origin
 
     @staticmethod
     def _ecef(lat: float, lon: float, alt_m: float) -> tuple[float, float, float]:
@@ -389,8 +389,7 @@ class JSBSimModel:
 
     def _build_state(self) -> VehicleState:
         # A 200 Hz path: geodetic -> NED about _LocalNed's origin and Euler -> quaternion
-        # (frames.euler2quat) written out here, operation for operation, and the state built
-        # positionally (state.vehicle_state).
+        # compiled (state_kernel), the state built positionally (state.vehicle_state).
         g = self._getters
         lat = g[0]()
         lon = g[1]()
@@ -398,7 +397,6 @@ class JSBSimModel:
         phi = g[3]()
         theta = g[4]()
         psi = g[5]()
-        yaw = (psi + _PI) % _TWO_PI - _PI
         ground_m: float | None = None
         surface_m: float | None = None
         terrain = self._terrain
@@ -406,39 +404,18 @@ class JSBSimModel:
             # The ground the wheels meet during the next step: the terrain under the aircraft.
             ground_m, surface_m = terrain.ground_and_surface_at(lat, lon)
             self._set_terrain_ft(ground_m * M_FT)
-        local = self._ned
-        lat_r = _radians(lat)
-        lon_r = _radians(lon)
-        sin_lat = _sin(lat_r)
-        n = WGS84_A_M / _sqrt(1.0 - WGS84_E2 * sin_lat * sin_lat)
-        r = (n + alt_m) * _cos(lat_r)
-        dx = r * _cos(lon_r) - local.x0
-        dy = r * _sin(lon_r) - local.y0
-        dz = (n * (1.0 - WGS84_E2) + alt_m) * sin_lat - local.z0
-        m = local.m
-        cr, sr = _cos(phi / 2), _sin(phi / 2)
-        cp, sp = _cos(theta / 2), _sin(theta / 2)
-        cy, sy = _cos(yaw / 2), _sin(yaw / 2)
+        o = state_kernel.truth(self._ned.array, lat, lon, alt_m, phi, theta, psi)
         return vehicle_state(
             self._time_ns,
             lat,
             lon,
             alt_m,
             alt_m - self._ground.alt_amsl_m,
-            (
-                m[0] * dx + m[1] * dy + m[2] * dz,
-                m[3] * dx + m[4] * dy,
-                m[5] * dx + m[6] * dy + m[7] * dz,
-            ),
-            (
-                cr * cp * cy + sr * sp * sy,
-                sr * cp * cy - cr * sp * sy,
-                cr * sp * cy + sr * cp * sy,
-                cr * cp * sy - sr * sp * cy,
-            ),
+            o[:3],
+            o[3:7],
             phi,
             theta,
-            yaw,
+            o[7],
             (g[6]() * FT_M, g[7]() * FT_M, g[8]() * FT_M),
             (g[9](), g[10](), g[11]()),
             (g[12]() * FT_M, g[13]() * FT_M, g[14]() * FT_M),
