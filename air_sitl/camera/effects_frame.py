@@ -48,8 +48,11 @@ if TYPE_CHECKING:
 
 Image = npt.NDArray[np.uint8]
 F64 = npt.NDArray[np.float64]
+F32 = npt.NDArray[np.float32]
 COARSE_PX = 16  # the grid of the blur's paths and the haze (both vary slowly over the sensor)
 MARGIN_PX = 10  # pixels rendered around the sensor for the blur (16 taps: a path of 16 px)
+STRIP_ROWS = 16  # rows of a frame sampled from one window of the mosaic
+WINDOW_PX = 160 * 1024  # the largest window copied (640 kB)
 _NO_NOISE = np.empty((0, 0, 3), dtype=np.uint8)  # the light's noise where the frame has none
 
 
@@ -178,6 +181,24 @@ class EffectsPath:
                    interpolation=cv2.INTER_LINEAR)  # fmt: skip
         return full
 
+    def _remap_strips(self, mosaic: Image, maps: F32, windows: npt.NDArray[np.int64],
+                      sharp: Image) -> None:  # fmt: skip
+        """``sharp`` sampled from ``mosaic`` at ``maps`` in strips, each from a copy of the
+        mosaic's pixels it reads (``windows``, see ``effects_kernel.row_maps``): the rows of
+        a frame at an angle to the map's cross many rows of it, and the remap then waits
+        on memory for most of its reads; a copy of the window is read row by row and stays
+        in the core's cache for the remap."""
+        step = STRIP_ROWS
+        buf = self._buffer("window", (WINDOW_PX * 4,), np.uint8)
+        for k, (x0, y0, x1, y1) in enumerate(windows.tolist()):
+            source = mosaic
+            if x1 - x0 < mosaic.shape[1] or y1 - y0 < mosaic.shape[0]:
+                source = buf[: (y1 - y0) * (x1 - x0) * 4].reshape(y1 - y0, x1 - x0, 4)
+                np.copyto(source, mosaic[y0:y1, x0:x1])
+            cv2.remap(source, maps[k * step : (k + 1) * step], None, cv2.INTER_LINEAR,
+                      dst=sharp[k * step : (k + 1) * step], borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=FILL_BGRX)  # type: ignore[call-overload]  # fmt: skip
+
     def _buffer(self, name: str, shape: tuple[int, ...], dtype: type) -> npt.NDArray[Any]:
         """A contiguous array of ``shape`` in this thread's buffer ``name``, kept from frame
         to frame (grown to the largest asked for: a new array per frame costs its page
@@ -234,11 +255,13 @@ class EffectsPath:
             # A level pixel spans up to 2 image pixels (``MapSource.level_for_gsd``).
             mosaic, mx, my = self._mosaic(g, box, centre, 2.0 * (pad + 1))
             maps = self._buffer("maps", (h + 2 * pad, w + 2 * pad, 2), np.float32)
-            misses = self._compiled.row_maps(self.pinhole[0], self.pinhole[1], MARGIN_PX - pad,
-                                             MARGIN_PX - pad, rows, float(mx), float(my),
-                                             maps)  # fmt: skip
+            windows = np.empty((-(-(h + 2 * pad) // STRIP_ROWS), 4), dtype=np.int64)
+            misses = self._compiled.row_maps(
+                self.pinhole[0], self.pinhole[1], MARGIN_PX - pad, MARGIN_PX - pad, rows,
+                float(mx), float(my), mosaic.shape[1], mosaic.shape[0], WINDOW_PX, maps, windows,
+            )  # fmt: skip
         else:
-            pad = 0  # over relief: the frame's own pixels at its edges (the margin repeated)
+            pad, windows = 0, None  # over relief: the frame's own pixels at its edges
             maps = self._relief_maps(state, g)
             ok = maps[:, :, 0] > -1e6
             misses = int(ok.size - np.count_nonzero(ok))
@@ -251,22 +274,28 @@ class EffectsPath:
             mosaic, mx, my = self._mosaic(g, box, centre, 0.0)
             maps -= np.array([mx, my], dtype=np.float32)
         sharp = self._buffer("sharp", (h + 2 * pad, w + 2 * pad, 4), np.uint8)
-        cv2.remap(mosaic, maps, None, cv2.INTER_LINEAR, dst=sharp,  # type: ignore[call-overload]
-                  borderMode=cv2.BORDER_CONSTANT, borderValue=FILL_BGRX)  # fmt: skip
+        if windows is None:
+            cv2.remap(mosaic, maps, None, cv2.INTER_LINEAR, dst=sharp,  # type: ignore[call-overload]
+                      borderMode=cv2.BORDER_CONSTANT, borderValue=FILL_BGRX)  # fmt: skip
+        else:
+            self._remap_strips(mosaic, maps, windows, sharp)
         inner = sharp[pad : pad + h, pad : pad + w]
         sky = maps[pad : pad + h, pad : pad + w, 0] < -1e6 if misses else None
         self._owner._note_nodata(inner, sky)
-        frame = sharp
+        frame, meter = sharp, fx.on("exposure")
+        keep = self._keep(state, g) if self._light else self._ones
+        total = 0.0
         if longest >= 0.5:
             frame = self._buffer("blurred", (h, w, 4), np.uint8)
-            self._compiled.blur(sharp, pad, ex, ey, self._rows, self._cols, frame)
+            total = self._compiled.blur(sharp, pad, ex, ey, self._rows, self._cols, keep,
+                                        self._vignette, self._air, meter, frame)  # fmt: skip
+        elif meter:
+            total = self._compiled.light_total(frame, keep, self._vignette, self._air)
         if not self._light:
             cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR, dst=out)
             return out if noise is None else self._owner._noised(out, noise, 0, h)
-        keep = self._keep(state, g)
         gain = 1.0
-        if fx.on("exposure"):
-            total = self._compiled.light_total(frame, keep, self._vignette, self._air)
+        if meter:
             lum = total / out.size
             target = fx.exposure_target_dn / max(lum, 1e-3)
             gain = min(fx.exposure_gain_max, max(fx.exposure_gain_min, target))

@@ -18,7 +18,7 @@ import numpy as np
 import numpy.typing as npt
 
 from air_sitl.camera.homography import MIN_DOWN
-from air_sitl.compiled import compiled
+from air_sitl.compiled import compiled, compiled_inline
 
 F32 = npt.NDArray[np.float32]
 F64 = npt.NDArray[np.float64]
@@ -150,30 +150,76 @@ def grid_keep(r: F64, gu: F64, gv: F64, height_m: float, beta: float, keep: F32)
             keep[i, j] = math.exp(-beta * rng)
 
 
-@compiled("i8(f8[:, ::1], f8[:, ::1], i8, i8, f8[:, ::1], f8, f8, f4[:, :, ::1])")
+@compiled(
+    "i8(f8[:, ::1], f8[:, ::1], i8, i8, f8[:, ::1], f8, f8, i8, i8, i8, f4[:, :, ::1], "
+    "i8[:, ::1])"
+)
 def row_maps(
-    pu: F64, pv: F64, r0: int, c0: int, rows: F64, ox: float, oy: float, out: F32
+    pu: F64, pv: F64, r0: int, c0: int, rows: F64, ox: float, oy: float, mosaic_w: int,
+    mosaic_h: int, window_px: int, out: F32, windows: I64,
 ) -> int:  # fmt: skip
     """Mosaic coordinates of each pixel: pinhole point (pu, pv) (from row ``r0`` and column
     ``c0`` of those grids) through its row's homography ``rows[v]`` (image -> level px),
     less the mosaic's origin; MISS where the ray misses the ground. Returns the count of
-    such pixels."""
+    such pixels.
+
+    In strips of ``len(out) / len(windows)`` rows, each strip's coordinates are then taken
+    from the corner of the mosaic pixels it samples, ``windows[k]`` (x0, y0, x1, y1): the
+    remap reads that window from a copy (see ``effects_frame``), unless it reaches beyond
+    the mosaic or is over ``window_px`` pixels, or rays miss the ground: then the whole
+    mosaic (0, 0, w, h), unshifted. Shifting by whole pixels is exact: the samples are
+    those of the whole mosaic."""
     height, width = out.shape[0], out.shape[1]
     misses = 0
     flat = out.reshape(height, 2 * width)
+    stride = pu.shape[1]
+    all_u, all_v = pu.reshape(pu.size), pv.reshape(pv.size)  # 1-D slices: vectorized
     for v in range(height):
         h0, h1, h2, h3, h4, h5, h6, h7, h8 = rows[v]
-        xs = pu[r0 + v, c0 : c0 + width]
-        ys = pv[r0 + v, c0 : c0 + width]
+        start = (r0 + v) * stride + c0
+        xs, ys = all_u[start : start + width], all_v[start : start + width]
         dst = flat[v]
         for u in range(width):
             x, y = xs[u], ys[u]
             w = h6 * x + h7 * y + h8
             hit = w > 1e-9
             w = w if hit else 1.0
-            dst[2 * u] = (h0 * x + h1 * y + h2) / w - ox if hit else MISS
-            dst[2 * u + 1] = (h3 * x + h4 * y + h5) / w - oy if hit else MISS
-            misses += 0 if hit else 1
+            mx = (h0 * x + h1 * y + h2) / w - ox
+            my = (h3 * x + h4 * y + h5) / w - oy
+            dst[2 * u] = mx if hit else MISS
+            dst[2 * u + 1] = my if hit else MISS
+            misses += np.int64(not hit)
+    windows[:, 0], windows[:, 1], windows[:, 2], windows[:, 3] = 0, 0, mosaic_w, mosaic_h
+    if misses:
+        return misses
+    strip = -(-height // len(windows))
+    for k in range(len(windows)):
+        v0, v1 = k * strip, min(height, (k + 1) * strip)
+        # The map's extremes over the strip lie on its border (a smooth map with an
+        # invertible Jacobian has no extremum inside), between the border's pixels by far
+        # less than the window's margin.
+        lo_x = hi_x = flat[v0, 0]
+        lo_y = hi_y = flat[v0, 1]
+        for v in (v0, v1 - 1):
+            for u in range(width):
+                lo_x, hi_x = min(lo_x, flat[v, 2 * u]), max(hi_x, flat[v, 2 * u])
+                lo_y, hi_y = min(lo_y, flat[v, 2 * u + 1]), max(hi_y, flat[v, 2 * u + 1])
+        for v in range(v0, v1):
+            for u in (0, width - 1):
+                lo_x, hi_x = min(lo_x, flat[v, 2 * u]), max(hi_x, flat[v, 2 * u])
+                lo_y, hi_y = min(lo_y, flat[v, 2 * u + 1]), max(hi_y, flat[v, 2 * u + 1])
+        # Bilinear sampling at x reads columns floor(x) and floor(x) + 1.
+        x0, y0 = math.floor(lo_x) - 1, math.floor(lo_y) - 1
+        x1, y1 = math.floor(hi_x) + 3, math.floor(hi_y) + 3
+        if x0 < 0 or y0 < 0 or x1 > mosaic_w or y1 > mosaic_h or (x1 - x0) * (y1 - y0) > window_px:
+            continue
+        windows[k, 0], windows[k, 1], windows[k, 2], windows[k, 3] = x0, y0, x1, y1
+        sx, sy = np.float32(x0), np.float32(y0)
+        for v in range(v0, v1):
+            dst = flat[v]
+            for u in range(width):
+                dst[2 * u] -= sx
+                dst[2 * u + 1] -= sy
     return misses
 
 
@@ -222,11 +268,14 @@ def _line_taps(ex: float, ey: float, taps: I64, weights: F32) -> tuple[int, int,
 @compiled
 def _blur_region(
     sharp: U8, pad: int, y0: int, y1: int, x0: int, x1: int, taps: I64, weights: F32,
-    count: int, acc: F32, out: U8,
+    count: int, acc: F32, out: U8, keep: F32, vignette: F32, air: F64, col: F64,
 ) -> None:  # fmt: skip
     """Output pixels [y0, y1) x [x0, x1) (BGRA): the taps' weighted sum of ``sharp``
-    (the frame and ``pad`` pixels around it; beyond it, its edge repeated)."""
+    (the frame and ``pad`` pixels around it; beyond it, its edge repeated); their light
+    added to the columns' sums ``col`` (:func:`_meter`) unless ``col`` is empty."""
     sh, sw = sharp.shape[0], sharp.shape[1]
+    width = out.shape[1]
+    all_keep, all_vignette = keep.reshape(keep.size), vignette.reshape(vignette.size)
     src = sharp.reshape(sh, 4 * sw)
     dst = out.reshape(out.shape[0], 4 * out.shape[1])
     nw = x1 - x0
@@ -253,21 +302,32 @@ def _blur_region(
         out_row = dst[y, 4 * x0 : 4 * x1]
         for i in range(4 * nw):
             out_row[i] = np.uint8(min(np.rint(row[i]), np.float32(255.0)))
+        if len(col):
+            at = y * width
+            _meter(out_row, all_keep[at + x0 : at + x1], all_vignette[at + x0 : at + x1], air,
+                   col[x0:x1])  # fmt: skip
 
 
-@compiled("i8(u1[:, :, ::1], i8, f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], u1[:, :, ::1])")
-def blur(sharp: U8, pad: int, ex: F64, ey: F64, rows: F64, cols: F64, out: U8) -> int:
+@compiled(
+    "f8(u1[:, :, ::1], i8, f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], f4[:, ::1], f4[:, ::1], "
+    "f8[::1], b1, u1[:, :, ::1])"
+)
+def blur(
+    sharp: U8, pad: int, ex: F64, ey: F64, rows: F64, cols: F64, keep: F32, vignette: F32,
+    air: F64, meter: bool, out: U8,
+) -> float:  # fmt: skip
     """Motion blur of the frame in ``sharp`` (BGRA, ``pad`` px around it) into ``out``:
     regions of the grid (nodes ``rows``, ``cols``) whose paths (``ex``, ``ey``) differ by
     under UNIFORM_PX (split in four until they do, down to TILE_PX) each filtered with the
-    line kernel of their mean path, rounded to 1/16 px. Returns the count of regions."""
+    line kernel of their mean path, rounded to 1/16 px. Returns the blurred frame's
+    :func:`light_total` if ``meter`` (measured on each row as it is made), else 0."""
     stack = np.empty((256, 4), np.int64)
     stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = 0, len(rows), 0, len(cols)
     top = 1
     taps = np.empty((4 * MAX_TAPS, 2), np.int64)  # a tap spreads over 4 pixels
     weights = np.empty(4 * MAX_TAPS, np.float32)
     acc = np.empty(4 * out.shape[1], np.float32)
-    regions = 0
+    col = np.zeros(out.shape[1] if meter else 0)
     while top > 0:
         top -= 1
         i0, i1, j0, j1 = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
@@ -285,28 +345,34 @@ def blur(sharp: U8, pad: int, ex: F64, ey: F64, rows: F64, cols: F64, out: U8) -
             continue
         kx, ky = np.rint(px.mean() * 16.0) / 16.0, np.rint(py.mean() * 16.0) / 16.0
         count, _, _ = _line_taps(kx, ky, taps, weights)
-        _blur_region(sharp, pad, y0, y1, x0, x1, taps, weights, count, acc, out)
-        regions += 1
-    return regions
+        _blur_region(sharp, pad, y0, y1, x0, x1, taps, weights, count, acc, out, keep,
+                     vignette, air, col)  # fmt: skip
+    return float(col.sum())
+
+
+@compiled_inline
+def _meter(px: U8, keep: F32, vignette: F32, air: F64, col: F64) -> None:
+    """Add each pixel's colours after haze (``keep`` of the radiance, the rest airlight
+    ``air``) and vignetting to its column's sum ``col``: a row of BGRA pixels ``px``."""
+    a0, a1, a2 = air[0], air[1], air[2]
+    for u in range(len(col)):
+        k = keep[u]
+        gain = vignette[u]
+        a = k * gain
+        b = (1.0 - k) * gain
+        col[u] += ((px[4 * u] * a + a0 * b) + (px[4 * u + 1] * a + a1 * b)
+                   + (px[4 * u + 2] * a + a2 * b))  # fmt: skip
 
 
 @compiled("f8(u1[:, :, ::1], f4[:, ::1], f4[:, ::1], f8[::1])")
 def light_total(img: U8, keep: F32, vignette: F32, air: F64) -> float:
-    """The sum over a BGRA frame's colours after haze (``keep`` of the radiance, the rest
-    airlight ``air``) and vignetting (the auto exposure's measure)."""
+    """The sum over a BGRA frame's colours after haze and vignetting (the auto exposure's
+    measure; :func:`light`)."""
     height, width = keep.shape
-    a0, a1, a2 = air[0], air[1], air[2]
     flat = img.reshape(height, 4 * width)
     col = np.zeros(width)
     for v in range(height):
-        kr, gr, px = keep[v], vignette[v], flat[v]
-        for u in range(width):
-            k = kr[u]
-            gain = gr[u]
-            a = k * gain
-            b = (1.0 - k) * gain
-            col[u] += ((px[4 * u] * a + a0 * b) + (px[4 * u + 1] * a + a1 * b)
-                       + (px[4 * u + 2] * a + a2 * b))  # fmt: skip
+        _meter(flat[v], keep[v], vignette[v], air, col)
     return float(col.sum())
 
 
