@@ -116,7 +116,8 @@ from air_sitl.nav.params import NavParams
 ErrorStateEkf(NavParams(), 9.8)
 relief.warm()
 pu, g, nodes = np.zeros((6, 6)), np.zeros((2, 2)), np.arange(2.0)
-effects_kernel.row_maps(pu, pu, 1, 1, np.zeros((4, 9)), 0.0, 0.0, np.zeros((4, 4, 2), np.float32))
+effects_kernel.row_maps(pu, pu, 1, 1, np.zeros((4, 9)), 0.0, 0.0, 6, 6, 2, 36,
+                        np.zeros((4, 4, 2), np.float32), np.zeros((2, 4), np.int64))
 h = np.zeros((2, 9))
 effects_kernel.grid_paths(h, h, h, g, g, nodes, nodes, g.copy(), g.copy(), np.zeros(4))
 effects_kernel.grid_keep(np.zeros(9), g, g, 1.0, 1.0, np.zeros((2, 2), np.float32))

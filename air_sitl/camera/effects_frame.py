@@ -258,7 +258,8 @@ class EffectsPath:
             windows = np.empty((-(-(h + 2 * pad) // STRIP_ROWS), 4), dtype=np.int64)
             misses = self._compiled.row_maps(
                 self.pinhole[0], self.pinhole[1], MARGIN_PX - pad, MARGIN_PX - pad, rows,
-                float(mx), float(my), mosaic.shape[1], mosaic.shape[0], WINDOW_PX, maps, windows,
+                float(mx), float(my), mosaic.shape[1], mosaic.shape[0], STRIP_ROWS, WINDOW_PX, maps,
+                windows,
             )  # fmt: skip
         else:
             pad, windows = 0, None  # over relief: the frame's own pixels at its edges

@@ -151,19 +151,19 @@ def grid_keep(r: F64, gu: F64, gv: F64, height_m: float, beta: float, keep: F32)
 
 
 @compiled(
-    "i8(f8[:, ::1], f8[:, ::1], i8, i8, f8[:, ::1], f8, f8, i8, i8, i8, f4[:, :, ::1], "
+    "i8(f8[:, ::1], f8[:, ::1], i8, i8, f8[:, ::1], f8, f8, i8, i8, i8, i8, f4[:, :, ::1], "
     "i8[:, ::1])"
 )
 def row_maps(
     pu: F64, pv: F64, r0: int, c0: int, rows: F64, ox: float, oy: float, mosaic_w: int,
-    mosaic_h: int, window_px: int, out: F32, windows: I64,
+    mosaic_h: int, strip: int, window_px: int, out: F32, windows: I64,
 ) -> int:  # fmt: skip
     """Mosaic coordinates of each pixel: pinhole point (pu, pv) (from row ``r0`` and column
     ``c0`` of those grids) through its row's homography ``rows[v]`` (image -> level px),
     less the mosaic's origin; MISS where the ray misses the ground. Returns the count of
     such pixels.
 
-    In strips of ``len(out) / len(windows)`` rows, each strip's coordinates are then taken
+    In strips of ``strip`` rows (``len(windows)`` of them), each strip's coordinates are then taken
     from the corner of the mosaic pixels it samples, ``windows[k]`` (x0, y0, x1, y1): the
     remap reads that window from a copy (see ``effects_frame``), unless it reaches beyond
     the mosaic or is over ``window_px`` pixels, or rays miss the ground: then the whole
@@ -192,7 +192,6 @@ def row_maps(
     windows[:, 0], windows[:, 1], windows[:, 2], windows[:, 3] = 0, 0, mosaic_w, mosaic_h
     if misses:
         return misses
-    strip = -(-height // len(windows))
     for k in range(len(windows)):
         v0, v1 = k * strip, min(height, (k + 1) * strip)
         # The map's extremes over the strip lie on its border (a smooth map with an
