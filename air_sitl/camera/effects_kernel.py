@@ -188,7 +188,7 @@ def row_maps(
             my = (h3 * x + h4 * y + h5) / w - oy
             dst[2 * u] = mx if hit else MISS
             dst[2 * u + 1] = my if hit else MISS
-            misses += np.int64(not hit)
+            misses += 0 if hit else 1
     windows[:, 0], windows[:, 1], windows[:, 2], windows[:, 3] = 0, 0, mosaic_w, mosaic_h
     if misses:
         return misses
@@ -229,8 +229,8 @@ def _edge(nodes: F64, i: int) -> int:
         return 0
     n = len(nodes)
     if i >= n:
-        return int(np.rint(nodes[n - 1] + (nodes[n - 1] - nodes[n - 2]) / 2.0 + 0.5))
-    return math.ceil((nodes[i - 1] + nodes[i]) / 2.0)
+        return round(float(nodes[n - 1] + (nodes[n - 1] - nodes[n - 2]) / 2.0 + 0.5))
+    return math.ceil(float(nodes[i - 1] + nodes[i]) / 2.0)
 
 
 @compiled
@@ -297,18 +297,18 @@ def _blur_region(
     for y in range(y0, y1):
         row = acc[: 4 * nw]
         row[:] = 0.0
-        t = 0
-        while inside and t + 4 <= count:  # the same sums in the same order, one pass
-            s0 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, t)
-            s1 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, t + 1)
-            s2 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, t + 2)
-            s3 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, t + 3)
-            w0, w1, w2, w3 = weights[t], weights[t + 1], weights[t + 2], weights[t + 3]
+        first = 0
+        while inside and first + 4 <= count:  # the same sums in the same order, one pass
+            s0 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first)
+            s1 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first + 1)
+            s2 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first + 2)
+            s3 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first + 3)
+            w0, w1, w2, w3 = weights[first : first + 4]
             for i in range(4 * nw):
                 row[i] = (((row[i] + w0 * np.float32(s0[i])) + w1 * np.float32(s1[i]))
                           + w2 * np.float32(s2[i])) + w3 * np.float32(s3[i])  # fmt: skip
-            t += 4
-        for t in range(t, count):
+            first += 4
+        for t in range(first, count):
             sy = min(max(y + pad + taps[t, 0], 0), sh - 1)
             sx = x0 + pad + taps[t, 1]  # sharp's column of the region's first pixel
             wt = weights[t]
