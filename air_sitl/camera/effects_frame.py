@@ -17,6 +17,11 @@ blur takes taps about one sensor pixel apart along each pixel's own path (biline
 their triangles overlap into a box), instead of sub-exposures half a pixel apart at the
 fastest point of the frame. Over relief, the middle points come from the relief's maps
 (three poses with the rolling shutter, as before) and the paths from the flat grid.
+
+Each pass over the frame is a compiled loop (``effects_kernel``): the maps (and the mosaic
+window each strip of STRIP_ROWS rows samples: the remap reads a copy of it), the blur (one
+call for all its regions, metering the exposure as it goes), the light with the gain and
+the noise; OpenCV's ``remap`` samples the mosaic. Buffers are kept per thread.
 """
 
 from __future__ import annotations
