@@ -87,9 +87,8 @@ import sys
 import numpy as np
 from air_sitl import compiled
 from air_sitl.camera import effects_kernel
-out = np.empty((2, 2, 3), np.float32)
-total = effects_kernel.light(np.full((2, 2, 4), 10, np.uint8), np.ones((2, 2), np.float32),
-                             np.ones((2, 2), np.float32), np.zeros(3), out)
+total = effects_kernel.light_total(np.full((2, 2, 4), 10, np.uint8), np.ones((2, 2), np.float32),
+                                   np.ones((2, 2), np.float32), np.zeros(3))
 print("total", total)
 print("built", compiled.machine_code("effects") is not None, "numba" in sys.modules)
 """

@@ -17,13 +17,19 @@ blur takes taps about one sensor pixel apart along each pixel's own path (biline
 their triangles overlap into a box), instead of sub-exposures half a pixel apart at the
 fastest point of the frame. Over relief, the middle points come from the relief's maps
 (three poses with the rolling shutter, as before) and the paths from the flat grid.
+
+Each pass over the frame is a compiled loop (``effects_kernel``): the maps (and the mosaic
+window each strip of STRIP_ROWS rows samples: the remap reads a copy of it), the blur (one
+call for all its regions, metering the exposure as it goes), the light with the gain and
+the noise; OpenCV's ``remap`` samples the mosaic. Buffers are kept per thread.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -32,12 +38,10 @@ import numpy.typing as npt
 from air_sitl.camera import effects as fx_mod
 from air_sitl.camera.homography import (
     MAX_MOSAIC_HALF_PX,
-    MIN_DOWN,
     FrameGeometry,
     mul3,
     quat_rows,
     to_level,
-    tuple9,
 )
 from air_sitl.frames import ned2geodetic, quat_multiply, quat_normalize
 from air_sitl.maps.base import FILL_BGRX
@@ -49,10 +53,12 @@ if TYPE_CHECKING:
 
 Image = npt.NDArray[np.uint8]
 F64 = npt.NDArray[np.float64]
+F32 = npt.NDArray[np.float32]
 COARSE_PX = 16  # the grid of the blur's paths and the haze (both vary slowly over the sensor)
 MARGIN_PX = 10  # pixels rendered around the sensor for the blur (16 taps: a path of 16 px)
-TILE_PX = 64  # the blur's smallest regions where the motion varies over the frame
-_UNIFORM_PX = 1.0  # the motion varies by less over a region: one kernel for all of it
+STRIP_ROWS = 16  # rows of a frame sampled from one window of the mosaic
+WINDOW_PX = 160 * 1024  # the largest window copied (640 kB)
+_NO_NOISE = np.empty((0, 0, 3), dtype=np.uint8)  # the light's noise where the frame has none
 
 
 def at_time(state: VehicleState, dt_s: float) -> VehicleState:
@@ -79,24 +85,6 @@ def _nodes(n: int) -> F64:
     of a grid of about n / COARSE_PX: resizing the grid interpolates it bilinearly."""
     count = max(2, math.ceil(n / COARSE_PX))
     return np.asarray((np.arange(count) + 0.5) * (n / count) - 0.5, dtype=np.float64)
-
-
-def line_kernel(ex: float, ey: float) -> tuple[npt.NDArray[np.float32], tuple[int, int]]:
-    """A blur path (ex, ey) image px long as a correlation kernel and its anchor: taps
-    about a pixel apart at s = (k + 1/2) / n - 1/2 along it, each spread bilinearly."""
-    n = min(16, max(1, math.ceil(math.hypot(ex, ey) + 0.5)))
-    taps = [((k + 0.5) / n - 0.5) for k in range(n)]
-    xs, ys = [s * ex for s in taps], [s * ey for s in taps]
-    x0, y0 = math.floor(min(xs)), math.floor(min(ys))
-    kernel = np.zeros((math.floor(max(ys)) - y0 + 2, math.floor(max(xs)) - x0 + 2), np.float32)
-    for x, y in zip(xs, ys, strict=True):
-        ix, iy = math.floor(x), math.floor(y)
-        fx, fy = x - ix, y - iy
-        kernel[iy - y0, ix - x0] += (1 - fx) * (1 - fy) / n
-        kernel[iy - y0, ix - x0 + 1] += fx * (1 - fy) / n
-        kernel[iy - y0 + 1, ix - x0] += (1 - fx) * fy / n
-        kernel[iy - y0 + 1, ix - x0 + 1] += fx * fy / n
-    return kernel, (-x0, -y0)
 
 
 class EffectsPath:
@@ -128,7 +116,8 @@ class EffectsPath:
         self._gu, self._gv = fx_mod.undistort_points(gu, gv, k, fx.distortion)
         self._air = np.array(fx.airlight_bgr, dtype=np.float64)
         self._light = fx.on("haze") or fx.on("vignette") or fx.on("exposure")
-        self._kernels: dict[tuple[int, int], tuple[npt.NDArray[np.float32], tuple[int, int]]] = {}
+        self._ones = np.ones((h, w), dtype=np.float32)  # the haze's share kept, without haze
+        self._local = threading.local()  # this thread's buffers (``_buffer``)
 
     # -- geometry -----------------------------------------------------------------------------
     def _row_times(self, rows: F64) -> F64:
@@ -147,8 +136,7 @@ class EffectsPath:
         edge = float(self.camera.height_px - 1 + MARGIN_PX)
         span = exposure / 2.0 + float(np.abs(self._row_times(np.array([-MARGIN_PX, edge]))).max())
         knots = np.array([
-            to_level(tuple9(self._owner.geometry(at_time(state, t), warn=False).h_img_to_map0),
-                     level)
+            to_level(self._owner.plane(at_time(state, t))[0], level)
             for t in ((-span, 0.0, span) if span > 0 else (0.0,))
         ])  # fmt: skip
         return knots, span, exposure
@@ -163,46 +151,24 @@ class EffectsPath:
         out: F64 = k1 + a * ((k2 - k0) * 0.5) + a * a * ((k0 + k2) * 0.5 - k1)
         return out
 
-    def _project(self, h: F64) -> tuple[F64, F64, npt.NDArray[np.bool_]]:
-        """Map points of the coarse grid under per-grid-row homographies ``h`` (rows, 9)."""
-        h = h[:, None, :]
-        u, v = self._gu, self._gv
-        w = h[..., 6] * u + h[..., 7] * v + h[..., 8]
-        ok = w > 1e-9
-        w = np.where(ok, w, 1.0)
-        return (
-            (h[..., 0] * u + h[..., 1] * v + h[..., 2]) / w,
-            (h[..., 3] * u + h[..., 4] * v + h[..., 5]) / w,
-            ok,
-        )
-
     def paths(
         self, knots: F64, span: float, exposure: float
     ) -> tuple[F64, F64, tuple[float, float, float, float] | None]:
         """The blur paths on the coarse grid in image px (x, y components), and the map box
         the grid's points span at the frame's level (None: some rays miss the ground)."""
         t = self._row_times(self._rows)
-        x0, y0, ok = self._project(self.at(knots, span, t))
-        ex = ey = np.zeros_like(x0)
-        xs, ys = [x0[ok]], [y0[ok]]
+        h0 = self.at(knots, span, t)
+        hl = hh = h0
         if exposure > 0:
-            xl, yl, okl = self._project(self.at(knots, span, t - exposure / 2.0))
-            xh, yh, okh = self._project(self.at(knots, span, t + exposure / 2.0))
-            good = ok & okl & okh
-            mx, my = np.where(good, xh - xl, 0.0), np.where(good, yh - yl, 0.0)
-            # The map path in image px: through the inverse of d(map)/d(image) at the point.
-            a, b = np.gradient(x0, self._cols, axis=1), np.gradient(x0, self._rows, axis=0)
-            c, d = np.gradient(y0, self._cols, axis=1), np.gradient(y0, self._rows, axis=0)
-            det = a * d - b * c
-            det = np.where(np.abs(det) > 1e-12, det, np.inf)
-            ex, ey = (d * mx - b * my) / det, (a * my - c * mx) / det
-            xs += [xl[good], xh[good]]
-            ys += [yl[good], yh[good]]
-        if not ok.all():
+            hl = self.at(knots, span, t - exposure / 2.0)
+            hh = self.at(knots, span, t + exposure / 2.0)
+        ex, ey = np.empty_like(self._gu), np.empty_like(self._gu)
+        box = np.empty(4)
+        every = self._compiled.grid_paths(h0, hl, hh, self._gu, self._gv, self._cols,
+                                          self._rows, ex, ey, box)  # fmt: skip
+        if not every:
             return ex, ey, None
-        box = (float(min(v.min() for v in xs)), float(min(v.min() for v in ys)),
-               float(max(v.max() for v in xs)), float(max(v.max() for v in ys)))  # fmt: skip
-        return ex, ey, box
+        return ex, ey, (float(box[0]), float(box[1]), float(box[2]), float(box[3]))
 
     def _keep(self, state: VehicleState, g: FrameGeometry) -> npt.NDArray[np.float32]:
         """Haze: the share of the radiance kept over each pixel's range (Koschmieder; the
@@ -210,17 +176,46 @@ class EffectsPath:
         coarse grid (ones without haze)."""
         cam = self.camera
         if not self.fx.on("haze"):
-            return np.ones((cam.height_px, cam.width_px), dtype=np.float32)
+            return self._ones
         r = mul3(quat_rows(state.q_body_to_ned_wxyz), self._owner._c2b_kinv)
-        pu, pv = self._gu, self._gv
-        dn = r[0] * pu + r[1] * pv + r[2]
-        de = r[3] * pu + r[4] * pv + r[5]
-        dd = r[6] * pu + r[7] * pv + r[8]
-        norm = np.sqrt(dn * dn + de * de + dd * dd)
-        rng = np.where(dd > MIN_DOWN, max(g.height_m, 0.0) * norm / np.maximum(dd, MIN_DOWN), 1e6)
-        keep = np.exp(-(3.912 / self.fx.visibility_m) * rng).astype(np.float32)
-        full = cv2.resize(keep, (cam.width_px, cam.height_px), interpolation=cv2.INTER_LINEAR)
-        return np.asarray(full, dtype=np.float32)
+        coarse = np.empty(self._gu.shape, dtype=np.float32)
+        self._compiled.grid_keep(np.array(r), self._gu, self._gv, max(g.height_m, 0.0),
+                                 3.912 / self.fx.visibility_m, coarse)  # fmt: skip
+        full = self._buffer("keep", (cam.height_px, cam.width_px), np.float32)
+        cv2.resize(coarse, (cam.width_px, cam.height_px), dst=full,
+                   interpolation=cv2.INTER_LINEAR)  # fmt: skip
+        return full
+
+    def _remap_strips(self, mosaic: Image, maps: F32, windows: npt.NDArray[np.int64],
+                      sharp: Image) -> None:  # fmt: skip
+        """``sharp`` sampled from ``mosaic`` at ``maps`` in strips, each from a copy of the
+        mosaic's pixels it reads (``windows``, see ``effects_kernel.row_maps``): the rows of
+        a frame at an angle to the map's cross many rows of it, and the remap then waits
+        on memory for most of its reads; a copy of the window is read row by row and stays
+        in the core's cache for the remap."""
+        step = STRIP_ROWS
+        buf = self._buffer("window", (WINDOW_PX * 4,), np.uint8)
+        for k, (x0, y0, x1, y1) in enumerate(windows.tolist()):
+            source = mosaic
+            if x1 - x0 < mosaic.shape[1] or y1 - y0 < mosaic.shape[0]:
+                source = buf[: (y1 - y0) * (x1 - x0) * 4].reshape(y1 - y0, x1 - x0, 4)
+                np.copyto(source, mosaic[y0:y1, x0:x1])
+            cv2.remap(source, maps[k * step : (k + 1) * step], None, cv2.INTER_LINEAR,
+                      dst=sharp[k * step : (k + 1) * step], borderMode=cv2.BORDER_CONSTANT,
+                      borderValue=FILL_BGRX)  # type: ignore[call-overload]  # fmt: skip
+
+    def _buffer(self, name: str, shape: tuple[int, ...], dtype: type) -> npt.NDArray[Any]:
+        """A contiguous array of ``shape`` in this thread's buffer ``name``, kept from frame
+        to frame (grown to the largest asked for: a new array per frame costs its page
+        faults)."""
+        kept: dict[str, npt.NDArray[Any]] | None = getattr(self._local, "buffers", None)
+        if kept is None:
+            kept = self._local.buffers = {}
+        size = math.prod(shape)
+        found = kept.get(name)
+        if found is None or found.size < size:
+            found = kept[name] = np.empty(size, dtype=dtype)
+        return found[:size].reshape(shape)
 
     def _mosaic(
         self, g: FrameGeometry, box: tuple[float, float, float, float] | None,
@@ -252,7 +247,7 @@ class EffectsPath:
         w, h = cam.width_px, cam.height_px
         knots, span, exposure = self.homographies(state, g.level)
         ex, ey, box = self.paths(knots, span, exposure)
-        longest = float(np.sqrt(ex * ex + ey * ey).max())
+        longest = math.sqrt(float((ex * ex + ey * ey).max()))
         pad = 0 if longest < 0.5 else min(MARGIN_PX, math.ceil(longest / 2.0) + 2)
         if self._owner.surface is None:
             rows = self.at(knots, span, self._row_times(np.arange(-pad, h + pad, dtype=float)))
@@ -264,15 +259,15 @@ class EffectsPath:
             )  # fmt: skip
             # A level pixel spans up to 2 image pixels (``MapSource.level_for_gsd``).
             mosaic, mx, my = self._mosaic(g, box, centre, 2.0 * (pad + 1))
-            cut = (
-                slice(MARGIN_PX - pad, MARGIN_PX + h + pad),
-                slice(MARGIN_PX - pad, MARGIN_PX + w + pad),
-            )
-            pu, pv = self.pinhole[0][cut], self.pinhole[1][cut]
-            maps = np.empty((*pu.shape, 2), dtype=np.float32)
-            misses = self._compiled.row_maps(pu, pv, rows, float(mx), float(my), maps)
+            maps = self._buffer("maps", (h + 2 * pad, w + 2 * pad, 2), np.float32)
+            windows = np.empty((-(-(h + 2 * pad) // STRIP_ROWS), 4), dtype=np.int64)
+            misses = self._compiled.row_maps(
+                self.pinhole[0], self.pinhole[1], MARGIN_PX - pad, MARGIN_PX - pad, rows,
+                float(mx), float(my), mosaic.shape[1], mosaic.shape[0], STRIP_ROWS, WINDOW_PX, maps,
+                windows,
+            )  # fmt: skip
         else:
-            pad = 0  # over relief: the frame's own pixels at its edges (the margin repeated)
+            pad, windows = 0, None  # over relief: the frame's own pixels at its edges
             maps = self._relief_maps(state, g)
             ok = maps[:, :, 0] > -1e6
             misses = int(ok.size - np.count_nonzero(ok))
@@ -284,84 +279,38 @@ class EffectsPath:
                 centre, box = (0.0, 0.0), None
             mosaic, mx, my = self._mosaic(g, box, centre, 0.0)
             maps -= np.array([mx, my], dtype=np.float32)
-        sharp = cv2.remap(mosaic, maps, None, cv2.INTER_LINEAR,  # type: ignore[call-overload]
-                          borderMode=cv2.BORDER_CONSTANT, borderValue=FILL_BGRX)  # fmt: skip
+        sharp = self._buffer("sharp", (h + 2 * pad, w + 2 * pad, 4), np.uint8)
+        if windows is None:
+            cv2.remap(mosaic, maps, None, cv2.INTER_LINEAR, dst=sharp,  # type: ignore[call-overload]
+                      borderMode=cv2.BORDER_CONSTANT, borderValue=FILL_BGRX)  # fmt: skip
+        else:
+            self._remap_strips(mosaic, maps, windows, sharp)
         inner = sharp[pad : pad + h, pad : pad + w]
         sky = maps[pad : pad + h, pad : pad + w, 0] < -1e6 if misses else None
         self._owner._note_nodata(inner, sky)
-        frame = self._blur(sharp, pad, ex, ey) if longest >= 0.5 else inner
+        frame, meter = sharp, fx.on("exposure")
+        keep = self._keep(state, g) if self._light else self._ones
+        total = 0.0
+        if longest >= 0.5:
+            frame = self._buffer("blurred", (h, w, 4), np.uint8)
+            total = self._compiled.blur(sharp, pad, ex, ey, self._rows, self._cols, keep,
+                                        self._vignette, self._air, meter, frame)  # fmt: skip
+        elif meter:
+            total = self._compiled.light_total(frame, keep, self._vignette, self._air)
         if not self._light:
             cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR, dst=out)
-        else:
-            img = np.empty((h, w, 3), dtype=np.float32)
-            total = self._compiled.light(
-                frame, self._keep(state, g), self._vignette, self._air, img
-            )
-            gain = 1.0
-            if fx.on("exposure"):
-                lum = total / img.size
-                target = fx.exposure_target_dn / max(lum, 1e-3)
-                gain = min(fx.exposure_gain_max, max(fx.exposure_gain_min, target))
-                if noise_index is not None and fx.gain_noise > 0:
-                    rng = np.random.default_rng(key_of(self._owner.seed, 0x4E03, noise_index))
-                    gain *= max(0.0, 1.0 + fx.gain_noise * float(rng.standard_normal()))
-            cv2.convertScaleAbs(img, dst=out, alpha=gain)  # rounded to nearest, saturated
-        if noise is not None:
-            self._owner._noised(out, noise, 0, h)
+            return out if noise is None else self._owner._noised(out, noise, 0, h)
+        gain = 1.0
+        if meter:
+            lum = total / out.size
+            target = fx.exposure_target_dn / max(lum, 1e-3)
+            gain = min(fx.exposure_gain_max, max(fx.exposure_gain_min, target))
+            if noise_index is not None and fx.gain_noise > 0:
+                rng = np.random.default_rng(key_of(self._owner.seed, 0x4E03, noise_index))
+                gain *= max(0.0, 1.0 + fx.gain_noise * float(rng.standard_normal()))
+        pos, neg = noise if noise is not None else (_NO_NOISE, _NO_NOISE)
+        self._compiled.light(frame, keep, self._vignette, self._air, gain, pos, neg, out)
         return out
-
-    def _blur(self, sharp: Image, pad: int, ex: F64, ey: F64) -> Image:
-        """Motion blur of the sensor's part of ``sharp`` (``pad`` px around it): regions
-        whose grid paths differ by under _UNIFORM_PX (split in four until they do, down to
-        TILE_PX) each with the kernel of their mean path."""
-        cam = self.camera
-        out = np.empty((cam.height_px, cam.width_px, 4), dtype=np.uint8)
-        self._blur_region(sharp, pad, ex, ey, out, 0, len(self._rows), 0, len(self._cols))
-        return out
-
-    def _blur_region(
-        self, sharp: Image, pad: int, ex: F64, ey: F64, out: Image, i0: int, i1: int, j0: int,
-        j1: int,
-    ) -> None:  # fmt: skip
-        """The blur of the pixels nearest grid rows [i0, i1) and columns [j0, j1)."""
-        px, py = ex[i0:i1, j0:j1], ey[i0:i1, j0:j1]
-        y0, y1 = self._edge(self._rows, i0), self._edge(self._rows, i1)
-        x0, x1 = self._edge(self._cols, j0), self._edge(self._cols, j1)
-        spread = max(float(px.max() - px.min()), float(py.max() - py.min()))
-        if spread >= _UNIFORM_PX and max(y1 - y0, x1 - x0) > TILE_PX:
-            im, jm = (i0 + i1) // 2, (j0 + j1) // 2
-            for a, b in ((i0, im), (im, i1)):
-                for c, d in ((j0, jm), (jm, j1)):
-                    if a < b and c < d:
-                        self._blur_region(sharp, pad, ex, ey, out, a, b, c, d)
-            return
-        k, anchor = self._kernel(float(px.mean()), float(py.mean()))
-        # The region and the pixels its kernel reaches (within the rendered frame).
-        sh, sw = sharp.shape[:2]
-        r0, r1 = max(0, y0 + pad - k.shape[0]), min(sh, y1 + pad + k.shape[0])
-        c0, c1 = max(0, x0 + pad - k.shape[1]), min(sw, x1 + pad + k.shape[1])
-        part = cv2.filter2D(sharp[r0:r1, c0:c1], -1, k, anchor=anchor,
-                            borderType=cv2.BORDER_REPLICATE)  # fmt: skip
-        out[y0:y1, x0:x1] = part[y0 + pad - r0 : y1 + pad - r0, x0 + pad - c0 : x1 + pad - c0]
-
-    @staticmethod
-    def _edge(nodes: F64, i: int) -> int:
-        """The first pixel nearer grid node ``i`` than node ``i - 1`` (0; the size at the end)."""
-        if i <= 0:
-            return 0
-        if i >= len(nodes):
-            return round(float(nodes[-1] + (nodes[-1] - nodes[-2]) / 2.0 + 0.5))
-        return math.ceil(float(nodes[i - 1] + nodes[i]) / 2.0)
-
-    def _kernel(self, ex: float, ey: float) -> tuple[npt.NDArray[np.float32], tuple[int, int]]:
-        """line_kernel of the path rounded to 1/16 px, kept (a flight's paths repeat)."""
-        key = (round(ex * 16.0), round(ey * 16.0))
-        found = self._kernels.get(key)
-        if found is None:
-            if len(self._kernels) > 4096:
-                self._kernels.clear()
-            found = self._kernels[key] = line_kernel(key[0] / 16.0, key[1] / 16.0)
-        return found
 
     def _relief_maps(self, state: VehicleState, g: FrameGeometry) -> npt.NDArray[np.float32]:
         """Level-px ground points of each pixel at its row's time over relief (the rows'

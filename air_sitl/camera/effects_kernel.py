@@ -1,60 +1,441 @@
-"""The compiled loops of the camera effects (numba, ``air_sitl.compiled``): the map of a
-frame's pixels (each row through its own homography, at the pinhole points of the lens),
-and the light (haze and vignetting, with the frame's sum for the auto exposure). The
-sampling and the motion blur are OpenCV's (``effects_frame``)."""
+"""The compiled loops of the camera effects (numba, ``air_sitl.compiled``): the blur's paths
+and the haze on the coarse grid, the map of a frame's pixels (each row through its own
+homography, at the pinhole points of the lens), the motion blur (a line kernel per region
+of like paths), and the light (haze, vignetting, the auto exposure's gain and the sensor
+noise in one pass). The sampling is OpenCV's ``remap`` (``effects_frame``).
+
+The loops are written so that LLVM vectorizes them (rows as flat arrays, the channels at
+constant strides, no branch per pixel): without ``fastmath`` each operation rounds as
+written, so vectorizing changes no byte. Sums over a frame are kept per column and added at
+the end (vectorizable, and the same bytes built or under numba's JIT).
+"""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import numpy.typing as npt
 
-from air_sitl.compiled import compiled
+from air_sitl.camera.homography import MIN_DOWN
+from air_sitl.compiled import compiled, compiled_inline
 
 F32 = npt.NDArray[np.float32]
 F64 = npt.NDArray[np.float64]
 U8 = npt.NDArray[np.uint8]
+I64 = npt.NDArray[np.int64]
 
 MISS = -1e7  # a map coordinate far off any mosaic: the fill colour
+UNIFORM_PX = 1.0  # the blur's paths vary by less over a region: one kernel for all of it
+TILE_PX = 64  # the blur's smallest regions where the motion varies over the frame
+MAX_TAPS = 16  # taps along the longest path
 # The kernels' signatures (numba's notation, air_sitl.compiled): f8[:, :] a float64 image,
 # a view (the pinhole points of the frame's cut), f4[:, :, ::1] a contiguous float32 one.
 
 
-@compiled("i8(f8[:, :], f8[:, :], f8[:, ::1], f8, f8, f4[:, :, ::1])")
-def row_maps(pu: F64, pv: F64, rows: F64, ox: float, oy: float, out: F32) -> int:
-    """Mosaic coordinates of each pixel: pinhole point (pu, pv) through its row's
-    homography ``rows[v]`` (image -> level px), less the mosaic's origin; MISS where the ray
-    misses the ground. Returns the count of such pixels."""
-    height, width = pu.shape
+@compiled
+def _gradient(f: F64, x: F64, axis: int, out: F64) -> None:
+    """``numpy.gradient(f, x, axis=axis)`` of a 2-D grid into ``out`` (second order inside,
+    first order at the edges; uniform spacing as NumPy finds it: all steps equal)."""
+    n = f.shape[axis]
+    uniform = True
+    for i in range(1, n - 1):
+        if x[i + 1] - x[i] != x[1] - x[0]:
+            uniform = False
+    other = f.shape[1 - axis]
+    for j in range(other):
+        for i in range(n):
+            a0 = f[i, j] if axis == 0 else f[j, i]
+            if i == 0 or i == n - 1:
+                lo, hi = (0, 1) if i == 0 else (n - 2, n - 1)
+                flo = f[lo, j] if axis == 0 else f[j, lo]
+                fhi = f[hi, j] if axis == 0 else f[j, hi]
+                g = (fhi - flo) / (x[hi] - x[lo])
+            else:
+                fm = f[i - 1, j] if axis == 0 else f[j, i - 1]
+                fp = f[i + 1, j] if axis == 0 else f[j, i + 1]
+                if uniform:
+                    g = (fp - fm) / (2.0 * (x[1] - x[0]))
+                else:
+                    d1, d2 = x[i] - x[i - 1], x[i + 1] - x[i]
+                    g = (-d2 / (d1 * (d1 + d2)) * fm + (d2 - d1) / (d1 * d2) * a0
+                         + d1 / (d2 * (d1 + d2)) * fp)  # fmt: skip
+            if axis == 0:
+                out[i, j] = g
+            else:
+                out[j, i] = g
+
+
+@compiled
+def _project(h: F64, gu: F64, gv: F64, x: F64, y: F64, hit: npt.NDArray[np.bool_]) -> None:
+    """Map points of the grid (gu, gv) under per-grid-row homographies ``h`` (rows, 9) into
+    (x, y), and whether each ray meets the ground (``hit``; where not, x = y = 0)."""
+    rows, cols = gu.shape
+    for i in range(rows):
+        for j in range(cols):
+            u, v = gu[i, j], gv[i, j]
+            w = h[i, 6] * u + h[i, 7] * v + h[i, 8]
+            hit[i, j] = w > 1e-9
+            if hit[i, j]:
+                x[i, j] = (h[i, 0] * u + h[i, 1] * v + h[i, 2]) / w
+                y[i, j] = (h[i, 3] * u + h[i, 4] * v + h[i, 5]) / w
+            else:
+                x[i, j] = y[i, j] = 0.0
+
+
+@compiled(
+    "b1(f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], "
+    "f8[:, ::1], f8[:, ::1], f8[::1])"
+)
+def grid_paths(
+    h0: F64, hl: F64, hh: F64, gu: F64, gv: F64, cols: F64, rows: F64, ex: F64, ey: F64,
+    box: F64,
+) -> bool:  # fmt: skip
+    """The blur's paths on the coarse grid in image px (``ex``, ``ey``): the map path of
+    each grid point between its homographies at the exposure's start and end (``hl``,
+    ``hh``, per grid row) through the inverse of d(map)/d(image) there (``h0``: at the
+    row's time). ``box``: the map box of all those points (x min, y min, x max, y max).
+    Returns whether every ray meets the ground (else ``box`` is not set)."""
+    n, m = gu.shape
+    x0, y0, xl, yl = np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    xh, yh = np.empty((n, m)), np.empty((n, m))
+    ok, okl, okh = (np.empty((n, m), np.bool_), np.empty((n, m), np.bool_),
+                    np.empty((n, m), np.bool_))  # fmt: skip
+    _project(h0, gu, gv, x0, y0, ok)
+    _project(hl, gu, gv, xl, yl, okl)
+    _project(hh, gu, gv, xh, yh, okh)
+    a, b, c, d = np.empty((n, m)), np.empty((n, m)), np.empty((n, m)), np.empty((n, m))
+    _gradient(x0, cols, 1, a)
+    _gradient(x0, rows, 0, b)
+    _gradient(y0, cols, 1, c)
+    _gradient(y0, rows, 0, d)
+    every = True
+    lo_x = lo_y = np.inf
+    hi_x = hi_y = -np.inf
+    for i in range(n):
+        for j in range(m):
+            good = ok[i, j] and okl[i, j] and okh[i, j]
+            every = every and ok[i, j]
+            det = a[i, j] * d[i, j] - b[i, j] * c[i, j]
+            if abs(det) <= 1e-12:
+                det = np.inf
+            mx = xh[i, j] - xl[i, j] if good else 0.0
+            my = yh[i, j] - yl[i, j] if good else 0.0
+            ex[i, j] = (d[i, j] * mx - b[i, j] * my) / det
+            ey[i, j] = (a[i, j] * my - c[i, j] * mx) / det
+            if ok[i, j]:
+                lo_x, hi_x = min(lo_x, x0[i, j]), max(hi_x, x0[i, j])
+                lo_y, hi_y = min(lo_y, y0[i, j]), max(hi_y, y0[i, j])
+            if good:
+                lo_x, hi_x = min(lo_x, xl[i, j], xh[i, j]), max(hi_x, xl[i, j], xh[i, j])
+                lo_y, hi_y = min(lo_y, yl[i, j], yh[i, j]), max(hi_y, yl[i, j], yh[i, j])
+    box[0], box[1], box[2], box[3] = lo_x, lo_y, hi_x, hi_y
+    return every
+
+
+@compiled("void(f8[::1], f8[:, ::1], f8[:, ::1], f8, f8, f4[:, ::1])")
+def grid_keep(r: F64, gu: F64, gv: F64, height_m: float, beta: float, keep: F32) -> None:
+    """Haze on the coarse grid: the share of the radiance kept over each ray's range
+    (Koschmieder, exp(-beta * range)) to the plane ``height_m`` under the camera (rays
+    ``r`` (9): image -> NED); rays that do not descend: 1e6 m."""
+    n, m = gu.shape
+    for i in range(n):
+        for j in range(m):
+            u, v = gu[i, j], gv[i, j]
+            dn = r[0] * u + r[1] * v + r[2]
+            de = r[3] * u + r[4] * v + r[5]
+            dd = r[6] * u + r[7] * v + r[8]
+            norm = math.sqrt(dn * dn + de * de + dd * dd)
+            rng = height_m * norm / max(dd, MIN_DOWN) if dd > MIN_DOWN else 1e6
+            keep[i, j] = math.exp(-beta * rng)
+
+
+@compiled(
+    "i8(f8[:, ::1], f8[:, ::1], i8, i8, f8[:, ::1], f8, f8, i8, i8, i8, i8, f4[:, :, ::1], "
+    "i8[:, ::1])"
+)
+def row_maps(
+    pu: F64, pv: F64, r0: int, c0: int, rows: F64, ox: float, oy: float, mosaic_w: int,
+    mosaic_h: int, strip: int, window_px: int, out: F32, windows: I64,
+) -> int:  # fmt: skip
+    """Mosaic coordinates of each pixel: pinhole point (pu, pv) (from row ``r0`` and column
+    ``c0`` of those grids) through its row's homography ``rows[v]`` (image -> level px),
+    less the mosaic's origin; MISS where the ray misses the ground. Returns the count of
+    such pixels.
+
+    In strips of ``strip`` rows (``len(windows)`` of them), each strip's coordinates are then taken
+    from the corner of the mosaic pixels it samples, ``windows[k]`` (x0, y0, x1, y1): the
+    remap reads that window from a copy (see ``effects_frame``), unless it reaches beyond
+    the mosaic or is over ``window_px`` pixels, or rays miss the ground: then the whole
+    mosaic (0, 0, w, h), unshifted. Shifting by whole pixels is exact: the samples are
+    those of the whole mosaic."""
+    height, width = out.shape[0], out.shape[1]
     misses = 0
+    flat = out.reshape(height, 2 * width)
+    stride = pu.shape[1]
+    all_u, all_v = pu.reshape(pu.size), pv.reshape(pv.size)  # 1-D slices: vectorized
     for v in range(height):
         h0, h1, h2, h3, h4, h5, h6, h7, h8 = rows[v]
+        start = (r0 + v) * stride + c0
+        xs, ys = all_u[start : start + width], all_v[start : start + width]
+        dst = flat[v]
         for u in range(width):
-            x, y = pu[v, u], pv[v, u]
+            x, y = xs[u], ys[u]
             w = h6 * x + h7 * y + h8
-            if w > 1e-9:
-                out[v, u, 0] = (h0 * x + h1 * y + h2) / w - ox
-                out[v, u, 1] = (h3 * x + h4 * y + h5) / w - oy
-            else:
-                out[v, u, 0] = MISS
-                out[v, u, 1] = MISS
-                misses += 1
+            hit = w > 1e-9
+            w = w if hit else 1.0
+            mx = (h0 * x + h1 * y + h2) / w - ox
+            my = (h3 * x + h4 * y + h5) / w - oy
+            dst[2 * u] = mx if hit else MISS
+            dst[2 * u + 1] = my if hit else MISS
+            misses += 0 if hit else 1
+    windows[:, 0], windows[:, 1], windows[:, 2], windows[:, 3] = 0, 0, mosaic_w, mosaic_h
+    if misses:
+        return misses
+    for k in range(len(windows)):
+        v0, v1 = k * strip, min(height, (k + 1) * strip)
+        # The map's extremes over the strip lie on its border (a smooth map with an
+        # invertible Jacobian has no extremum inside), between the border's pixels by far
+        # less than the window's margin.
+        lo_x = hi_x = flat[v0, 0]
+        lo_y = hi_y = flat[v0, 1]
+        for v in (v0, v1 - 1):
+            for u in range(width):
+                lo_x, hi_x = min(lo_x, flat[v, 2 * u]), max(hi_x, flat[v, 2 * u])
+                lo_y, hi_y = min(lo_y, flat[v, 2 * u + 1]), max(hi_y, flat[v, 2 * u + 1])
+        for v in range(v0, v1):
+            for u in (0, width - 1):
+                lo_x, hi_x = min(lo_x, flat[v, 2 * u]), max(hi_x, flat[v, 2 * u])
+                lo_y, hi_y = min(lo_y, flat[v, 2 * u + 1]), max(hi_y, flat[v, 2 * u + 1])
+        # Bilinear sampling at x reads columns floor(x) and floor(x) + 1.
+        x0, y0 = math.floor(lo_x) - 1, math.floor(lo_y) - 1
+        x1, y1 = math.floor(hi_x) + 3, math.floor(hi_y) + 3
+        if x0 < 0 or y0 < 0 or x1 > mosaic_w or y1 > mosaic_h or (x1 - x0) * (y1 - y0) > window_px:
+            continue
+        windows[k, 0], windows[k, 1], windows[k, 2], windows[k, 3] = x0, y0, x1, y1
+        sx, sy = np.float32(x0), np.float32(y0)
+        for v in range(v0, v1):
+            dst = flat[v]
+            for u in range(width):
+                dst[2 * u] -= sx
+                dst[2 * u + 1] -= sy
     return misses
 
 
-@compiled("f8(u1[:, :, ::1], f4[:, ::1], f4[:, ::1], f8[::1], f4[:, :, ::1])")
-def light(img: U8, keep: F32, vignette: F32, air: F64, out: F32) -> float:
-    """Haze (``keep`` of the radiance, the rest airlight) and vignetting of a BGRA frame
-    into BGR ``out``; returns the sum of ``out``."""
+@compiled
+def _edge(nodes: F64, i: int) -> int:
+    """The first pixel nearer grid node ``i`` than node ``i - 1`` (0; the size at the end)."""
+    if i <= 0:
+        return 0
+    n = len(nodes)
+    if i >= n:
+        return round(float(nodes[n - 1] + (nodes[n - 1] - nodes[n - 2]) / 2.0 + 0.5))
+    return math.ceil(float(nodes[i - 1] + nodes[i]) / 2.0)
+
+
+@compiled
+def _line_taps(ex: float, ey: float, taps: I64, weights: F32) -> tuple[int, int, int]:
+    """A blur path (ex, ey) image px long as correlation taps about a pixel apart at
+    s = (k + 1/2) / n - 1/2 along it, each spread bilinearly: (row, column) offsets from
+    the output pixel in ``taps``, their weights, row by row as the kernel's non-zero
+    entries; returns (count, rows, columns) of the kernel."""
+    n = min(MAX_TAPS, max(1, math.ceil(math.hypot(ex, ey) + 0.5)))
+    xs, ys = np.empty(n), np.empty(n)
+    for k in range(n):
+        s = (k + 0.5) / n - 0.5
+        xs[k], ys[k] = s * ex, s * ey
+    x0, y0 = math.floor(xs.min()), math.floor(ys.min())
+    kh, kw = math.floor(ys.max()) - y0 + 2, math.floor(xs.max()) - x0 + 2
+    kernel = np.zeros((kh, kw), np.float32)
+    for k in range(n):
+        ix, iy = math.floor(xs[k]), math.floor(ys[k])
+        fx, fy = xs[k] - ix, ys[k] - iy
+        kernel[iy - y0, ix - x0] += (1 - fx) * (1 - fy) / n
+        kernel[iy - y0, ix - x0 + 1] += fx * (1 - fy) / n
+        kernel[iy - y0 + 1, ix - x0] += (1 - fx) * fy / n
+        kernel[iy - y0 + 1, ix - x0 + 1] += fx * fy / n
+    count = 0
+    for i in range(kh):
+        for j in range(kw):
+            if kernel[i, j] != 0.0:
+                taps[count, 0], taps[count, 1] = i + y0, j + x0
+                weights[count] = kernel[i, j]
+                count += 1
+    return count, kh, kw
+
+
+@compiled_inline
+def _tap_row(src: U8, rows: int, y: int, x: int, nw: int, taps: I64, t: int) -> U8:
+    """The ``4 * nw`` values tap ``t`` reads for the pixels from (x, y) of ``src`` (BGRA
+    rows, ``rows`` of them, flat; its row clamped to them, its columns within them)."""
+    sy = min(max(y + taps[t, 0], 0), rows - 1)
+    at = sy * (len(src) // rows) + 4 * (x + taps[t, 1])
+    out: U8 = src[at : at + 4 * nw]
+    return out
+
+
+@compiled
+def _blur_region(
+    sharp: U8, pad: int, y0: int, y1: int, x0: int, x1: int, taps: I64, weights: F32,
+    count: int, acc: F32, out: U8, keep: F32, vignette: F32, air: F64, col: F64,
+) -> None:  # fmt: skip
+    """Output pixels [y0, y1) x [x0, x1) (BGRA): the taps' weighted sum of ``sharp``
+    (the frame and ``pad`` pixels around it; beyond it, its edge repeated); their light
+    added to the columns' sums ``col`` (:func:`_meter`) unless ``col`` is empty."""
+    sh, sw = sharp.shape[0], sharp.shape[1]
+    width = out.shape[1]
+    all_keep, all_vignette = keep.reshape(keep.size), vignette.reshape(vignette.size)
+    src = sharp.reshape(sh, 4 * sw)
+    dst = out.reshape(out.size)
+    nw = x1 - x0
+    every = sharp.reshape(sharp.size)  # 1-D slices: vectorized
+    # Whether every tap's columns lie within ``sharp`` (then four taps at a time).
+    inside = True
+    for t in range(count):
+        sx = x0 + pad + taps[t, 1]
+        inside = inside and sx >= 0 and sx + nw <= sw
+    for y in range(y0, y1):
+        row = acc[: 4 * nw]
+        row[:] = 0.0
+        first = 0
+        while inside and first + 4 <= count:  # the same sums in the same order, one pass
+            s0 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first)
+            s1 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first + 1)
+            s2 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first + 2)
+            s3 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first + 3)
+            w0, w1, w2, w3 = weights[first : first + 4]
+            for i in range(4 * nw):
+                row[i] = (((row[i] + w0 * np.float32(s0[i])) + w1 * np.float32(s1[i]))
+                          + w2 * np.float32(s2[i])) + w3 * np.float32(s3[i])  # fmt: skip
+            first += 4
+        for t in range(first, count):
+            sy = min(max(y + pad + taps[t, 0], 0), sh - 1)
+            sx = x0 + pad + taps[t, 1]  # sharp's column of the region's first pixel
+            wt = weights[t]
+            line = src[sy]
+            lo, hi = min(max(-sx, 0), nw), max(min(sw - sx, nw), 0)
+            if lo < hi:
+                seg = line[4 * (sx + lo) : 4 * (sx + hi)]
+                part = row[4 * lo : 4 * hi]
+                for i in range(4 * (hi - lo)):
+                    part[i] += wt * np.float32(seg[i])
+            for p in range(lo):  # columns beyond the left edge: its first column
+                for c in range(4):
+                    row[4 * p + c] += wt * np.float32(line[c])
+            for p in range(hi, nw):  # and the right's last
+                for c in range(4):
+                    row[4 * p + c] += wt * np.float32(line[4 * (sw - 1) + c])
+        out_row = dst[4 * (y * width + x0) : 4 * (y * width + x1)]
+        for i in range(4 * nw):
+            out_row[i] = np.uint8(min(np.rint(row[i]), np.float32(255.0)))
+        if len(col):
+            at = y * width
+            _meter(out_row, all_keep[at + x0 : at + x1], all_vignette[at + x0 : at + x1], air,
+                   col[x0:x1])  # fmt: skip
+
+
+@compiled(
+    "f8(u1[:, :, ::1], i8, f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], f4[:, ::1], f4[:, ::1], "
+    "f8[::1], b1, u1[:, :, ::1])"
+)
+def blur(
+    sharp: U8, pad: int, ex: F64, ey: F64, rows: F64, cols: F64, keep: F32, vignette: F32,
+    air: F64, meter: bool, out: U8,
+) -> float:  # fmt: skip
+    """Motion blur of the frame in ``sharp`` (BGRA, ``pad`` px around it) into ``out``:
+    regions of the grid (nodes ``rows``, ``cols``) whose paths (``ex``, ``ey``) differ by
+    under UNIFORM_PX (split in four until they do, down to TILE_PX) each filtered with the
+    line kernel of their mean path, rounded to 1/16 px. Returns the blurred frame's
+    :func:`light_total` if ``meter`` (measured on each row as it is made), else 0."""
+    stack = np.empty((256, 4), np.int64)
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = 0, len(rows), 0, len(cols)
+    top = 1
+    taps = np.empty((4 * MAX_TAPS, 2), np.int64)  # a tap spreads over 4 pixels
+    weights = np.empty(4 * MAX_TAPS, np.float32)
+    acc = np.empty(4 * out.shape[1], np.float32)
+    col = np.zeros(out.shape[1] if meter else 0)
+    while top > 0:
+        top -= 1
+        i0, i1, j0, j1 = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+        y0, y1 = _edge(rows, i0), _edge(rows, i1)
+        x0, x1 = _edge(cols, j0), _edge(cols, j1)
+        px, py = ex[i0:i1, j0:j1], ey[i0:i1, j0:j1]
+        spread = max(px.max() - px.min(), py.max() - py.min())
+        if spread >= UNIFORM_PX and max(y1 - y0, x1 - x0) > TILE_PX:
+            im, jm = (i0 + i1) // 2, (j0 + j1) // 2
+            for a, b, c, d in ((i0, im, j0, jm), (i0, im, jm, j1), (im, i1, j0, jm),
+                               (im, i1, jm, j1)):  # fmt: skip
+                if a < b and c < d:
+                    stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3] = a, b, c, d
+                    top += 1
+            continue
+        kx, ky = np.rint(px.mean() * 16.0) / 16.0, np.rint(py.mean() * 16.0) / 16.0
+        count, _, _ = _line_taps(kx, ky, taps, weights)
+        _blur_region(sharp, pad, y0, y1, x0, x1, taps, weights, count, acc, out, keep,
+                     vignette, air, col)  # fmt: skip
+    return float(col.sum())
+
+
+@compiled_inline
+def _meter(px: U8, keep: F32, vignette: F32, air: F64, col: F64) -> None:
+    """Add each pixel's colours after haze (``keep`` of the radiance, the rest airlight
+    ``air``) and vignetting to its column's sum ``col``: a row of BGRA pixels ``px``."""
+    a0, a1, a2 = air[0], air[1], air[2]
+    for u in range(len(col)):
+        k = keep[u]
+        gain = vignette[u]
+        a = k * gain
+        b = (1.0 - k) * gain
+        col[u] += ((px[4 * u] * a + a0 * b) + (px[4 * u + 1] * a + a1 * b)
+                   + (px[4 * u + 2] * a + a2 * b))  # fmt: skip
+
+
+@compiled("f8(u1[:, :, ::1], f4[:, ::1], f4[:, ::1], f8[::1])")
+def light_total(img: U8, keep: F32, vignette: F32, air: F64) -> float:
+    """The sum over a BGRA frame's colours after haze and vignetting (the auto exposure's
+    measure; :func:`light`)."""
     height, width = keep.shape
-    total = 0.0
+    flat = img.reshape(height, 4 * width)
+    col = np.zeros(width)
     for v in range(height):
+        _meter(flat[v], keep[v], vignette[v], air, col)
+    return float(col.sum())
+
+
+@compiled(
+    "void(u1[:, :, ::1], f4[:, ::1], f4[:, ::1], f8[::1], f8, u1[:, :, ::1], u1[:, :, ::1], "
+    "u1[:, :, ::1])"
+)
+def light(
+    img: U8, keep: F32, vignette: F32, air: F64, gain: float, pos: U8, neg: U8, out: U8
+) -> None:  # fmt: skip
+    """Haze and vignetting of a BGRA frame (as :func:`light_total`) times ``gain``, rounded
+    to the nearest (half to even) and saturated, plus the sensor noise (``pos`` less
+    ``neg``: clip(pixel + noise), as ``Renderer._noised``; zero-sized: none) into BGR
+    ``out``."""
+    height, width = keep.shape
+    g = np.float32(gain)
+    a0, a1, a2 = air[0], air[1], air[2]
+    top, zero = np.float32(255.0), np.float32(0.0)
+    flat = img.reshape(height, 4 * width)
+    dst = out.reshape(height, 3 * width)
+    noisy = pos.size > 0
+    up = pos.reshape(height if noisy else 0, 3 * width)
+    down = neg.reshape(height if noisy else 0, 3 * width)
+    line = np.zeros(3 * width, np.float32)
+    for v in range(height):
+        kr, gr, px, o = keep[v], vignette[v], flat[v], dst[v]
         for u in range(width):
-            k = keep[v, u]
-            gain = vignette[v, u]
-            a = k * gain
-            b = (1.0 - k) * gain
-            for c in range(3):
-                value = img[v, u, c] * a + air[c] * b
-                out[v, u, c] = value
-                total += value
-    return total
+            k = kr[u]
+            vg = gr[u]
+            a = k * vg
+            b = (1.0 - k) * vg
+            line[3 * u] = min(np.rint(abs(np.float32(px[4 * u] * a + a0 * b) * g)), top)
+            line[3 * u + 1] = min(np.rint(abs(np.float32(px[4 * u + 1] * a + a1 * b) * g)), top)
+            line[3 * u + 2] = min(np.rint(abs(np.float32(px[4 * u + 2] * a + a2 * b) * g)), top)
+        if noisy:
+            p, q = up[v], down[v]
+            for i in range(3 * width):
+                line[i] = min(max(line[i] + np.float32(p[i]) - np.float32(q[i]), zero), top)
+        for i in range(3 * width):
+            o[i] = np.uint8(line[i])

@@ -134,18 +134,7 @@ class Renderer:
         simulated second, beside a warp of under a millisecond).
         """
         cam = self.camera
-        if self.surface is None:
-            height = state.alt_amsl_m - self.map.ground_elevation_m
-        else:  # the plane through the surface under the aircraft (level, footprint, centre)
-            height = state.alt_amsl_m - self.surface.height_at(state.lat_deg, state.lon_deg)
-        r = mul3(quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)  # (u, v, 1) -> NED ray
-        x0, y0 = self.map.latlon_to_map_px(state.lat_deg, state.lon_deg)
-        j = self._jacobian(round(state.lat_deg, 3), round(state.lon_deg, 3))
-        ground = (j[0], j[1], x0, j[2], j[3], y0, 0.0, 0.0, 1.0)  # (north, east, 1) -> map px
-        to_ground = (r[0] * height, r[1] * height, r[2] * height,
-                     r[3] * height, r[4] * height, r[5] * height,
-                     r[6], r[7], r[8])  # fmt: skip
-        h = mul3(ground, to_ground)
+        h, r, height = self.plane(state)
         corners = self._corners
         downs = [r[6] * u + r[7] * v + r[8] for u, v in corners]
         sees_horizon = height <= 0 or min(downs) <= MIN_DOWN
@@ -172,6 +161,23 @@ class Renderer:
         if self._remap is not None and self.surface is not None and centre_px is not None:
             g = self._remap.relief_centre(state, g)
         return g
+
+    def plane(self, state: VehicleState) -> tuple[Mat9, Mat9, float]:
+        """(homography image -> level-0 map px of the ground plane, rotation image (u, v, 1)
+        -> NED ray, height above that plane): the plane at the map's ground elevation, or
+        over relief through the surface under the aircraft (level, footprint, centre)."""
+        if self.surface is None:
+            height = state.alt_amsl_m - self.map.ground_elevation_m
+        else:
+            height = state.alt_amsl_m - self.surface.height_at(state.lat_deg, state.lon_deg)
+        r = mul3(quat_rows(state.q_body_to_ned_wxyz), self._c2b_kinv)  # (u, v, 1) -> NED ray
+        x0, y0 = self.map.latlon_to_map_px(state.lat_deg, state.lon_deg)
+        j = self._jacobian(round(state.lat_deg, 3), round(state.lon_deg, 3))
+        ground = (j[0], j[1], x0, j[2], j[3], y0, 0.0, 0.0, 1.0)  # (north, east, 1) -> map px
+        to_ground = (r[0] * height, r[1] * height, r[2] * height,
+                     r[3] * height, r[4] * height, r[5] * height,
+                     r[6], r[7], r[8])  # fmt: skip
+        return mul3(ground, to_ground), r, height
 
     def map_xy_px(self, state: VehicleState) -> tuple[float, float] | None:
         """Continuous level-0 map pixel of the image-centre ground point (None: no ground)."""
