@@ -161,3 +161,26 @@ def test_processes_starting_at_once_share_one_build(tmp_path: Path) -> None:
     left = {p.name for p in cache.iterdir() if not p.name.startswith("_air_sitl_mixins")}
     name = compiled_build.build_name("effects", compiled.GROUPS["effects"].modules)
     assert left == {"_air_sitl_effects.lock", name}  # no temporary file, no failure note
+
+
+def test_a_built_kernel_refuses_an_argument_its_signature_does_not_take() -> None:
+    """The tests run every built kernel checked (``AIR_SITL_CHECK_KERNELS``, conftest): an
+    array of another type or layout, or a scalar of another kind, fails naming the argument,
+    where machine code would read it wrongly."""
+    import numpy as np
+
+    from air_sitl import battery_kernel
+
+    assert compiled.machine_code("flight") is not None
+    pack = np.array([5000.0, 4.0, 4.2, 3.3, 0.05, 2.0, 3.0])
+    volts = battery_kernel.step(pack, 0.0, 0.0, 0.005, 0.5)[0]
+    assert 16.0 < volts < 16.8
+    wrong = {
+        "argument 1 is float32 array of rank 1, contiguous": (pack.astype(np.float32), 0.5),
+        "argument 1 is float64 array of rank 1, a view": (np.repeat(pack, 2)[::2], 0.5),
+        "argument 1 is float64 array of rank 2, contiguous": (pack[None, :], 0.5),
+        "argument 5 is str": (pack, "0.5"),
+    }
+    for said, (array, throttle) in wrong.items():
+        with pytest.raises(TypeError, match=said):
+            battery_kernel.step(array, 0.0, 0.0, 0.005, throttle)
