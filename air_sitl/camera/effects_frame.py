@@ -56,7 +56,7 @@ F64 = npt.NDArray[np.float64]
 F32 = npt.NDArray[np.float32]
 COARSE_PX = 16  # the grid of the blur's paths and the haze (both vary slowly over the sensor)
 MARGIN_PX = 10  # pixels rendered around the sensor for the blur (16 taps: a path of 16 px)
-STRIP_ROWS = 16  # rows of a frame sampled from one window of the mosaic
+STRIP_ROWS = 32  # rows of a frame sampled from one window of the mosaic (16: 10% slower)
 WINDOW_PX = 160 * 1024  # the largest window copied (640 kB)
 _NO_NOISE = np.empty((0, 0, 3), dtype=np.uint8)  # the light's noise where the frame has none
 
