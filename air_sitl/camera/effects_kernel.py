@@ -1,7 +1,8 @@
 """The compiled loops of the camera effects (numba, ``air_sitl.compiled``): the blur's paths
 and the haze on the coarse grid, the map of a frame's pixels (each row through its own
 homography, at the pinhole points of the lens), the motion blur (a line kernel per region
-of like paths), and the light (haze, vignetting, the auto exposure's gain and the sensor
+of like paths, its weights in 1/256 and its sums in 16-bit integers: twice the pixels a
+vector instruction of float32 sums, within 1 grey level of them), and the light (haze, vignetting, the auto exposure's gain and the sensor
 noise in one pass). The sampling is OpenCV's ``remap`` (``effects_frame``).
 
 The loops are written so that LLVM vectorizes them (rows as flat arrays, the channels at
@@ -24,11 +25,14 @@ F32 = npt.NDArray[np.float32]
 F64 = npt.NDArray[np.float64]
 U8 = npt.NDArray[np.uint8]
 I64 = npt.NDArray[np.int64]
+U16 = npt.NDArray[np.uint16]
 
 MISS = -1e7  # a map coordinate far off any mosaic: the fill colour
 UNIFORM_PX = 1.0  # the blur's paths vary by less over a region: one kernel for all of it
 TILE_PX = 64  # the blur's smallest regions where the motion varies over the frame
 MAX_TAPS = 16  # taps along the longest path
+FIXED_BITS = 8  # the blur's weights in units of 1 / 2**FIXED_BITS: its sums fit 16 bits
+FIXED_ONE = 1 << FIXED_BITS
 # The kernels' signatures (numba's notation, air_sitl.compiled): f8[:, :] a float64 image,
 # a view (the pinhole points of the frame's cut), f4[:, :, ::1] a contiguous float32 one.
 
@@ -275,13 +279,36 @@ def _tap_row(src: U8, rows: int, y: int, x: int, nw: int, taps: I64, t: int) -> 
 
 
 @compiled
+def _fixed_weights(weights: F32, count: int, fixed: U16) -> None:
+    """The taps' weights (their sum 1) in units of 1/FIXED_ONE summing to FIXED_ONE: each
+    rounded down, then one unit more to those with the largest remainders."""
+    left = FIXED_ONE
+    rest = np.empty(count)
+    for t in range(count):
+        scaled = float(weights[t]) * FIXED_ONE
+        fixed[t] = math.floor(scaled)
+        rest[t] = scaled - math.floor(scaled)
+        left -= fixed[t]
+    for _ in range(max(left, 0)):
+        best = 0
+        for t in range(count):
+            if rest[t] > rest[best]:
+                best = t
+        fixed[best] += 1
+        rest[best] = -1.0
+
+
+@compiled
 def _blur_region(
-    sharp: U8, pad: int, y0: int, y1: int, x0: int, x1: int, taps: I64, weights: F32,
-    count: int, acc: F32, out: U8, keep: F32, vignette: F32, air: F64, col: F64,
+    sharp: U8, pad: int, y0: int, y1: int, x0: int, x1: int, taps: I64, weights: U16,
+    count: int, acc: U16, out: U8, keep: F32, vignette: F32, air: F64, col: F64,
 ) -> None:  # fmt: skip
     """Output pixels [y0, y1) x [x0, x1) (BGRA): the taps' weighted sum of ``sharp``
-    (the frame and ``pad`` pixels around it; beyond it, its edge repeated); their light
-    added to the columns' sums ``col`` (:func:`_meter`) unless ``col`` is empty."""
+    (the frame and ``pad`` pixels around it; beyond it, its edge repeated), in integers
+    (``weights`` in units of 1/FIXED_ONE, summing to FIXED_ONE; rounded to the nearest,
+    halves up); their light added to the columns' sums ``col`` (:func:`_meter`) unless
+    ``col`` is empty. The sums fit 16 bits (255 * FIXED_ONE + FIXED_ONE / 2): sixteen
+    pixel values a vector instruction."""
     sh, sw = sharp.shape[0], sharp.shape[1]
     width = out.shape[1]
     all_keep, all_vignette = keep.reshape(keep.size), vignette.reshape(vignette.size)
@@ -294,19 +321,20 @@ def _blur_region(
     for t in range(count):
         sx = x0 + pad + taps[t, 1]
         inside = inside and sx >= 0 and sx + nw <= sw
+    half = np.uint16(FIXED_ONE // 2)
     for y in range(y0, y1):
         row = acc[: 4 * nw]
-        row[:] = 0.0
+        row[:] = half
         first = 0
-        while inside and first + 4 <= count:  # the same sums in the same order, one pass
+        while inside and first + 4 <= count:  # four taps a pass over the row
             s0 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first)
             s1 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first + 1)
             s2 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first + 2)
             s3 = _tap_row(every, sh, y + pad, x0 + pad, nw, taps, first + 3)
             w0, w1, w2, w3 = weights[first : first + 4]
             for i in range(4 * nw):
-                row[i] = (((row[i] + w0 * np.float32(s0[i])) + w1 * np.float32(s1[i]))
-                          + w2 * np.float32(s2[i])) + w3 * np.float32(s3[i])  # fmt: skip
+                row[i] = np.uint16(row[i] + w0 * np.uint16(s0[i]) + w1 * np.uint16(s1[i])
+                                   + w2 * np.uint16(s2[i]) + w3 * np.uint16(s3[i]))  # fmt: skip
             first += 4
         for t in range(first, count):
             sy = min(max(y + pad + taps[t, 0], 0), sh - 1)
@@ -318,16 +346,17 @@ def _blur_region(
                 seg = line[4 * (sx + lo) : 4 * (sx + hi)]
                 part = row[4 * lo : 4 * hi]
                 for i in range(4 * (hi - lo)):
-                    part[i] += wt * np.float32(seg[i])
+                    part[i] = np.uint16(part[i] + wt * np.uint16(seg[i]))
             for p in range(lo):  # columns beyond the left edge: its first column
                 for c in range(4):
-                    row[4 * p + c] += wt * np.float32(line[c])
+                    row[4 * p + c] = np.uint16(row[4 * p + c] + wt * np.uint16(line[c]))
             for p in range(hi, nw):  # and the right's last
                 for c in range(4):
-                    row[4 * p + c] += wt * np.float32(line[4 * (sw - 1) + c])
+                    last = np.uint16(line[4 * (sw - 1) + c])
+                    row[4 * p + c] = np.uint16(row[4 * p + c] + wt * last)
         out_row = dst[4 * (y * width + x0) : 4 * (y * width + x1)]
         for i in range(4 * nw):
-            out_row[i] = np.uint8(min(np.rint(row[i]), np.float32(255.0)))
+            out_row[i] = np.uint8(row[i] >> FIXED_BITS)
         if len(col):
             at = y * width
             _meter(out_row, all_keep[at + x0 : at + x1], all_vignette[at + x0 : at + x1], air,
@@ -352,7 +381,8 @@ def blur(
     top = 1
     taps = np.empty((4 * MAX_TAPS, 2), np.int64)  # a tap spreads over 4 pixels
     weights = np.empty(4 * MAX_TAPS, np.float32)
-    acc = np.empty(4 * out.shape[1], np.float32)
+    fixed = np.empty(4 * MAX_TAPS, np.uint16)
+    acc = np.empty(4 * out.shape[1], np.uint16)
     col = np.zeros(out.shape[1] if meter else 0)
     while top > 0:
         top -= 1
@@ -371,7 +401,8 @@ def blur(
             continue
         kx, ky = np.rint(px.mean() * 16.0) / 16.0, np.rint(py.mean() * 16.0) / 16.0
         count, _, _ = _line_taps(kx, ky, taps, weights)
-        _blur_region(sharp, pad, y0, y1, x0, x1, taps, weights, count, acc, out, keep,
+        _fixed_weights(weights, count, fixed)
+        _blur_region(sharp, pad, y0, y1, x0, x1, taps, fixed, count, acc, out, keep,
                      vignette, air, col)  # fmt: skip
     return float(col.sum())
 
