@@ -2,8 +2,9 @@
 and the haze on the coarse grid, the map of a frame's pixels (each row through its own
 homography, at the pinhole points of the lens), the motion blur (a line kernel per region
 of like paths, its weights in 1/256 and its sums in 16-bit integers: twice the pixels a
-vector instruction of float32 sums, within 1 grey level of them), and the light (haze, vignetting, the auto exposure's gain and the sensor
-noise in one pass). The sampling is OpenCV's ``remap`` (``effects_frame``).
+vector instruction of float32 sums, within 1 grey level of them), and the light (haze,
+vignetting, the auto exposure's gain and the sensor noise in one pass). The sampling is
+OpenCV's ``remap`` (``effects_frame``).
 
 The loops are written so that LLVM vectorizes them (rows as flat arrays, the channels at
 constant strides, no branch per pixel): without ``fastmath`` each operation rounds as
