@@ -188,9 +188,9 @@ def row_maps(
             x, y = xs[u], ys[u]
             w = h6 * x + h7 * y + h8
             hit = w > 1e-9
-            w = w if hit else 1.0
-            mx = (h0 * x + h1 * y + h2) / w - ox
-            my = (h3 * x + h4 * y + h5) / w - oy
+            inv = 1.0 / (w if hit else 1.0)  # one division, not two: about half the time
+            mx = (h0 * x + h1 * y + h2) * inv - ox
+            my = (h3 * x + h4 * y + h5) * inv - oy
             dst[2 * u] = mx if hit else MISS
             dst[2 * u + 1] = my if hit else MISS
             misses += 0 if hit else 1
