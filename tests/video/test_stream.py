@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bus.helpers import HOME, make_sample
+from bus.helpers import HOME, SAFETY_S, make_sample
 from ports import free_port
 from viewers import Image, PyavViewer, fly_east, gst_viewer, psnr
 
@@ -100,6 +100,31 @@ def test_decoded_frames_match_the_rendered_ones_at_the_default_bitrate(tmp_path:
     assert min(scores) >= 30.0, f"PSNR min {min(scores):.1f} dB, median {np.median(scores):.1f}"
 
 
+def keyframes(got: list[tuple[float, bytes]]) -> tuple[list[float], dict[int, set[int]]]:
+    """When each keyframe's first packet came (IDR, NAL 5), and the NAL unit types of each
+    access unit by its RTP time stamp."""
+    keys: list[float] = []
+    nals_by_stamp: dict[int, set[int]] = {}
+    for at, p in got:
+        nals = nals_by_stamp.setdefault(int.from_bytes(p[4:8], "big"), set())
+        kind = p[12] & 0x1F
+        if kind == 24:  # STAP-A: several NAL units
+            i = 13
+            while i + 2 < len(p):
+                size = int.from_bytes(p[i : i + 2], "big")
+                nals.add(p[i + 2] & 0x1F)
+                i += 2 + size
+        elif kind == 28:  # FU-A: the fragmented unit's type in the FU header
+            nals.add(p[13] & 0x1F)
+            if p[13] & 0x80 and p[13] & 0x1F == 5:
+                keys.append(at)
+        else:
+            nals.add(kind)
+            if kind == 5:
+                keys.append(at)
+    return keys, nals_by_stamp
+
+
 def test_packets_are_what_qgc_reads_and_nothing_goes_to_the_next_port() -> None:
     port = free_port(socket.SOCK_DGRAM)
     rtp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -121,8 +146,16 @@ def test_packets_are_what_qgc_reads_and_nothing_goes_to_the_next_port() -> None:
     reader.start()
     render = Rendered(320, 240)
     stream = open_stream(port, render)
-    try:
-        fly_east(stream, 4.0)
+    seen = [0, 0]  # packets read, keyframes among them
+
+    def seven_keyframes() -> bool:
+        new = got[seen[0] :]
+        seen[0] += len(new)
+        seen[1] += len(keyframes(new)[0])
+        return seen[1] >= 7
+
+    try:  # until seven keyframes have come (the encoder starts slowly on a loaded machine)
+        fly_east(stream, SAFETY_S, until=seven_keyframes)
     finally:
         stream.close()
         time.sleep(0.3)
@@ -142,25 +175,7 @@ def test_packets_are_what_qgc_reads_and_nothing_goes_to_the_next_port() -> None:
     assert len(markers) == stream.counters.frames_sent == len(set(stamps))
     # Keyframes (IDR, NAL 5) come with SPS (7) and PPS (8) of the same access unit, at least
     # every half second of wall time.
-    keys: list[float] = []
-    nals_by_stamp: dict[int, set[int]] = {}
-    for (at, p), stamp in zip(got, stamps, strict=True):
-        nals = nals_by_stamp.setdefault(stamp, set())
-        kind = p[12] & 0x1F
-        if kind == 24:  # STAP-A: several NAL units
-            i = 13
-            while i + 2 < len(p):
-                size = int.from_bytes(p[i : i + 2], "big")
-                nals.add(p[i + 2] & 0x1F)
-                i += 2 + size
-        elif kind == 28:  # FU-A: the fragmented unit's type in the FU header
-            nals.add(p[13] & 0x1F)
-            if p[13] & 0x80 and p[13] & 0x1F == 5:
-                keys.append(at)
-        else:
-            nals.add(kind)
-            if kind == 5:
-                keys.append(at)
+    keys, nals_by_stamp = keyframes(got)
     for nals in nals_by_stamp.values():
         if 5 in nals:
             assert {7, 8} <= nals
