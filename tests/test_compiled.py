@@ -144,7 +144,7 @@ def test_processes_starting_at_once_share_one_build(tmp_path: Path) -> None:
     """Two processes on terminals find no build and start together (xdist workers, a pool):
     one builds it and says so, the other waits on the lock and says nothing; both load the
     one build, and nothing half-written is left. The cheapest group to build (``flight``:
-    about 8 s of CPU against 17-28 s for the others)."""
+    about 8 s of CPU against 17-33 s for the others)."""
     cache = tmp_path / "cache"
     cache.mkdir()
     for kept in compiled_build.cache_dirs()[0].glob("_air_sitl_mixins-*"):
