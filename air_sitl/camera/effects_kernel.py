@@ -171,34 +171,37 @@ def row_maps(
     In strips of ``strip`` rows (``len(windows)`` of them), each strip's coordinates are then taken
     from the corner of the mosaic pixels it samples, ``windows[k]`` (x0, y0, x1, y1): the
     remap reads that window from a copy (see ``effects_frame``), unless it reaches beyond
-    the mosaic or is over ``window_px`` pixels, or rays miss the ground: then the whole
-    mosaic (0, 0, w, h), unshifted. Shifting by whole pixels is exact: the samples are
-    those of the whole mosaic."""
+    the mosaic or is over ``window_px`` pixels, or rays of the strip miss the ground: then
+    the whole mosaic (0, 0, w, h), unshifted. Shifting by whole pixels is exact: the
+    samples are those of the whole mosaic. A strip is shifted as soon as it is made, while
+    it is in the core's cache."""
     height, width = out.shape[0], out.shape[1]
     misses = 0
     flat = out.reshape(height, 2 * width)
     stride = pu.shape[1]
     all_u, all_v = pu.reshape(pu.size), pv.reshape(pv.size)  # 1-D slices: vectorized
-    for v in range(height):
-        h0, h1, h2, h3, h4, h5, h6, h7, h8 = rows[v]
-        start = (r0 + v) * stride + c0
-        xs, ys = all_u[start : start + width], all_v[start : start + width]
-        dst = flat[v]
-        for u in range(width):
-            x, y = xs[u], ys[u]
-            w = h6 * x + h7 * y + h8
-            hit = w > 1e-9
-            inv = 1.0 / (w if hit else 1.0)  # one division, not two: about half the time
-            mx = (h0 * x + h1 * y + h2) * inv - ox
-            my = (h3 * x + h4 * y + h5) * inv - oy
-            dst[2 * u] = mx if hit else MISS
-            dst[2 * u + 1] = my if hit else MISS
-            misses += 0 if hit else 1
     windows[:, 0], windows[:, 1], windows[:, 2], windows[:, 3] = 0, 0, mosaic_w, mosaic_h
-    if misses:
-        return misses
     for k in range(len(windows)):
         v0, v1 = k * strip, min(height, (k + 1) * strip)
+        missed = 0
+        for v in range(v0, v1):
+            h0, h1, h2, h3, h4, h5, h6, h7, h8 = rows[v]
+            start = (r0 + v) * stride + c0
+            xs, ys = all_u[start : start + width], all_v[start : start + width]
+            dst = flat[v]
+            for u in range(width):
+                x, y = xs[u], ys[u]
+                w = h6 * x + h7 * y + h8
+                hit = w > 1e-9
+                inv = 1.0 / (w if hit else 1.0)  # one division, not two: about half the time
+                mx = (h0 * x + h1 * y + h2) * inv - ox
+                my = (h3 * x + h4 * y + h5) * inv - oy
+                dst[2 * u] = mx if hit else MISS
+                dst[2 * u + 1] = my if hit else MISS
+                missed += 0 if hit else 1
+        misses += missed
+        if missed:
+            continue
         # The map's extremes over the strip lie on its border (a smooth map with an
         # invertible Jacobian has no extremum inside), between the border's pixels by far
         # less than the window's margin.
@@ -411,15 +414,15 @@ def blur(
 @compiled_inline
 def _meter(px: U8, keep: F32, vignette: F32, air: F64, col: F64) -> None:
     """Add each pixel's colours after haze (``keep`` of the radiance, the rest airlight
-    ``air``) and vignetting to its column's sum ``col``: a row of BGRA pixels ``px``."""
-    a0, a1, a2 = air[0], air[1], air[2]
+    ``air``) and vignetting to its column's sum ``col``: a row of BGRA pixels ``px``. The
+    three colours at once: (B + G + R) * a + (the airlight's sum) * b, with a = keep *
+    vignetting and b = (1 - keep) * vignetting."""
+    airs = air[0] + air[1] + air[2]
     for u in range(len(col)):
         k = keep[u]
         gain = vignette[u]
-        a = k * gain
-        b = (1.0 - k) * gain
-        col[u] += ((px[4 * u] * a + a0 * b) + (px[4 * u + 1] * a + a1 * b)
-                   + (px[4 * u + 2] * a + a2 * b))  # fmt: skip
+        s = np.int32(px[4 * u]) + np.int32(px[4 * u + 1]) + np.int32(px[4 * u + 2])
+        col[u] += np.float64(s) * (k * gain) + airs * ((1.0 - k) * gain)
 
 
 @compiled("f8(u1[:, :, ::1], f4[:, ::1], f4[:, ::1], f8[::1])")
@@ -444,10 +447,12 @@ def light(
     """Haze and vignetting of a BGRA frame (as :func:`light_total`) times ``gain``, rounded
     to the nearest (half to even) and saturated, plus the sensor noise (``pos`` less
     ``neg``: clip(pixel + noise), as ``Renderer._noised``; zero-sized: none) into BGR
-    ``out``."""
+    ``out``. In float32, the gain in each pixel's two factors (its radiance's and the
+    airlight's): eight values a vector instruction."""
     height, width = keep.shape
     g = np.float32(gain)
-    a0, a1, a2 = air[0], air[1], air[2]
+    one = np.float32(1.0)
+    a0, a1, a2 = np.float32(air[0]), np.float32(air[1]), np.float32(air[2])
     top, zero = np.float32(255.0), np.float32(0.0)
     flat = img.reshape(height, 4 * width)
     dst = out.reshape(height, 3 * width)
@@ -459,15 +464,16 @@ def light(
         kr, gr, px, o = keep[v], vignette[v], flat[v], dst[v]
         for u in range(width):
             k = kr[u]
-            vg = gr[u]
+            vg = gr[u] * g
             a = k * vg
-            b = (1.0 - k) * vg
-            line[3 * u] = min(np.rint(abs(np.float32(px[4 * u] * a + a0 * b) * g)), top)
-            line[3 * u + 1] = min(np.rint(abs(np.float32(px[4 * u + 1] * a + a1 * b) * g)), top)
-            line[3 * u + 2] = min(np.rint(abs(np.float32(px[4 * u + 2] * a + a2 * b) * g)), top)
+            b = (one - k) * vg
+            line[3 * u] = min(np.rint(np.float32(px[4 * u]) * a + a0 * b), top)
+            line[3 * u + 1] = min(np.rint(np.float32(px[4 * u + 1]) * a + a1 * b), top)
+            line[3 * u + 2] = min(np.rint(np.float32(px[4 * u + 2]) * a + a2 * b), top)
         if noisy:
             p, q = up[v], down[v]
             for i in range(3 * width):
-                line[i] = min(max(line[i] + np.float32(p[i]) - np.float32(q[i]), zero), top)
-        for i in range(3 * width):
-            o[i] = np.uint8(line[i])
+                o[i] = np.uint8(min(max(line[i] + np.float32(p[i]) - np.float32(q[i]), zero), top))
+        else:
+            for i in range(3 * width):
+                o[i] = np.uint8(line[i])
