@@ -49,28 +49,31 @@ def _values(rng: random.Random, n: int) -> list[float]:
     return out
 
 
+# The format spec of each float column, as the f-strings of 0c6e142 had them.
+ROW_SPECS = (".9f", ".9f", ".4f") + (".4f",) * 3 + (".8f",) * 4 + (".4f",) * 3 + (".6f",) * 3
+NAV_SPECS = (".4f", ".4f", ".4f", ".9f", ".9f", ".4f", ".4f")
+
+
+def _formatted(values: tuple[float, ...], specs: tuple[str, ...]) -> list[str]:
+    assert len(values) == len(specs)
+    return [format(v, spec) for v, spec in zip(values, specs, strict=True)]
+
+
 def _plain_row(sample: SimSample) -> str:
-    """The row as 0c6e142 wrote it (an f-string per field)."""
+    """The row as 0c6e142 wrote it: each value through its own format spec."""
     s = sample.state
     a = sample.autopilot
-    n, e, d = s.pos_ned_m
-    qw, qx, qy, qz = s.q_body_to_ned_wxyz
-    vn, ve, vd = s.vel_ned_m_s
-    p, q, r = s.rate_frd_rad_s
-    return (
-        f"{s.sim_time_ns},{s.lat_deg:.9f},{s.lon_deg:.9f},{s.alt_amsl_m:.4f},"
-        f"{n:.4f},{e:.4f},{d:.4f},{qw:.8f},{qx:.8f},{qy:.8f},{qz:.8f},"
-        f"{vn:.4f},{ve:.4f},{vd:.4f},{p:.6f},{q:.6f},{r:.6f},{s.airspeed_m_s:.4f},"
-        f"{a.mode.value},{a.current_seq},{int(a.capturing)}\n"
-    )
+    floats = (s.lat_deg, s.lon_deg, s.alt_amsl_m, *s.pos_ned_m, *s.q_body_to_ned_wxyz,
+              *s.vel_ned_m_s, *s.rate_frd_rad_s)  # fmt: skip
+    fields = [str(s.sim_time_ns), *_formatted(floats, ROW_SPECS)]
+    fields += [format(s.airspeed_m_s, ".4f"), a.mode.value, str(a.current_seq)]
+    return ",".join([*fields, str(int(a.capturing))]) + "\n"
 
 
 def _plain_nav(est: NavEstimate) -> str:
     n, e, d = est.pos_ned_m
-    return (
-        f"{e:.4f},{n:.4f},{-d:.4f},{est.lat_deg:.9f},{est.lon_deg:.9f},{est.alt_amsl_m:.4f},"
-        f"{est.std_h_m:.4f}"
-    )
+    values = (e, n, -d, est.lat_deg, est.lon_deg, est.alt_amsl_m, est.std_h_m)
+    return ",".join(_formatted(values, NAV_SPECS))
 
 
 def test_rows_are_the_text_of_the_f_strings() -> None:
