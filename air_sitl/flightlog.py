@@ -44,19 +44,25 @@ TRAJECTORY_COLUMNS = (
 )
 
 
+# One row of TRAJECTORY_COLUMNS: ``%`` formats each value as the format spec of the same
+# letters in an f-string would (bytes checked by tests/core/test_flight_fast_paths.py), in
+# one call (a 50 Hz path: a quarter cheaper than the f-string's 21 fields).
+_ROW_FORMAT = (
+    "%d,%.9f,%.9f,%.4f,"  # time, lat, lon, alt
+    "%.4f,%.4f,%.4f,%.8f,%.8f,%.8f,%.8f,"  # north, east, down, quaternion
+    "%.4f,%.4f,%.4f,%.6f,%.6f,%.6f,%.4f,"  # velocity, rates, airspeed
+    "%s,%d,%d\n"  # mode, mission_seq, capturing
+)
+
+
 def _row(sample: SimSample) -> str:
     s = sample.state
     a = sample.autopilot
-    n, e, d = s.pos_ned_m
-    qw, qx, qy, qz = s.q_body_to_ned_wxyz
-    vn, ve, vd = s.vel_ned_m_s
-    p, q, r = s.rate_frd_rad_s
-    return (
-        f"{s.sim_time_ns},{s.lat_deg:.9f},{s.lon_deg:.9f},{s.alt_amsl_m:.4f},"
-        f"{n:.4f},{e:.4f},{d:.4f},{qw:.8f},{qx:.8f},{qy:.8f},{qz:.8f},"
-        f"{vn:.4f},{ve:.4f},{vd:.4f},{p:.6f},{q:.6f},{r:.6f},{s.airspeed_m_s:.4f},"
-        f"{a.mode.value},{a.current_seq},{int(a.capturing)}\n"
-    )
+    return _ROW_FORMAT % (
+        s.sim_time_ns, s.lat_deg, s.lon_deg, s.alt_amsl_m, *s.pos_ned_m,
+        *s.q_body_to_ned_wxyz, *s.vel_ned_m_s, *s.rate_frd_rad_s, s.airspeed_m_s,
+        a.mode.value, a.current_seq, a.capturing,
+    )  # fmt: skip
 
 
 class TrajectoryWriter(NullSink):
@@ -201,35 +207,48 @@ class FlightStats:
         self.min_battery_v: float | None = None
 
     def add(self, sample: SimSample) -> None:
-        """Account for one physics sample."""
+        """Account for one physics sample (a 200 Hz path: the common case written out)."""
         s = sample.state
         a = sample.autopilot
-        self.sim_time_ns = s.sim_time_ns
-        if sample.battery is not None:
-            self.battery = sample.battery
-            v = sample.battery.voltage_v
-            self.min_battery_v = v if self.min_battery_v is None else min(self.min_battery_v, v)
+        t = self.sim_time_ns = s.sim_time_ns
+        b = sample.battery
+        if b is not None:
+            self.battery = b
+            v = b.voltage_v
+            low = self.min_battery_v
+            self.min_battery_v = v if low is None or v < low else low  # as min(low, v)
         if a.reached_seq >= 0:
             self.reached.add(a.reached_seq)
-        self._ground_contact(sample)
-        if a.mission_completed and self.crashed is None:
-            self.mission_completed = True
+        if self.crashed is None:
+            # In the air, clear of the surface: no contact to judge (_ground_contact's first
+            # branch, inline).
+            surface = s.surface_amsl_m
+            agl = s.alt_agl_m if surface is None else s.alt_amsl_m - surface
+            if s.on_ground or agl < CONTACT_AGL_M:
+                self._ground_contact(sample)
+            else:
+                if agl > AIRBORNE_AGL_M:
+                    self._airborne = True
+                    self.touched_down = False
+                self._in_contact = False
+            if a.mission_completed and self.crashed is None:
+                self.mission_completed = True
         if a.tracking_settled:
             if not math.isnan(a.cross_track_m):
                 self.max_cross_track_m = max(self.max_cross_track_m or 0.0, abs(a.cross_track_m))
             if not math.isnan(a.alt_error_m):
                 self.max_alt_error_m = max(self.max_alt_error_m or 0.0, abs(a.alt_error_m))
-        if s.sim_time_ns % CAMERA_PERIOD_NS:
+        if t % CAMERA_PERIOD_NS:
             return
         if a.capturing:
             ne = (s.pos_ned_m[0], s.pos_ned_m[1])
             if self._last_capture_ne is not None:
                 self.capture_distance_m += math.dist(ne, self._last_capture_ne)
             else:
-                self.capture_start_ns = s.sim_time_ns
+                self.capture_start_ns = t
             self._last_capture_ne = ne
             self.capture_frames += 1
-            self.capture_end_ns = s.sim_time_ns
+            self.capture_end_ns = t
         else:
             self._last_capture_ne = None
 

@@ -70,6 +70,9 @@ class Autopilot:
         if air_start:
             air_start_item(mission)
         self._next_nav_ns = -1
+        # FW_P_LIM_MAX/MIN in radians, read again when the parameters change.
+        self._pitch_limits_version = -1
+        self._pitch_max_rad = self._pitch_min_rad = 0.0
         self._target = ControlTarget(phase=ControlPhase.IDLE)
         self._status = AutopilotStatus(
             mode=FlightMode.IDLE, armed=False, current_seq=-1, capturing=False,
@@ -105,6 +108,10 @@ class Autopilot:
                 ex.arm()
         nav = ex.update(state)
         params = ex.params
+        if params.version != self._pitch_limits_version:
+            self._pitch_limits_version = params.version
+            self._pitch_max_rad = math.radians(params.in_range("FW_P_LIM_MAX"))
+            self._pitch_min_rad = math.radians(params.in_range("FW_P_LIM_MIN"))
         t = nav.target
         self._target = control_target(  # positional, in ControlTarget's field order (50 Hz)
             t.phase,
@@ -114,8 +121,8 @@ class Autopilot:
             t.heading_rad,
             t.climb_rate_limit_m_s,
             t.ground_amsl_m,
-            math.radians(params.in_range("FW_P_LIM_MAX")),
-            math.radians(params.in_range("FW_P_LIM_MIN")),
+            self._pitch_max_rad,
+            self._pitch_min_rad,
         )
         self._status = autopilot_status(  # positional, in AutopilotStatus's field order
             ex.mode,

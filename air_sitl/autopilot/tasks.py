@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 from air_sitl.autopilot import guidance
 from air_sitl.autopilot.params import GuidanceParams
-from air_sitl.autopilot.target import ControlPhase, ControlTarget
+from air_sitl.autopilot.target import ControlPhase, ControlTarget, control_target
 from air_sitl.mission.geometry import Point
-from air_sitl.state import VehicleState
+from air_sitl.state import VehicleState, positional_builder
 
 NS_PER_S = 1_000_000_000
 SETTLE_NS = 10 * NS_PER_S  # tracking counts from 10 s after the turn onto a leg or circle
@@ -36,6 +36,11 @@ class NavOutput:
     cross_track_m: float = _NAN
     alt_error_m: float = _NAN
     settled: bool = False
+
+
+# Built by every leg and circle at 50 Hz, positionally (fields in declared order).
+nav_output = positional_builder(NavOutput)
+_CRUISE = ControlPhase.CRUISE
 
 
 class Tick:
@@ -82,18 +87,13 @@ class _Tracking:
         settled = (
             self.alt_ok and self.start_ns is not None and t.now_ns - self.start_ns >= SETTLE_NS
         )
-        return NavOutput(target, cross_track_m, alt_error, settled)
+        return nav_output(target, cross_track_m, alt_error, settled)
 
 
 def _cruise(t: Tick, bank: float, alt: float, course: float) -> ControlTarget:
-    return ControlTarget(
-        phase=ControlPhase.CRUISE,
-        roll_rad=bank,
-        altitude_amsl_m=alt,
-        airspeed_m_s=t.speed,
-        heading_rad=course,
-        climb_rate_limit_m_s=t.p.climb_max_m_s,
-    )
+    # positional, in ControlTarget's field order (phase, roll, altitude, airspeed, heading,
+    # climb-rate limit; the rest their defaults)
+    return control_target(_CRUISE, bank, alt, t.speed, course, t.p.climb_max_m_s)
 
 
 def _split(point: Point) -> tuple[tuple[float, float], float]:
@@ -248,7 +248,7 @@ class LegTask(Task):
         if self.aligning:
             alt = self.alt_a
             target = _cruise(t, line.bank_rad, alt, line.course_rad)
-            return NavOutput(target, _NAN, t.alt - alt, False)
+            return nav_output(target, _NAN, t.alt - alt, False)
         alt = guidance.altitude_on_leg(
             self.alt_a, self.alt_b, line.along_track_m, line.leg_length_m
         )
@@ -334,7 +334,7 @@ class LoiterTask(Task):
                 self.done = abs(t.alt - self.alt) <= p.alt_acc_m
         target = _cruise(t, c.bank_rad, self.alt, c.course_rad)
         if not self.established:
-            return NavOutput(target, _NAN, t.alt - self.alt, False)
+            return nav_output(target, _NAN, t.alt - self.alt, False)
         # Cross-track positive right of the direction of travel, as on a leg (clockwise: the
         # centre is on the right, so outside the circle is negative).
         return self.track.output(target, t, -self.direction * c.radial_error_m, self.alt)

@@ -21,12 +21,13 @@ NAV_COLUMNS: tuple[str, ...] = (
 )
 
 
+# NAV_COLUMNS' formats, in one ``%`` call (the same text as f-string specs of these letters).
+_NAV_FORMAT = "%.4f,%.4f,%.4f,%.9f,%.9f,%.4f,%.4f"
+
+
 def nav_fields(est: NavEstimate | None) -> str:
     """The NAV_COLUMNS of one row (empty fields before the filter has a position)."""
     if est is None:
         return ",,,,,,"
     n, e, d = est.pos_ned_m
-    return (
-        f"{e:.4f},{n:.4f},{-d:.4f},{est.lat_deg:.9f},{est.lon_deg:.9f},{est.alt_amsl_m:.4f},"
-        f"{est.std_h_m:.4f}"
-    )
+    return _NAV_FORMAT % (e, n, -d, est.lat_deg, est.lon_deg, est.alt_amsl_m, est.std_h_m)
