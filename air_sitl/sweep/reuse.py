@@ -17,7 +17,7 @@ from __future__ import annotations
 import copy
 import json
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -100,19 +100,16 @@ def reuse_run(key: Key | None, archive: Path) -> LocalizeRun | None:
     return replace(kept.run, path=path)
 
 
-def remember_score(key: Key | None, align: str, scored: Scored) -> None:
-    """Keep the score of a kept run (``align``: eval's alignment)."""
+def score(key: Key | None, align: str, compute: Callable[[], Scored]) -> Scored:
+    """The score kept under ``key`` and ``align`` (eval's alignment), else ``compute()``'s,
+    kept when ``key`` is: a copy of a kept one (its report the caller's to change)."""
     kept = None if key is None else _KEPT.get(key)
-    if kept is not None:
-        kept.scored[align] = scored
-
-
-def kept_score(key: Key | None, align: str) -> Scored | None:
-    """A copy of the kept score of ``key`` under ``align`` (its report the caller's to
-    change), or None."""
-    kept = None if key is None else _KEPT.get(key)
-    scored = None if kept is None else kept.scored.get(align)
-    return None if scored is None else replace(scored, report=copy.deepcopy(scored.report))
+    if kept is None:
+        return compute()
+    if align not in kept.scored:
+        kept.scored[align] = compute()
+    scored = kept.scored[align]
+    return replace(scored, report=copy.deepcopy(scored.report))
 
 
 def forget() -> None:

@@ -283,11 +283,7 @@ def _measure(
             return None, f"localizer {name}: {why}", None
     start = time.perf_counter()
     try:
-        scored = reuse.kept_score(key, task.align)
-        if scored is None:
-            scored = score_sources(out, [name], task.align)[0]
-            reuse.remember_score(key, task.align, scored)
-            scored = reuse.kept_score(key, task.align) or scored  # the kept one unchanged
+        scored = reuse.score(key, task.align, lambda: score_sources(out, [name], task.align)[0])
     except AirSitlError as err:
         return None, f"eval: {_one_line(err)}", run
     finally:
