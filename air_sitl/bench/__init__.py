@@ -17,6 +17,7 @@ stopped. Last the leaderboard (:mod:`~air_sitl.bench.leaderboard`) and the box p
 from __future__ import annotations
 
 import collections
+import contextlib
 import json
 import shlex
 import subprocess
@@ -227,10 +228,15 @@ def write_bench_spec(config: BenchConfig) -> SweepSpec:
 
 
 def run_bench(
-    config: BenchConfig, stream: IO[str] | None = None, *, made: bool = False
+    config: BenchConfig,
+    stream: IO[str] | None = None,
+    *,
+    made: bool = False,
+    executor: Executor | None = None,
 ) -> Leaderboard:
     """Make or reuse the archives, measure every (scenario, entry), write the leaderboard
-    (``made``: the archives were just made for this bench, nothing to check or fly)."""
+    (``made``: the archives were just made for this bench, nothing to check or fly;
+    ``executor``: where the runs go, by default the config's)."""
     stream = stream if stream is not None else sys.stderr
     config.out.mkdir(parents=True, exist_ok=True)
     for scenario in config.scenarios:  # archives kept from before: the bench's own message
@@ -259,7 +265,7 @@ def run_bench(
 
     try:
         outcome = run_tasks(
-            spec, _tasks(config, spec), config.out, _executor(config), on_row=on_row
+            spec, _tasks(config, spec), config.out, executor or _executor(config), on_row=on_row
         )
     finally:
         progress.bar.close()
@@ -361,10 +367,20 @@ def run_gaps(
     for d in flight_dates:  # every date's bench.yaml first: an interruption stays resumable
         write_bench_spec(replace(config, flight_date=d, out=config.out / f"date{d}"))
     made = fly_dates_once(config, flight_dates, stream if stream is not None else sys.stderr)
-    boards = [
-        run_bench(replace(config, flight_date=d, out=config.out / f"date{d}"), stream, made=made)
-        for d in flight_dates
-    ]
+    # One pool of workers for every date: started once, and a method that reads no imagery
+    # is localized and scored once per flight, its result reused for the other dates
+    # (:mod:`air_sitl.sweep.reuse`; a worker keeps it, so with -j 1 every date finds it).
+    executor = _executor(config)
+    with executor if isinstance(executor, PoolExecutor) else contextlib.nullcontext():
+        boards = [
+            run_bench(
+                replace(config, flight_date=d, out=config.out / f"date{d}"),
+                stream,
+                made=made,
+                executor=executor,
+            )
+            for d in flight_dates
+        ]
     write_json_atomic(config.out / "leaderboard.json", gaps_json(boards))
     write_bytes_atomic(config.out / "leaderboard.md", gaps_markdown(boards).encode("utf-8"))
     return boards

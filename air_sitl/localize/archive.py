@@ -22,11 +22,13 @@ of its run alone (:func:`run_archive`).
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
+import json
 import math
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +38,13 @@ import numpy.typing as npt
 
 from air_sitl.bus.keys import check_chunk
 from air_sitl.camera.model import CameraModel
-from air_sitl.dataset.air_schema import FRAMES_CSV, IMU_COLUMNS, IMU_CSV, MANIFEST_JSON
+from air_sitl.dataset.air_schema import (
+    FRAMES_CSV,
+    IMU_COLUMNS,
+    IMU_CSV,
+    MANIFEST_JSON,
+    METADATA_CSV,
+)
 from air_sitl.dataset.manifest import manifest_home
 from air_sitl.dataset.reader import Archive, open_archive
 from air_sitl.errors import DatasetError
@@ -60,6 +68,8 @@ class LocalizeRun:
     frames: int
     estimated_frames: int  # frames with a position
     wall_s: float  # method and driver, reading included
+    # What it wrote (``estimates/<name>.csv`` is these against the archive's home)
+    estimates: tuple[base.Estimate, ...] = field(default=(), repr=False, compare=False)
 
     @property
     def frames_per_s(self) -> float:
@@ -400,9 +410,30 @@ def run_archive_methods(
                 frames=len(found),
                 estimated_frames=sum(1 for e in found if e.enu_m is not None),
                 wall_s=seconds + reading_s,
+                estimates=tuple(found),
             )
         )
     return runs
+
+
+def imagery_free_inputs(archive: Path) -> str | None:
+    """The identity of what a method that reads no imagery is given from ``archive``
+    (:func:`~air_sitl.localize.methods.reads_imagery`): the SHA-256 of the manifest's hashes
+    of ``frames.csv`` (times, sensors, GNSS), ``imu.csv`` and ``metadata.csv`` (the truth
+    eval scores against), with its home, camera, frame rate and GNSS denial windows. The
+    archives of one flight at several map dates share it; None when the manifest does not
+    record those hashes (an archive still being written, or not air-sitl's)."""
+    try:
+        manifest = json.loads((archive / MANIFEST_JSON).read_text(encoding="utf-8"))
+        files = manifest["files"]
+        inputs = {
+            "files": [files[name] for name in (FRAMES_CSV, IMU_CSV, METADATA_CSV)],
+            **{k: manifest.get(k) for k in ("home", "camera", "frame_rate_hz", "gps_denied")},
+        }
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    text = json.dumps(inputs, sort_keys=True, allow_nan=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:

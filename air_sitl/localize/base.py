@@ -100,6 +100,11 @@ class Localizer(Protocol):
     # (``image_bgr`` None); ``jpeg`` carries the encoded frame either way, so a method that
     # wants it in grey at reduced size decodes it itself, cheaper (vo, mapmatch do).
     needs_image: bool
+    # Optional (absent: True): False declares that the method reads neither the frames (no
+    # ``image_bgr``, no ``jpeg``) nor the map or its date, only the flight's other inputs
+    # (:func:`~air_sitl.localize.methods.reads_imagery`): its estimates over the archives
+    # of one flight rendered at several map dates are the same, so a sweep or a bench
+    # computes them once per flight and reuses them for the other dates.
 
     def reset(self, context: LocalizerContext) -> None:
         """Start a new flight (drop all state)."""

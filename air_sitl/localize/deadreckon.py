@@ -33,6 +33,7 @@ class DeadReckoning:
 
     name = "deadreckon"
     needs_image = False
+    reads_imagery = False  # neither frames nor map: the same estimates over every map date
 
     def __init__(self) -> None:
         self.home = GeoPoint(lat_deg=0.0, lon_deg=0.0, alt_amsl_m=0.0)

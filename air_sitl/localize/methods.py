@@ -35,3 +35,12 @@ def make_method(method: str, **options: Any) -> Localizer:
         msg = f"--method {method}: unknown; expected one of {', '.join(sorted(METHODS))}"
         raise OptionError(msg)
     return factory(**options)
+
+
+def reads_imagery(method: str) -> bool:
+    """Whether the registered method ``method`` reads the frames or the map (a method that
+    does not declare ``reads_imagery = False`` is taken to read them): one that does not
+    gives the same estimates over every map date of one flight (:class:`~air_sitl.localize.
+    base.Localizer`)."""
+    factory = METHODS.get(method)
+    return bool(getattr(factory, "reads_imagery", True))

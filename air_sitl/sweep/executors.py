@@ -71,11 +71,29 @@ def _crashed_row(task: RunTask, why: str) -> dict[str, Any]:
 
 
 class PoolExecutor:
-    """``jobs`` spawned worker processes; one group per task."""
+    """``jobs`` spawned worker processes; one group per task. Used as a context manager, its
+    workers (and their shared ground) serve every ``run`` inside the block: several sweeps
+    one after another (bench's map dates) start their workers once, and what a worker keeps
+    (maps, :mod:`~air_sitl.sweep.reuse`'s results) serves the later sweeps."""
 
     def __init__(self, jobs: int) -> None:
         self.workers = jobs
         self._shared_ground: Path | None = None
+        self._kept: contextlib.ExitStack | None = None  # inside the block
+        self._kept_pool: ProcessPoolExecutor | None = None
+
+    def __enter__(self) -> PoolExecutor:
+        self._kept = contextlib.ExitStack()
+        self._shared_ground = self._kept.enter_context(shared_folder())
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        pool, self._kept_pool = self._kept_pool, None
+        if pool is not None:
+            pool.shutdown(wait=True)
+        kept, self._kept = self._kept, None
+        if kept is not None:
+            kept.close()
 
     def _pool(self) -> ProcessPoolExecutor:
         return ProcessPoolExecutor(
@@ -90,9 +108,11 @@ class PoolExecutor:
         saved = {name: os.environ.get(name) for name in THREAD_ENV}
         os.environ.update(dict.fromkeys(THREAD_ENV, "1"))  # inherited by the spawned workers
         try:
-            # The workers draw each square of procedural ground once for all of them.
-            with shared_folder() as self._shared_ground:
+            if self._kept is not None:  # the block's workers and ground
                 self._run(list(groups), on_row)
+            else:  # the workers draw each square of procedural ground once for all of them
+                with shared_folder() as self._shared_ground:
+                    self._run(list(groups), on_row)
         finally:
             for name, value in saved.items():
                 if value is None:
@@ -103,7 +123,10 @@ class PoolExecutor:
     def _run(self, todo: list[Group], on_row: OnRow) -> None:
         crashes: dict[str, int] = {}
         while todo:
-            pool = self._pool()
+            if self._kept is None:
+                pool = self._pool()
+            else:
+                pool = self._kept_pool = self._kept_pool or self._pool()
             futures: dict[Future[list[dict[str, Any]]], Group] = {}
             broken: list[Group] = []
             try:
@@ -120,9 +143,12 @@ class PoolExecutor:
                         for row in rows:
                             on_row(row)
             except BaseException:
+                self._kept_pool = None
                 _terminate(pool)
                 raise
-            pool.shutdown(wait=True)
+            if self._kept is None or broken:  # a broken pool takes no more work
+                self._kept_pool = None
+                pool.shutdown(wait=True)
             todo = []
             for group in broken:
                 key = group[0].id

@@ -60,6 +60,7 @@ from air_sitl.options import flight_options_from_args, int_in_range
 from air_sitl.recording import RecordingRequest, record_flight
 from air_sitl.recording.dates import record_dates, shares_flight
 from air_sitl.recording.timing import OwnTime
+from air_sitl.sweep import reuse
 from air_sitl.sweep.measurements import EntryResult, archive_id, load, save
 from air_sitl.sweep.spec import fly_parser
 
@@ -259,10 +260,12 @@ def _measure(
     entry: str | ExternalLocalizer,
     ran: dict[str, LocalizeRun | str],
     times: dict[str, float],
+    key: reuse.Key | None = None,
 ) -> tuple[Scored | None, str | None, LocalizeRun | None]:
     """One method's run (from ``ran``), or one localizer program in lockstep, then its
-    estimate scored: (the score, why it failed, the method's run); the seconds each took
-    are added to ``times`` (``localize``, ``eval``)."""
+    estimate scored (or its score kept under ``key``: :mod:`.reuse`): (the score, why it
+    failed, the method's run); the seconds each took are added to ``times`` (``localize``,
+    ``eval``)."""
     name = entry if isinstance(entry, str) else entry.name
     run = None
     if isinstance(entry, str):
@@ -280,7 +283,7 @@ def _measure(
             return None, f"localizer {name}: {why}", None
     start = time.perf_counter()
     try:
-        scored = score_sources(out, [name], task.align)[0]
+        scored = reuse.score(key, task.align, lambda: score_sources(out, [name], task.align)[0])
     except AirSitlError as err:
         return None, f"eval: {_one_line(err)}", run
     finally:
@@ -305,7 +308,9 @@ def _localize(
         name = entry if isinstance(entry, str) else entry.name
         before[name] = None if folder is None else load(folder, task.scenario, name, ident)
     start = time.perf_counter()
-    ran = _run_methods(task, out, [m for m in task.methods if before[m] is None])
+    todo = [m for m in task.methods if before[m] is None]
+    keys, ran = reuse.recall(out, todo, seed=task.seed, reference_date=task.reference_date)
+    ran |= reuse.remembered(keys, out, _run_methods(task, out, [m for m in todo if m not in ran]))
     times["localize"] += time.perf_counter() - start
     for entry in entries:
         name = entry if isinstance(entry, str) else entry.name
@@ -313,7 +318,8 @@ def _localize(
         if done is not None:  # measured by an earlier, interrupted run
             reports[name] = done.report
             continue
-        scored, why, run = _measure(task, out, entry, ran, times)
+        key = keys.get(entry) if isinstance(entry, str) else None
+        scored, why, run = _measure(task, out, entry, ran, times, key)
         reports[name] = None if scored is None else scored.report
         error = error or why
         if folder is not None:

@@ -95,14 +95,15 @@ def test_a_bench_scores_the_three_date_gaps_by_default() -> None:
 @pytest.mark.integration
 def test_a_bench_over_two_dates_scores_each_gap(tmp_path: Path) -> None:
     """Real short flights over dates 0 and 2, mapmatch against date 0: a bench per date and
-    the leaderboard by gap, each saying its reference and flight date."""
+    the leaderboard by gap, each saying its reference and flight date; deadreckon scored
+    once for both dates."""
     home = GeoPoint(lat_deg=38.54, lon_deg=-121.49, alt_amsl_m=10.0)
     missions = tmp_path / "missions"
     missions.mkdir()
     short_plans.write_short_plan(missions / "UT-200.plan", home, leg_m=150.0)
     out = tmp_path / "b"
     argv = [
-        "bench", "--scenarios", "UT-200", "--methods", "mapmatch", "--missions",
+        "bench", "--scenarios", "UT-200", "--methods", "mapmatch,deadreckon", "--missions",
         str(missions), "--map-date", "0,2", "--out", str(out), "--quiet",
     ]  # fmt: skip
     assert main(argv) == 0
@@ -131,6 +132,19 @@ def test_a_bench_over_two_dates_scores_each_gap(tmp_path: Path) -> None:
     assert data["gaps"][1]["map_dates"] == ["2009-06-20", "2012-10-08", "2016-04-22"]
     medians = [g["summary"]["mapmatch"]["median_m"] for g in data["gaps"]]
     assert all(m is not None for m in medians)
+    # deadreckon reads no imagery: localized and scored once for the flight, by the one
+    # worker the dates' sweeps share; date 2 takes date 0's run (its timing too) and report.
+    found = [
+        json.loads((out / f"date{d}" / "reports" / "UT-200" / "deadreckon.json").read_text())
+        for d in (0, 2)
+    ]
+    assert found[0]["localize_wall_s"] == found[1]["localize_wall_s"]
+    assert found[0]["report"] == found[1]["report"]
+    estimates = {
+        (out / f"date{d}" / "archives" / "UT-200" / "estimates" / "deadreckon.csv").read_bytes()
+        for d in (0, 2)
+    }
+    assert len(estimates) == 1
 
 
 def test_scenarios_over_worlds_of_their_own_calendars_name_both_dates(tmp_path: Path) -> None:
