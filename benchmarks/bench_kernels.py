@@ -115,7 +115,7 @@ from air_sitl.nav.params import NavParams
 
 ErrorStateEkf(NavParams(), 9.8)
 relief.warm()
-pu, g, nodes = np.zeros((6, 6)), np.zeros((2, 2)), np.arange(2.0)
+pu, g, nodes = np.zeros((6, 6), np.float32), np.zeros((2, 2)), np.arange(2.0)
 effects_kernel.row_maps(pu, pu, 1, 1, np.zeros((4, 9)), 0.0, 0.0, 6, 6, 2, 36,
                         np.zeros((4, 4, 2), np.float32), np.zeros((2, 4), np.int64))
 h = np.zeros((2, 9))

@@ -122,6 +122,7 @@ class EffectsPath:
         w, h = cam.width_px, cam.height_px
         k = cam.intrinsics()
         self.pinhole = fx_mod.undistorted_grid(w, h, k, fx.distortion, MARGIN_PX)
+        self._pinhole32 = tuple(np.ascontiguousarray(p, dtype=np.float32) for p in self.pinhole)
         m = MARGIN_PX
         self._vignette = (
             fx_mod.vignette_gain(w, h, k, self.pinhole[0][m:-m, m:-m],
@@ -285,7 +286,7 @@ class EffectsPath:
             maps = self._buffer("maps", (h + 2 * pad, w + 2 * pad, 2), np.float32)
             windows = np.empty((-(-(h + 2 * pad) // STRIP_ROWS), 4), dtype=np.int64)
             misses = self._compiled.row_maps(
-                self.pinhole[0], self.pinhole[1], MARGIN_PX - pad, MARGIN_PX - pad, rows,
+                self._pinhole32[0], self._pinhole32[1], MARGIN_PX - pad, MARGIN_PX - pad, rows,
                 float(mx), float(my), mosaic.shape[1], mosaic.shape[0], STRIP_ROWS, WINDOW_PX, maps,
                 windows,
             )  # fmt: skip

@@ -156,7 +156,7 @@ def grid_keep(r: F64, gu: F64, gv: F64, height_m: float, beta: float, keep: F32)
 
 
 @compiled(
-    "i8(f8[:, ::1], f8[:, ::1], i8, i8, f8[:, ::1], f8, f8, i8, i8, i8, i8, f4[:, :, ::1], "
+    "i8(f4[:, ::1], f4[:, ::1], i8, i8, f8[:, ::1], f8, f8, i8, i8, i8, i8, f4[:, :, ::1], "
     "i8[:, ::1])"
 )
 def row_maps(
@@ -180,24 +180,39 @@ def row_maps(
     flat = out.reshape(height, 2 * width)
     stride = pu.shape[1]
     all_u, all_v = pu.reshape(pu.size), pv.reshape(pv.size)  # 1-D slices: vectorized
+    one, tiny, miss = np.float32(1.0), np.float32(1e-9), np.float32(MISS)
     windows[:, 0], windows[:, 1], windows[:, 2], windows[:, 3] = 0, 0, mosaic_w, mosaic_h
     for k in range(len(windows)):
         v0, v1 = k * strip, min(height, (k + 1) * strip)
         missed = 0
         for v in range(v0, v1):
-            h0, h1, h2, h3, h4, h5, h6, h7, h8 = rows[v]
+            # The row's homography to the mosaic (its origin taken off in float64), in
+            # float32: eight pixels a vector instruction, the coordinates within the
+            # mosaic (thousands of px) to a few 1e-4 px, and the remap rounds them to 1/32.
+            k0, k1, k2, k3, k4, k5, k6, k7, k8 = rows[v]
+            h0, h1, h2 = (
+                np.float32(k0 - ox * k6),
+                np.float32(k1 - ox * k7),
+                np.float32(k2 - ox * k8),
+            )
+            h3, h4, h5 = (
+                np.float32(k3 - oy * k6),
+                np.float32(k4 - oy * k7),
+                np.float32(k5 - oy * k8),
+            )
+            h6, h7, h8 = np.float32(k6), np.float32(k7), np.float32(k8)
             start = (r0 + v) * stride + c0
             xs, ys = all_u[start : start + width], all_v[start : start + width]
             dst = flat[v]
             for u in range(width):
                 x, y = xs[u], ys[u]
                 w = h6 * x + h7 * y + h8
-                hit = w > 1e-9
-                inv = 1.0 / (w if hit else 1.0)  # one division, not two: about half the time
-                mx = (h0 * x + h1 * y + h2) * inv - ox
-                my = (h3 * x + h4 * y + h5) * inv - oy
-                dst[2 * u] = mx if hit else MISS
-                dst[2 * u + 1] = my if hit else MISS
+                hit = w > tiny
+                inv = one / (w if hit else one)  # one division, not two: about half the time
+                mx = (h0 * x + h1 * y + h2) * inv
+                my = (h3 * x + h4 * y + h5) * inv
+                dst[2 * u] = mx if hit else miss
+                dst[2 * u + 1] = my if hit else miss
                 missed += 0 if hit else 1
         misses += missed
         if missed:
