@@ -119,6 +119,7 @@ pu, g, nodes = np.zeros((6, 6), np.float32), np.zeros((2, 2)), np.arange(2.0)
 effects_kernel.row_maps(pu, pu, 1, 1, np.zeros((4, 9)), 0.0, 0.0, 6, 6, 2, 36,
                         np.zeros((4, 4, 2), np.float32), np.zeros((2, 4), np.int64))
 h = np.zeros((2, 9))
+effects_kernel.homographies_at(np.zeros((3, 9)), 1.0, np.zeros(2), h)
 effects_kernel.grid_paths(h, h, h, g, g, nodes, nodes, g.copy(), g.copy(), np.zeros(4))
 effects_kernel.grid_keep(np.zeros(9), g, g, 1.0, 1.0, np.zeros((2, 2), np.float32))
 img, one = np.zeros((4, 4, 4), np.uint8), np.ones((4, 4), np.float32)

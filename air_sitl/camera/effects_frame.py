@@ -162,14 +162,10 @@ class EffectsPath:
         ])  # fmt: skip
         return knots, span, exposure
 
-    @staticmethod
-    def at(knots: F64, span: float, t: F64) -> F64:
+    def at(self, knots: F64, span: float, t: F64) -> F64:
         """Homographies at times ``t`` (quadratic through the knots), shape (len(t), 9)."""
-        if span == 0:
-            return np.repeat(knots[:1], len(t), axis=0)
-        a = (t / span)[:, None]
-        k0, k1, k2 = knots
-        out: F64 = k1 + a * ((k2 - k0) * 0.5) + a * a * ((k0 + k2) * 0.5 - k1)
+        out = np.empty((len(t), 9))
+        self._compiled.homographies_at(knots, float(span), t, out)
         return out
 
     def paths(

@@ -88,6 +88,30 @@ def _project(h: F64, gu: F64, gv: F64, x: F64, y: F64, hit: npt.NDArray[np.bool_
                 x[i, j] = y[i, j] = 0.0
 
 
+@compiled("void(f8[:, ::1], f8, f8[::1], f8[:, ::1])")
+def homographies_at(knots: F64, span: float, t: F64, out: F64) -> None:
+    """Homographies (9 values a row of ``out``) at times ``t``: the quadratic through the
+    ``knots`` at -span, 0 and +span (one knot, the same for all, when ``span`` is 0),
+    operation for operation as NumPy's (k1 + a (k2 - k0) / 2 + a^2 ((k0 + k2) / 2 - k1),
+    a = t / span): the same bytes without NumPy's broadcasting over rows of 9 (0.1 ms
+    a frame's rows)."""
+    n = len(t)
+    if span == 0.0:
+        for i in range(n):
+            for j in range(9):
+                out[i, j] = knots[0, j]
+        return
+    c1, c2 = np.empty(9), np.empty(9)
+    for j in range(9):
+        c1[j] = (knots[2, j] - knots[0, j]) * 0.5
+        c2[j] = (knots[0, j] + knots[2, j]) * 0.5 - knots[1, j]
+    for i in range(n):
+        a = t[i] / span
+        aa = a * a
+        for j in range(9):
+            out[i, j] = knots[1, j] + a * c1[j] + aa * c2[j]
+
+
 @compiled(
     "b1(f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], "
     "f8[:, ::1], f8[:, ::1], f8[::1])"
@@ -188,7 +212,8 @@ def row_maps(
         for v in range(v0, v1):
             # The row's homography to the mosaic (its origin taken off in float64), in
             # float32: eight pixels a vector instruction, the coordinates within the
-            # mosaic (thousands of px) to a few 1e-4 px, and the remap rounds them to 1/32.
+            # mosaic (thousands of px) to a few 1e-4 px (frames within 2 grey levels of
+            # float64 maps', 0.04 % of values differing).
             k0, k1, k2, k3, k4, k5, k6, k7, k8 = rows[v]
             h0, h1, h2 = (
                 np.float32(k0 - ox * k6),
