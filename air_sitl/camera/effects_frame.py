@@ -201,8 +201,8 @@ class EffectsPath:
         coarse = np.empty(self._gu.shape, dtype=np.float32)
         self._compiled.grid_keep(np.array(r), self._gu, self._gv, max(g.height_m, 0.0),
                                  3.912 / self.fx.visibility_m, coarse)  # fmt: skip
-        along = self._buffer("keep", (coarse.shape[0], cam.width_px), np.float32)
-        cv2.resize(coarse, (cam.width_px, coarse.shape[0]), dst=along,
+        along = self._buffer("keep", (len(self._rows), cam.width_px), np.float32)
+        cv2.resize(coarse, (cam.width_px, len(self._rows)), dst=along,
                    interpolation=cv2.INTER_LINEAR)  # fmt: skip
         return along, self._keep_at
 
