@@ -115,17 +115,19 @@ from air_sitl.nav.params import NavParams
 
 ErrorStateEkf(NavParams(), 9.8)
 relief.warm()
-pu, g, nodes = np.zeros((6, 6)), np.zeros((2, 2)), np.arange(2.0)
+pu, g, nodes = np.zeros((6, 6), np.float32), np.zeros((2, 2)), np.arange(2.0)
 effects_kernel.row_maps(pu, pu, 1, 1, np.zeros((4, 9)), 0.0, 0.0, 6, 6, 2, 36,
                         np.zeros((4, 4, 2), np.float32), np.zeros((2, 4), np.int64))
 h = np.zeros((2, 9))
+effects_kernel.homographies_at(np.zeros((3, 9)), 1.0, np.zeros(2), h)
 effects_kernel.grid_paths(h, h, h, g, g, nodes, nodes, g.copy(), g.copy(), np.zeros(4))
 effects_kernel.grid_keep(np.zeros(9), g, g, 1.0, 1.0, np.zeros((2, 2), np.float32))
 img, one = np.zeros((4, 4, 4), np.uint8), np.ones((4, 4), np.float32)
+at = np.tile(np.array([0.0, 1.0, 1.0, 0.0], np.float32), (4, 1))  # keep row 0 for each row
 none = np.zeros((0, 0, 3), np.uint8)
-effects_kernel.blur(img, 0, g, g, nodes, nodes, one, one, np.zeros(3), True, img.copy())
-effects_kernel.light_total(img, one, one, np.zeros(3))
-effects_kernel.light(img, one, one, np.zeros(3), 1.0, none, none, np.zeros((4, 4, 3), np.uint8))
+effects_kernel.blur(img, 0, g, g, nodes, nodes, one, at, one, np.zeros(3), True, img.copy())
+effects_kernel.light_total(img, one, at, one, np.zeros(3))
+effects_kernel.light(img, one, at, one, np.zeros(3), 1.0, none, none, np.zeros((4, 4, 3), np.uint8))
 """
 
 

@@ -87,6 +87,24 @@ def _nodes(n: int) -> F64:
     return np.asarray((np.arange(count) + 0.5) * (n / count) - 0.5, dtype=np.float64)
 
 
+def _resize_rows(n: int, size: int) -> F32:
+    """For each of ``size`` rows, the two of ``n`` rows and their weights that ``cv2.resize``
+    (INTER_LINEAR) blends into it: (first, second, weight of the first, of the second),
+    float32 (the rows' indices exact)."""
+    scale = n / size
+    out = np.empty((size, 4), dtype=np.float32)
+    for v in range(size):
+        f = np.float32((v + 0.5) * scale - 0.5)
+        s = math.floor(f)
+        f = np.float32(f - np.float32(s))
+        if s < 0:
+            s, f = 0, np.float32(0.0)
+        if s >= n - 1:
+            s, f = n - 1, np.float32(0.0)
+        out[v] = (s, min(s + 1, n - 1), np.float32(1.0) - f, f)
+    return out
+
+
 class EffectsPath:
     """The effects part of a Renderer's per-pixel paths (``remap.RemapPaths`` holds it)."""
 
@@ -104,6 +122,7 @@ class EffectsPath:
         w, h = cam.width_px, cam.height_px
         k = cam.intrinsics()
         self.pinhole = fx_mod.undistorted_grid(w, h, k, fx.distortion, MARGIN_PX)
+        self._pinhole32 = tuple(np.ascontiguousarray(p, dtype=np.float32) for p in self.pinhole)
         m = MARGIN_PX
         self._vignette = (
             fx_mod.vignette_gain(w, h, k, self.pinhole[0][m:-m, m:-m],
@@ -116,7 +135,9 @@ class EffectsPath:
         self._gu, self._gv = fx_mod.undistort_points(gu, gv, k, fx.distortion)
         self._air = np.array(fx.airlight_bgr, dtype=np.float64)
         self._light = fx.on("haze") or fx.on("vignette") or fx.on("exposure")
-        self._ones = np.ones((h, w), dtype=np.float32)  # the haze's share kept, without haze
+        self._ones = np.ones((1, w), dtype=np.float32)  # the haze's share kept, without haze
+        self._ones_at = np.tile(np.array([0.0, 0.0, 1.0, 0.0], np.float32), (h, 1))
+        self._keep_at = _resize_rows(len(self._rows), h)
         self._local = threading.local()  # this thread's buffers (``_buffer``)
 
     # -- geometry -----------------------------------------------------------------------------
@@ -141,14 +162,10 @@ class EffectsPath:
         ])  # fmt: skip
         return knots, span, exposure
 
-    @staticmethod
-    def at(knots: F64, span: float, t: F64) -> F64:
+    def at(self, knots: F64, span: float, t: F64) -> F64:
         """Homographies at times ``t`` (quadratic through the knots), shape (len(t), 9)."""
-        if span == 0:
-            return np.repeat(knots[:1], len(t), axis=0)
-        a = (t / span)[:, None]
-        k0, k1, k2 = knots
-        out: F64 = k1 + a * ((k2 - k0) * 0.5) + a * a * ((k0 + k2) * 0.5 - k1)
+        out = np.empty((len(t), 9))
+        self._compiled.homographies_at(knots, float(span), t, out)
         return out
 
     def paths(
@@ -170,21 +187,24 @@ class EffectsPath:
             return ex, ey, None
         return ex, ey, (float(box[0]), float(box[1]), float(box[2]), float(box[3]))
 
-    def _keep(self, state: VehicleState, g: FrameGeometry) -> npt.NDArray[np.float32]:
+    def _keep(self, state: VehicleState, g: FrameGeometry) -> tuple[F32, F32]:
         """Haze: the share of the radiance kept over each pixel's range (Koschmieder; the
         range to the plane under the aircraft, over relief its reference plane), from the
-        coarse grid (ones without haze)."""
+        coarse grid: its rows interpolated along the sensor's columns, and each sensor
+        row's two of them and their weights (``effects_kernel._keep_row``; ones without
+        haze). The kernels blend a row as they need it: a full-size array and its resize
+        cost a frame 0.2-0.3 ms and 1.2 MB written and read twice."""
         cam = self.camera
         if not self.fx.on("haze"):
-            return self._ones
+            return self._ones, self._ones_at
         r = mul3(quat_rows(state.q_body_to_ned_wxyz), self._owner._c2b_kinv)
         coarse = np.empty(self._gu.shape, dtype=np.float32)
         self._compiled.grid_keep(np.array(r), self._gu, self._gv, max(g.height_m, 0.0),
                                  3.912 / self.fx.visibility_m, coarse)  # fmt: skip
-        full = self._buffer("keep", (cam.height_px, cam.width_px), np.float32)
-        cv2.resize(coarse, (cam.width_px, cam.height_px), dst=full,
+        along = self._buffer("keep", (len(self._rows), cam.width_px), np.float32)
+        cv2.resize(coarse, (cam.width_px, len(self._rows)), dst=along,
                    interpolation=cv2.INTER_LINEAR)  # fmt: skip
-        return full
+        return along, self._keep_at
 
     def _remap_strips(self, mosaic: Image, maps: F32, windows: npt.NDArray[np.int64],
                       sharp: Image) -> None:  # fmt: skip
@@ -195,14 +215,17 @@ class EffectsPath:
         in the core's cache for the remap."""
         step = STRIP_ROWS
         buf = self._buffer("window", (WINDOW_PX * 4,), np.uint8)
+        mh, mw = mosaic.shape[0], mosaic.shape[1]
+        linear, constant = cv2.INTER_LINEAR, cv2.BORDER_CONSTANT
+        remap = cv2.remap  # positional arguments: a few us less a call than keywords
         for k, (x0, y0, x1, y1) in enumerate(windows.tolist()):
             source = mosaic
-            if x1 - x0 < mosaic.shape[1] or y1 - y0 < mosaic.shape[0]:
+            if x1 - x0 < mw or y1 - y0 < mh:
                 source = buf[: (y1 - y0) * (x1 - x0) * 4].reshape(y1 - y0, x1 - x0, 4)
-                np.copyto(source, mosaic[y0:y1, x0:x1])
-            cv2.remap(source, maps[k * step : (k + 1) * step], None, cv2.INTER_LINEAR,
-                      dst=sharp[k * step : (k + 1) * step], borderMode=cv2.BORDER_CONSTANT,
-                      borderValue=FILL_BGRX)  # type: ignore[call-overload]  # fmt: skip
+                source[...] = mosaic[y0:y1, x0:x1]
+            v0 = k * step
+            remap(source, maps[v0 : v0 + step], None, linear, sharp[v0 : v0 + step], constant,
+                  FILL_BGRX)  # type: ignore[call-overload]  # fmt: skip
 
     def _buffer(self, name: str, shape: tuple[int, ...], dtype: type) -> npt.NDArray[Any]:
         """A contiguous array of ``shape`` in this thread's buffer ``name``, kept from frame
@@ -262,7 +285,7 @@ class EffectsPath:
             maps = self._buffer("maps", (h + 2 * pad, w + 2 * pad, 2), np.float32)
             windows = np.empty((-(-(h + 2 * pad) // STRIP_ROWS), 4), dtype=np.int64)
             misses = self._compiled.row_maps(
-                self.pinhole[0], self.pinhole[1], MARGIN_PX - pad, MARGIN_PX - pad, rows,
+                self._pinhole32[0], self._pinhole32[1], MARGIN_PX - pad, MARGIN_PX - pad, rows,
                 float(mx), float(my), mosaic.shape[1], mosaic.shape[0], STRIP_ROWS, WINDOW_PX, maps,
                 windows,
             )  # fmt: skip
@@ -289,14 +312,15 @@ class EffectsPath:
         sky = maps[pad : pad + h, pad : pad + w, 0] < -1e6 if misses else None
         self._owner._note_nodata(inner, sky)
         frame, meter = sharp, fx.on("exposure")
-        keep = self._keep(state, g) if self._light else self._ones
+        keep, keep_at = self._keep(state, g) if self._light else (self._ones, self._ones_at)
         total = 0.0
         if longest >= 0.5:
             frame = self._buffer("blurred", (h, w, 4), np.uint8)
             total = self._compiled.blur(sharp, pad, ex, ey, self._rows, self._cols, keep,
-                                        self._vignette, self._air, meter, frame)  # fmt: skip
+                                        keep_at, self._vignette, self._air, meter,
+                                        frame)  # fmt: skip
         elif meter:
-            total = self._compiled.light_total(frame, keep, self._vignette, self._air)
+            total = self._compiled.light_total(frame, keep, keep_at, self._vignette, self._air)
         if not self._light:
             cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR, dst=out)
             return out if noise is None else self._owner._noised(out, noise, 0, h)
@@ -309,7 +333,8 @@ class EffectsPath:
                 rng = np.random.default_rng(key_of(self._owner.seed, 0x4E03, noise_index))
                 gain *= max(0.0, 1.0 + fx.gain_noise * float(rng.standard_normal()))
         pos, neg = noise if noise is not None else (_NO_NOISE, _NO_NOISE)
-        self._compiled.light(frame, keep, self._vignette, self._air, gain, pos, neg, out)
+        self._compiled.light(frame, keep, keep_at, self._vignette, self._air, gain, pos, neg,
+                             out)  # fmt: skip
         return out
 
     def _relief_maps(self, state: VehicleState, g: FrameGeometry) -> npt.NDArray[np.float32]:

@@ -88,6 +88,30 @@ def _project(h: F64, gu: F64, gv: F64, x: F64, y: F64, hit: npt.NDArray[np.bool_
                 x[i, j] = y[i, j] = 0.0
 
 
+@compiled("void(f8[:, ::1], f8, f8[::1], f8[:, ::1])")
+def homographies_at(knots: F64, span: float, t: F64, out: F64) -> None:
+    """Homographies (9 values a row of ``out``) at times ``t``: the quadratic through the
+    ``knots`` at -span, 0 and +span (one knot, the same for all, when ``span`` is 0),
+    operation for operation as NumPy's (k1 + a (k2 - k0) / 2 + a^2 ((k0 + k2) / 2 - k1),
+    a = t / span): the same bytes without NumPy's broadcasting over rows of 9 (0.1 ms
+    a frame's rows)."""
+    n = len(t)
+    if span == 0.0:
+        for i in range(n):
+            for j in range(9):
+                out[i, j] = knots[0, j]
+        return
+    c1, c2 = np.empty(9), np.empty(9)
+    for j in range(9):
+        c1[j] = (knots[2, j] - knots[0, j]) * 0.5
+        c2[j] = (knots[0, j] + knots[2, j]) * 0.5 - knots[1, j]
+    for i in range(n):
+        a = t[i] / span
+        aa = a * a
+        for j in range(9):
+            out[i, j] = knots[1, j] + a * c1[j] + aa * c2[j]
+
+
 @compiled(
     "b1(f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], "
     "f8[:, ::1], f8[:, ::1], f8[::1])"
@@ -156,7 +180,7 @@ def grid_keep(r: F64, gu: F64, gv: F64, height_m: float, beta: float, keep: F32)
 
 
 @compiled(
-    "i8(f8[:, ::1], f8[:, ::1], i8, i8, f8[:, ::1], f8, f8, i8, i8, i8, i8, f4[:, :, ::1], "
+    "i8(f4[:, ::1], f4[:, ::1], i8, i8, f8[:, ::1], f8, f8, i8, i8, i8, i8, f4[:, :, ::1], "
     "i8[:, ::1])"
 )
 def row_maps(
@@ -180,24 +204,40 @@ def row_maps(
     flat = out.reshape(height, 2 * width)
     stride = pu.shape[1]
     all_u, all_v = pu.reshape(pu.size), pv.reshape(pv.size)  # 1-D slices: vectorized
+    one, tiny, miss = np.float32(1.0), np.float32(1e-9), np.float32(MISS)
     windows[:, 0], windows[:, 1], windows[:, 2], windows[:, 3] = 0, 0, mosaic_w, mosaic_h
     for k in range(len(windows)):
         v0, v1 = k * strip, min(height, (k + 1) * strip)
         missed = 0
         for v in range(v0, v1):
-            h0, h1, h2, h3, h4, h5, h6, h7, h8 = rows[v]
+            # The row's homography to the mosaic (its origin taken off in float64), in
+            # float32: eight pixels a vector instruction, the coordinates within the
+            # mosaic (thousands of px) to a few 1e-4 px (frames within 2 grey levels of
+            # float64 maps', 0.04 % of values differing).
+            k0, k1, k2, k3, k4, k5, k6, k7, k8 = rows[v]
+            h0, h1, h2 = (
+                np.float32(k0 - ox * k6),
+                np.float32(k1 - ox * k7),
+                np.float32(k2 - ox * k8),
+            )
+            h3, h4, h5 = (
+                np.float32(k3 - oy * k6),
+                np.float32(k4 - oy * k7),
+                np.float32(k5 - oy * k8),
+            )
+            h6, h7, h8 = np.float32(k6), np.float32(k7), np.float32(k8)
             start = (r0 + v) * stride + c0
             xs, ys = all_u[start : start + width], all_v[start : start + width]
             dst = flat[v]
             for u in range(width):
                 x, y = xs[u], ys[u]
                 w = h6 * x + h7 * y + h8
-                hit = w > 1e-9
-                inv = 1.0 / (w if hit else 1.0)  # one division, not two: about half the time
-                mx = (h0 * x + h1 * y + h2) * inv - ox
-                my = (h3 * x + h4 * y + h5) * inv - oy
-                dst[2 * u] = mx if hit else MISS
-                dst[2 * u + 1] = my if hit else MISS
+                hit = w > tiny
+                inv = one / (w if hit else one)  # one division, not two: about half the time
+                mx = (h0 * x + h1 * y + h2) * inv
+                my = (h3 * x + h4 * y + h5) * inv
+                dst[2 * u] = mx if hit else miss
+                dst[2 * u + 1] = my if hit else miss
                 missed += 0 if hit else 1
         misses += missed
         if missed:
@@ -305,17 +345,18 @@ def _fixed_weights(weights: F32, count: int, fixed: U16) -> None:
 @compiled
 def _blur_region(
     sharp: U8, pad: int, y0: int, y1: int, x0: int, x1: int, taps: I64, weights: U16,
-    count: int, acc: U16, out: U8, keep: F32, vignette: F32, air: F64, col: F64,
+    count: int, acc: U16, out: U8, keep: F32, keep_at: F32, vignette: F32, air: F64,
+    col: F64, kept: F32,
 ) -> None:  # fmt: skip
     """Output pixels [y0, y1) x [x0, x1) (BGRA): the taps' weighted sum of ``sharp``
     (the frame and ``pad`` pixels around it; beyond it, its edge repeated), in integers
     (``weights`` in units of 1/FIXED_ONE, summing to FIXED_ONE; rounded to the nearest,
-    halves up); their light added to the columns' sums ``col`` (:func:`_meter`) unless
-    ``col`` is empty. The sums fit 16 bits (255 * FIXED_ONE + FIXED_ONE / 2): sixteen
-    pixel values a vector instruction."""
+    halves up); their light added to the columns' sums ``col`` (:func:`_meter`, the haze's
+    row from ``keep`` at ``keep_at`` into ``kept``) unless ``col`` is empty. The sums fit
+    16 bits (255 * FIXED_ONE + FIXED_ONE / 2): sixteen pixel values a vector instruction."""
     sh, sw = sharp.shape[0], sharp.shape[1]
     width = out.shape[1]
-    all_keep, all_vignette = keep.reshape(keep.size), vignette.reshape(vignette.size)
+    all_vignette = vignette.reshape(vignette.size)
     src = sharp.reshape(sh, 4 * sw)
     dst = out.reshape(out.size)
     nw = x1 - x0
@@ -363,17 +404,18 @@ def _blur_region(
             out_row[i] = np.uint8(row[i] >> FIXED_BITS)
         if len(col):
             at = y * width
-            _meter(out_row, all_keep[at + x0 : at + x1], all_vignette[at + x0 : at + x1], air,
+            _keep_row(keep, keep_at, y, x0, x1, kept)
+            _meter(out_row, kept[: x1 - x0], all_vignette[at + x0 : at + x1], air,
                    col[x0:x1])  # fmt: skip
 
 
 @compiled(
     "f8(u1[:, :, ::1], i8, f8[:, ::1], f8[:, ::1], f8[::1], f8[::1], f4[:, ::1], f4[:, ::1], "
-    "f8[::1], b1, u1[:, :, ::1])"
+    "f4[:, ::1], f8[::1], b1, u1[:, :, ::1])"
 )
 def blur(
-    sharp: U8, pad: int, ex: F64, ey: F64, rows: F64, cols: F64, keep: F32, vignette: F32,
-    air: F64, meter: bool, out: U8,
+    sharp: U8, pad: int, ex: F64, ey: F64, rows: F64, cols: F64, keep: F32, keep_at: F32,
+    vignette: F32, air: F64, meter: bool, out: U8,
 ) -> float:  # fmt: skip
     """Motion blur of the frame in ``sharp`` (BGRA, ``pad`` px around it) into ``out``:
     regions of the grid (nodes ``rows``, ``cols``) whose paths (``ex``, ``ey``) differ by
@@ -388,6 +430,7 @@ def blur(
     fixed = np.empty(4 * MAX_TAPS, np.uint16)
     acc = np.empty(4 * out.shape[1], np.uint16)
     col = np.zeros(out.shape[1] if meter else 0)
+    kept = np.empty(out.shape[1], np.float32)
     while top > 0:
         top -= 1
         i0, i1, j0, j1 = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
@@ -406,9 +449,21 @@ def blur(
         kx, ky = np.rint(px.mean() * 16.0) / 16.0, np.rint(py.mean() * 16.0) / 16.0
         count, _, _ = _line_taps(kx, ky, taps, weights)
         _fixed_weights(weights, count, fixed)
-        _blur_region(sharp, pad, y0, y1, x0, x1, taps, fixed, count, acc, out, keep,
-                     vignette, air, col)  # fmt: skip
+        _blur_region(sharp, pad, y0, y1, x0, x1, taps, fixed, count, acc, out, keep, keep_at,
+                     vignette, air, col, kept)  # fmt: skip
     return float(col.sum())
+
+
+@compiled_inline
+def _keep_row(keep: F32, keep_at: F32, v: int, x0: int, x1: int, out: F32) -> None:
+    """The haze's share kept over columns [x0, x1) of sensor row ``v`` into ``out``: the
+    blend of two rows of ``keep`` (the coarse grid's rows interpolated along the sensor's
+    columns) by ``keep_at[v]`` = (first row, second row, their weights), as ``cv2.resize``
+    (INTER_LINEAR) blends them: the full-size array is never made."""
+    r0, r1 = keep[int(keep_at[v, 0])], keep[int(keep_at[v, 1])]
+    b0, b1 = keep_at[v, 2], keep_at[v, 3]
+    for u in range(x1 - x0):
+        out[u] = r0[x0 + u] * b0 + r1[x0 + u] * b1
 
 
 @compiled_inline
@@ -425,31 +480,34 @@ def _meter(px: U8, keep: F32, vignette: F32, air: F64, col: F64) -> None:
         col[u] += np.float64(s) * (k * gain) + airs * ((1.0 - k) * gain)
 
 
-@compiled("f8(u1[:, :, ::1], f4[:, ::1], f4[:, ::1], f8[::1])")
-def light_total(img: U8, keep: F32, vignette: F32, air: F64) -> float:
-    """The sum over a BGRA frame's colours after haze and vignetting (the auto exposure's
-    measure; :func:`light`)."""
-    height, width = keep.shape
+@compiled("f8(u1[:, :, ::1], f4[:, ::1], f4[:, ::1], f4[:, ::1], f8[::1])")
+def light_total(img: U8, keep: F32, keep_at: F32, vignette: F32, air: F64) -> float:
+    """The sum over a BGRA frame's colours after haze (``keep`` at ``keep_at``:
+    :func:`_keep_row`) and vignetting (the auto exposure's measure; :func:`light`)."""
+    height, width = vignette.shape
     flat = img.reshape(height, 4 * width)
     col = np.zeros(width)
+    kept = np.empty(width, np.float32)
     for v in range(height):
-        _meter(flat[v], keep[v], vignette[v], air, col)
+        _keep_row(keep, keep_at, v, 0, width, kept)
+        _meter(flat[v], kept, vignette[v], air, col)
     return float(col.sum())
 
 
 @compiled(
-    "void(u1[:, :, ::1], f4[:, ::1], f4[:, ::1], f8[::1], f8, u1[:, :, ::1], u1[:, :, ::1], "
-    "u1[:, :, ::1])"
+    "void(u1[:, :, ::1], f4[:, ::1], f4[:, ::1], f4[:, ::1], f8[::1], f8, u1[:, :, ::1], "
+    "u1[:, :, ::1], u1[:, :, ::1])"
 )
 def light(
-    img: U8, keep: F32, vignette: F32, air: F64, gain: float, pos: U8, neg: U8, out: U8
+    img: U8, keep: F32, keep_at: F32, vignette: F32, air: F64, gain: float, pos: U8, neg: U8,
+    out: U8,
 ) -> None:  # fmt: skip
     """Haze and vignetting of a BGRA frame (as :func:`light_total`) times ``gain``, rounded
     to the nearest (half to even) and saturated, plus the sensor noise (``pos`` less
     ``neg``: clip(pixel + noise), as ``Renderer._noised``; zero-sized: none) into BGR
     ``out``. In float32, the gain in each pixel's two factors (its radiance's and the
     airlight's): eight values a vector instruction."""
-    height, width = keep.shape
+    height, width = vignette.shape
     g = np.float32(gain)
     one = np.float32(1.0)
     a0, a1, a2 = np.float32(air[0]), np.float32(air[1]), np.float32(air[2])
@@ -460,8 +518,10 @@ def light(
     up = pos.reshape(height if noisy else 0, 3 * width)
     down = neg.reshape(height if noisy else 0, 3 * width)
     line = np.zeros(3 * width, np.float32)
+    kr = np.empty(width, np.float32)
     for v in range(height):
-        kr, gr, px, o = keep[v], vignette[v], flat[v], dst[v]
+        _keep_row(keep, keep_at, v, 0, width, kr)
+        gr, px, o = vignette[v], flat[v], dst[v]
         for u in range(width):
             k = kr[u]
             vg = gr[u] * g
