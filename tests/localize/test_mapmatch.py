@@ -23,6 +23,7 @@ from air_sitl.dataset.reader import open_archive
 from air_sitl.eval import evaluate
 from air_sitl.frames import ned2geodetic
 from air_sitl.localize.archive import (
+    LocalizeRun,
     context_of,
     observations,
     read_rows,
@@ -122,9 +123,16 @@ def test_mapmatch_finds_the_map_again_after_a_bad_start(flight: Path) -> None:
     assert float(np.median(errors[found:])) <= 3.0
 
 
-def test_the_driver_writes_mapmatch_estimates(flight: Path) -> None:
+@pytest.fixture(scope="module")
+def driven(flight: Path) -> LocalizeRun:
+    """``mapmatch`` through the driver (as ``air-sitl localize`` runs it) against the default
+    reference, estimates named ``mm``: read by the tests of the driver and of eval's fixes."""
+    return run_archive(flight, "mapmatch", name="mm")
+
+
+def test_the_driver_writes_mapmatch_estimates(flight: Path, driven: LocalizeRun) -> None:
     """Registered method, the driver's estimates file, one row per frame."""
-    result = run_archive(flight, "mapmatch", name="mm")
+    result = driven
     assert result.path == flight / "estimates" / "mm.csv"
     with result.path.open(encoding="utf-8", newline="") as f:
         rows = list(csv.DictReader(f))
@@ -206,7 +214,9 @@ def test_quality_gate_refuses_another_area_and_another_map(flight: Path) -> None
     assert covs[-1] > covs[1]  # the propagated uncertainty grows
 
 
-def test_refused_fixes_score_fix_rate_0_with_availability_1(flight: Path) -> None:
+def test_refused_fixes_score_fix_rate_0_with_availability_1(
+    flight: Path, driven: LocalizeRun
+) -> None:
     """mapmatch against a map that is not the flight's (the forest under an urban flight):
     every match refused, a propagated position at every frame. eval says both: availability
     1, fix rate 0, no fix for the whole flight; against the right map, fixes nearly always."""
@@ -218,8 +228,7 @@ def test_refused_fixes_score_fix_rate_0_with_availability_1(flight: Path) -> Non
     assert refused["fix_rate"] == 0.0
     frames = refused["frames"]
     assert refused["longest_without_fix_s"] == pytest.approx(frames * 0.02)
-    run_archive(flight, "mapmatch", name="mm-urban")
-    right = evaluate(flight, "mm-urban")
+    right = evaluate(flight, driven.path.stem)  # the driver's run against the right map
     assert right["availability"] == 1.0 and right["fix_rate"] >= 0.95
     assert right["longest_without_fix_s"] < 1.0
     vo_like = evaluate(flight, "svo")  # AIR's Svo columns say nothing of fixes
