@@ -1,7 +1,8 @@
 """``mapmatch``: real frames of a short flight over the urban map (date 1) against date 0.
 
-One real flight per module (the first 12 s of UC-200's circle, banked about 9 degrees), run
-through the offline driver as ``air-sitl localize`` runs it; no mocks.
+One real flight (the first 12 s of UC-200's circle, banked about 9 degrees: the session's
+``uc200_date1_start``, shared with test_fused), run through the offline driver as ``air-sitl
+localize`` runs it; no mocks.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from shared_builds import copy_archive
 from short_plans import write_short_plan
 
 from air_sitl.camera.model import CameraModel
@@ -39,23 +41,13 @@ from air_sitl.state import GeoPoint
 
 pytestmark = pytest.mark.integration
 
-MISSIONS = Path(__file__).resolve().parents[2] / "missions"
-
-
-def fly_uc200(out: Path) -> Path:
-    """The first 600 frames of UC-200 over the urban map at date 1 (about 10 s of CPU).
-
-    The flight stops at 45 s of simulated time, mission unfinished: exit code 1 by design.
-    """
-    argv = ["fly", str(MISSIONS / "UC-200.plan"), "--air-start", "--map-date", "1"]
-    assert main([*argv, "--max-sim-time", "45", "--quiet", "--out", str(out)]) == 1
-    assert json.loads((out / "manifest.json").read_text())["complete"] is True
-    return out
-
 
 @pytest.fixture(scope="module")
-def flight(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return fly_uc200(tmp_path_factory.mktemp("mapmatch") / "uc200")
+def flight(uc200_date1_start: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The session's shared flight (conftest), copied: these tests write estimates into it."""
+    return copy_archive(
+        uc200_date1_start, tmp_path_factory.mktemp("mapmatch") / "uc200", images=True
+    )
 
 
 def truth_rows(archive: Path) -> list[dict[str, str]]:
