@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 from hypothesis import settings
+from shared_builds import fly, fly_uc200_start, session_folder, shared
 
 from air_sitl.compiled import build_all
 
@@ -54,3 +55,25 @@ LONGEST_FIRST = ("tests/docs/test_doc_blocks.py",)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Files in :data:`LONGEST_FIRST` before the rest (xdist hands out files in this order)."""
     items.sort(key=lambda item: item.nodeid.split("::")[0] not in LONGEST_FIRST)
+
+
+@pytest.fixture(scope="session")
+def shared_folder(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Where the session's shared flights are built, once for both workers (shared_builds)."""
+    return session_folder(request.config, tmp_path_factory)
+
+
+@pytest.fixture(scope="session")
+def uc200_air(shared_folder: Path) -> Path:
+    """AIR's UC-200 from its first waypoint (``--air-start``): a circle of about 1 km, 3400
+    frames of the default camera. Shared, read-only: copy it (shared_builds.copy_archive)
+    before writing into it."""
+    plan = REPO / "missions" / "UC-200.plan"
+    return shared(shared_folder, "UC-200-air", lambda out: fly(plan, out, "--air-start"))
+
+
+@pytest.fixture(scope="session")
+def uc200_date1_start(shared_folder: Path) -> Path:
+    """The first 600 frames of UC-200 from the air over the urban map at date 1 (mapmatch's and
+    fused's flight, shared_builds.fly_uc200_start). Shared, read-only."""
+    return shared(shared_folder, "UC-200-date1-45s", fly_uc200_start)

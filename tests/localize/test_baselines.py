@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from shared_builds import copy_archive
 from short_plans import write_short_plan
 
 from air_sitl.dataset.estimates import read_estimates
@@ -38,16 +39,10 @@ HOME = GeoPoint(lat_deg=54.6872, lon_deg=25.2797, alt_amsl_m=120.0)
 
 
 @pytest.fixture(scope="module")
-def flight(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """UC-200 from the air: a circle of about 1 km, 3400 frames, real camera frames."""
-    out = tmp_path_factory.mktemp("localize") / "UC-200"
-    run = subprocess.run(
-        cli("fly", str(REPO / "missions" / "UC-200.plan"), "--air-start", "--quiet",
-            "--out", str(out)),
-        capture_output=True, text=True, timeout=900, check=False, cwd=REPO,
-    )  # fmt: skip
-    assert run.returncode == 0, run.stderr
-    return out
+def flight(uc200_air: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """UC-200 from the air (the session's shared flight, conftest): a circle of about 1 km,
+    3400 frames, real camera frames; a copy, which these tests write estimates into."""
+    return copy_archive(uc200_air, tmp_path_factory.mktemp("localize") / "UC-200", images=True)
 
 
 def truth_en(archive: Path) -> tuple[np.ndarray, float]:

@@ -15,16 +15,17 @@ from air_sitl.localize.mapmatch import MapMatchLocalizer
 from air_sitl.localize.mapmatch_filter import PositionFilter, tilt_jacobian
 
 try:  # the shared flight and scoring (module name depends on tests/localize/__init__.py)
-    from test_mapmatch import fly_uc200, horizontal_errors, shifted_start, truth_rows
+    from test_mapmatch import horizontal_errors, shifted_start, truth_rows
 except ImportError:  # pragma: no cover
-    from localize.test_mapmatch import fly_uc200, horizontal_errors, shifted_start, truth_rows
+    from localize.test_mapmatch import horizontal_errors, shifted_start, truth_rows
 
 pytestmark = pytest.mark.integration
 
 
 @pytest.fixture(scope="module")
-def flight(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return fly_uc200(tmp_path_factory.mktemp("fused") / "uc200")
+def flight(uc200_date1_start: Path) -> Path:
+    """The session's shared flight (conftest): read only here."""
+    return uc200_date1_start
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,8 @@
 """``mapmatch``: real frames of a short flight over the urban map (date 1) against date 0.
 
-One real flight per module (the first 12 s of UC-200's circle, banked about 9 degrees), run
-through the offline driver as ``air-sitl localize`` runs it; no mocks.
+One real flight (the first 12 s of UC-200's circle, banked about 9 degrees: the session's
+``uc200_date1_start``, shared with test_fused), run through the offline driver as ``air-sitl
+localize`` runs it; no mocks.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from shared_builds import copy_archive
 from short_plans import write_short_plan
 
 from air_sitl.camera.model import CameraModel
@@ -23,6 +25,7 @@ from air_sitl.dataset.reader import open_archive
 from air_sitl.eval import evaluate
 from air_sitl.frames import ned2geodetic
 from air_sitl.localize.archive import (
+    LocalizeRun,
     context_of,
     observations,
     read_rows,
@@ -38,23 +41,13 @@ from air_sitl.state import GeoPoint
 
 pytestmark = pytest.mark.integration
 
-MISSIONS = Path(__file__).resolve().parents[2] / "missions"
-
-
-def fly_uc200(out: Path) -> Path:
-    """The first 600 frames of UC-200 over the urban map at date 1 (about 10 s of CPU).
-
-    The flight stops at 45 s of simulated time, mission unfinished: exit code 1 by design.
-    """
-    argv = ["fly", str(MISSIONS / "UC-200.plan"), "--air-start", "--map-date", "1"]
-    assert main([*argv, "--max-sim-time", "45", "--quiet", "--out", str(out)]) == 1
-    assert json.loads((out / "manifest.json").read_text())["complete"] is True
-    return out
-
 
 @pytest.fixture(scope="module")
-def flight(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return fly_uc200(tmp_path_factory.mktemp("mapmatch") / "uc200")
+def flight(uc200_date1_start: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The session's shared flight (conftest), copied: these tests write estimates into it."""
+    return copy_archive(
+        uc200_date1_start, tmp_path_factory.mktemp("mapmatch") / "uc200", images=True
+    )
 
 
 def truth_rows(archive: Path) -> list[dict[str, str]]:
@@ -122,9 +115,16 @@ def test_mapmatch_finds_the_map_again_after_a_bad_start(flight: Path) -> None:
     assert float(np.median(errors[found:])) <= 3.0
 
 
-def test_the_driver_writes_mapmatch_estimates(flight: Path) -> None:
+@pytest.fixture(scope="module")
+def driven(flight: Path) -> LocalizeRun:
+    """``mapmatch`` through the driver (as ``air-sitl localize`` runs it) against the default
+    reference, estimates named ``mm``: read by the tests of the driver and of eval's fixes."""
+    return run_archive(flight, "mapmatch", name="mm")
+
+
+def test_the_driver_writes_mapmatch_estimates(flight: Path, driven: LocalizeRun) -> None:
     """Registered method, the driver's estimates file, one row per frame."""
-    result = run_archive(flight, "mapmatch", name="mm")
+    result = driven
     assert result.path == flight / "estimates" / "mm.csv"
     with result.path.open(encoding="utf-8", newline="") as f:
         rows = list(csv.DictReader(f))
@@ -206,7 +206,9 @@ def test_quality_gate_refuses_another_area_and_another_map(flight: Path) -> None
     assert covs[-1] > covs[1]  # the propagated uncertainty grows
 
 
-def test_refused_fixes_score_fix_rate_0_with_availability_1(flight: Path) -> None:
+def test_refused_fixes_score_fix_rate_0_with_availability_1(
+    flight: Path, driven: LocalizeRun
+) -> None:
     """mapmatch against a map that is not the flight's (the forest under an urban flight):
     every match refused, a propagated position at every frame. eval says both: availability
     1, fix rate 0, no fix for the whole flight; against the right map, fixes nearly always."""
@@ -218,8 +220,7 @@ def test_refused_fixes_score_fix_rate_0_with_availability_1(flight: Path) -> Non
     assert refused["fix_rate"] == 0.0
     frames = refused["frames"]
     assert refused["longest_without_fix_s"] == pytest.approx(frames * 0.02)
-    run_archive(flight, "mapmatch", name="mm-urban")
-    right = evaluate(flight, "mm-urban")
+    right = evaluate(flight, driven.path.stem)  # the driver's run against the right map
     assert right["availability"] == 1.0 and right["fix_rate"] >= 0.95
     assert right["longest_without_fix_s"] < 1.0
     vo_like = evaluate(flight, "svo")  # AIR's Svo columns say nothing of fixes
