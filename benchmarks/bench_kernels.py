@@ -109,7 +109,7 @@ print(*out)
 
 WARM_ALL = """
 import numpy as np
-from air_sitl.camera import effects_kernel, relief
+from air_sitl.camera import effects_kernel, effects_pixels_kernel, relief
 from air_sitl.nav.ekf import ErrorStateEkf
 from air_sitl.nav.params import NavParams
 
@@ -125,9 +125,10 @@ effects_kernel.grid_keep(np.zeros(9), g, g, 1.0, 1.0, np.zeros((2, 2), np.float3
 img, one = np.zeros((4, 4, 4), np.uint8), np.ones((4, 4), np.float32)
 at = np.tile(np.array([0.0, 1.0, 1.0, 0.0], np.float32), (4, 1))  # keep row 0 for each row
 none = np.zeros((0, 0, 3), np.uint8)
-effects_kernel.blur(img, 0, g, g, nodes, nodes, one, at, one, np.zeros(3), True, img.copy())
-effects_kernel.light_total(img, one, at, one, np.zeros(3))
-effects_kernel.light(img, one, at, one, np.zeros(3), 1.0, none, none, np.zeros((4, 4, 3), np.uint8))
+effects_pixels_kernel.blur(img, 0, g, g, nodes, nodes, one, at, one, np.zeros(3), True, img.copy())
+effects_pixels_kernel.light_total(img, one, at, one, np.zeros(3))
+effects_pixels_kernel.light(img, one, at, one, np.zeros(3), 1.0, none, none,
+                            np.zeros((4, 4, 3), np.uint8))
 """
 
 

@@ -86,10 +86,10 @@ LOAD_EFFECTS = """
 import sys
 import numpy as np
 from air_sitl import compiled
-from air_sitl.camera import effects_kernel
+from air_sitl.camera import effects_pixels_kernel
 ones, keep_at = np.ones((2, 2), np.float32), np.array([[0, 1, 1, 0], [0, 1, 0, 1]], np.float32)
-total = effects_kernel.light_total(np.full((2, 2, 4), 10, np.uint8), ones, keep_at, ones,
-                                   np.zeros(3))
+total = effects_pixels_kernel.light_total(np.full((2, 2, 4), 10, np.uint8), ones, keep_at,
+                                          ones, np.zeros(3))
 print("total", total)
 print("built", compiled.machine_code("effects") is not None, "numba" in sys.modules)
 """

@@ -1,4 +1,5 @@
-"""Frames with camera effects: one pass over the sensor (``effects_kernel``), then the gain.
+"""Frames with camera effects: one pass over the sensor (``effects_kernel``,
+``effects_pixels_kernel``), then the gain.
 
 A pixel's colour is the mean of taps along the path its ground point takes over the
 exposure (``blur``), each pixel at its row's time (``rolling-shutter``), at the pinhole
@@ -18,10 +19,11 @@ their triangles overlap into a box), instead of sub-exposures half a pixel apart
 fastest point of the frame. Over relief, the middle points come from the relief's maps
 (three poses with the rolling shutter, as before) and the paths from the flat grid.
 
-Each pass over the frame is a compiled loop (``effects_kernel``): the maps (and the mosaic
+Each pass over the frame is a compiled loop: the maps (``effects_kernel``; and the mosaic
 window each strip of STRIP_ROWS rows samples: the remap reads a copy of it), the blur (one
 call for all its regions, metering the exposure as it goes), the light with the gain and
-the noise; OpenCV's ``remap`` samples the mosaic. Buffers are kept per thread.
+the noise (``effects_pixels_kernel``); OpenCV's ``remap`` samples the mosaic. Buffers are
+kept per thread.
 """
 
 from __future__ import annotations
@@ -111,9 +113,10 @@ class EffectsPath:
     def __init__(self, owner: FrameOwner, paths: RemapPaths) -> None:
         # The compiled kernels (air_sitl.compiled: milliseconds built, numba's JIT about a
         # second) load with the first camera that has effects, not with every camera.
-        from air_sitl.camera import effects_kernel
+        from air_sitl.camera import effects_kernel, effects_pixels_kernel
 
         self._compiled = effects_kernel
+        self._pixels = effects_pixels_kernel
         self._owner = owner
         self._paths = paths
         self.camera = cam = owner.camera
@@ -191,7 +194,7 @@ class EffectsPath:
         """Haze: the share of the radiance kept over each pixel's range (Koschmieder; the
         range to the plane under the aircraft, over relief its reference plane), from the
         coarse grid: its rows interpolated along the sensor's columns, and each sensor
-        row's two of them and their weights (``effects_kernel._keep_row``; ones without
+        row's two of them and their weights (``effects_pixels_kernel._keep_row``; ones without
         haze). The kernels blend a row as they need it: a full-size array and its resize
         cost a frame 0.2-0.3 ms and 1.2 MB written and read twice."""
         cam = self.camera
@@ -316,11 +319,11 @@ class EffectsPath:
         total = 0.0
         if longest >= 0.5:
             frame = self._buffer("blurred", (h, w, 4), np.uint8)
-            total = self._compiled.blur(sharp, pad, ex, ey, self._rows, self._cols, keep,
+            total = self._pixels.blur(sharp, pad, ex, ey, self._rows, self._cols, keep,
                                         keep_at, self._vignette, self._air, meter,
                                         frame)  # fmt: skip
         elif meter:
-            total = self._compiled.light_total(frame, keep, keep_at, self._vignette, self._air)
+            total = self._pixels.light_total(frame, keep, keep_at, self._vignette, self._air)
         if not self._light:
             cv2.cvtColor(frame, cv2.COLOR_BGRA2BGR, dst=out)
             return out if noise is None else self._owner._noised(out, noise, 0, h)
@@ -333,7 +336,7 @@ class EffectsPath:
                 rng = np.random.default_rng(key_of(self._owner.seed, 0x4E03, noise_index))
                 gain *= max(0.0, 1.0 + fx.gain_noise * float(rng.standard_normal()))
         pos, neg = noise if noise is not None else (_NO_NOISE, _NO_NOISE)
-        self._compiled.light(frame, keep, keep_at, self._vignette, self._air, gain, pos, neg,
+        self._pixels.light(frame, keep, keep_at, self._vignette, self._air, gain, pos, neg,
                              out)  # fmt: skip
         return out
 
