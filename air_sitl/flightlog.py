@@ -220,13 +220,11 @@ class FlightStats:
         if a.reached_seq >= 0:
             self.reached.add(a.reached_seq)
         if self.crashed is None:
-            # In the air, clear of the surface: no contact to judge (_ground_contact's first
-            # branch, inline).
-            surface = s.surface_amsl_m
+            surface = s.surface_amsl_m  # s.surface_agl_m written out (a 200 Hz path)
             agl = s.alt_agl_m if surface is None else s.alt_amsl_m - surface
             if s.on_ground or agl < CONTACT_AGL_M:
                 self._ground_contact(sample)
-            else:
+            else:  # in the air, clear of the surface: nothing to judge
                 if agl > AIRBORNE_AGL_M:
                     self._airborne = True
                     self.touched_down = False
@@ -253,19 +251,11 @@ class FlightStats:
             self._last_capture_ne = None
 
     def _ground_contact(self, sample: SimSample) -> None:
-        """Judge the first ground contact after being airborne: a landing, or a crash."""
+        """Judge a sample in contact with the ground (on it, or under CONTACT_AGL_M above its
+        surface; :meth:`add` tells): the first contact after being airborne is a landing, or
+        a crash."""
         s = sample.state
         a = sample.autopilot
-        if self.crashed is not None:
-            return
-        agl = s.surface_agl_m
-        contact = s.on_ground or agl < CONTACT_AGL_M
-        if not contact:
-            if agl > AIRBORNE_AGL_M:
-                self._airborne = True
-                self.touched_down = False
-            self._in_contact = False
-            return
         if self._in_contact or not self._airborne:
             self._in_contact = True
             return
