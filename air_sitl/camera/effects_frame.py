@@ -320,8 +320,8 @@ class EffectsPath:
         if longest >= 0.5:
             frame = self._buffer("blurred", (h, w, 4), np.uint8)
             total = self._pixels.blur(sharp, pad, ex, ey, self._rows, self._cols, keep,
-                                        keep_at, self._vignette, self._air, meter,
-                                        frame)  # fmt: skip
+                                      keep_at, self._vignette, self._air, meter,
+                                      frame)  # fmt: skip
         elif meter:
             total = self._pixels.light_total(frame, keep, keep_at, self._vignette, self._air)
         if not self._light:
@@ -337,7 +337,7 @@ class EffectsPath:
                 gain *= max(0.0, 1.0 + fx.gain_noise * float(rng.standard_normal()))
         pos, neg = noise if noise is not None else (_NO_NOISE, _NO_NOISE)
         self._pixels.light(frame, keep, keep_at, self._vignette, self._air, gain, pos, neg,
-                             out)  # fmt: skip
+                           out)  # fmt: skip
         return out
 
     def _relief_maps(self, state: VehicleState, g: FrameGeometry) -> npt.NDArray[np.float32]:
