@@ -51,8 +51,10 @@ TRUTH_KEPT = 4096  # truth positions kept by time for the estimates' errors (80 
 STOP_TIMEOUT_S = 10.0
 # The server calls on_subscribe before the subscription may take effect: the latched messages
 # go at once and again these long after (a client may get them more than once; on a loaded
-# machine the subscription can take effect late, so the last pass waits seconds).
+# machine the subscription can take effect late, so the last pass waits seconds), then every
+# LATCH_EVERY_S while the view runs: a subscription that took effect later still gets them.
 LATCH_AGAIN_S = (0.2, 1.0, 3.0)
+LATCH_EVERY_S = 5.0
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -236,6 +238,8 @@ class FoxgloveLive(NullSink):
                 self._latch_again_s = [now + after for after in LATCH_AGAIN_S]
             elif self._latch_again_s and time.monotonic() >= self._latch_again_s[0]:
                 self._latch_again_s.pop(0)
+                if not self._latch_again_s:
+                    self._latch_again_s.append(time.monotonic() + LATCH_EVERY_S)
                 self._latched()
             if item is None:
                 return

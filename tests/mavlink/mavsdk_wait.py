@@ -3,9 +3,15 @@
 from __future__ import annotations
 
 import contextlib
-from collections.abc import AsyncIterator
+import time
+from collections.abc import AsyncIterator, Awaitable, Callable
+from typing import TypeVar
 
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk, System
+from mavsdk.asyncio.plugins.action import ActionError
+from mavsdk.asyncio.plugins.mission_raw import MissionRawError
+
+T = TypeVar("T")
 
 
 @contextlib.asynccontextmanager
@@ -17,3 +23,16 @@ async def ground_station(port: int, *, timeout_s: float) -> AsyncIterator[System
         system = await sdk.first_autopilot(timeout_s=timeout_s)
         assert system is not None, "MAVSDK found no autopilot"
         yield system
+
+
+async def until_answered(call: Callable[[], Awaitable[T]], *, timeout_s: float) -> T:
+    """``await call()`` again while MAVSDK reports a TIMEOUT (its transfers give up after about
+    2 s of silence: a vehicle starved for seconds on a loaded machine), within ``timeout_s``;
+    any other failure at once. A ground station's operator does the same: uploads again."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            return await call()
+        except (MissionRawError, ActionError) as err:
+            if err.result.name != "TIMEOUT" or time.monotonic() >= deadline:
+                raise

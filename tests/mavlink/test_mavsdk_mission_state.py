@@ -22,7 +22,7 @@ from gcs import SAFETY_S, free_udp_port, serve
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
 from mavsdk.asyncio.plugins.telemetry import LandedState, TelemetryAsync
-from mavsdk_wait import ground_station
+from mavsdk_wait import ground_station, until_answered
 from short_plans import write_items_plan
 
 from air_sitl.frames import ned2geodetic
@@ -109,11 +109,11 @@ async def _fly(port: int, plan: Path) -> Watch:
         items = (await mission.import_qgroundcontrol_mission(str(plan))).mission_items
         async with watch.following():
             for n in range(MISSIONS):
-                await mission.upload_mission(items)
+                await until_answered(lambda: mission.upload_mission(items), timeout_s=SAFETY_S)
                 assert not await mission.is_mission_finished()  # a new mission: not yet
                 if n == 0:
-                    await action.arm()
-                await mission.start_mission()
+                    await until_answered(action.arm, timeout_s=SAFETY_S)
+                await until_answered(mission.start_mission, timeout_s=SAFETY_S)
                 total = await asyncio.wait_for(_to_total(mission), SAFETY_S)
                 assert total == (len(items), len(items))
                 # From the moment progress reaches its total: finished, through the RTL loiter.
