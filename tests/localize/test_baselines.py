@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from shared_builds import copy_archive
-from short_plans import write_short_plan
+from short_plans import SMALL_CAMERA, write_short_plan
 
 from air_sitl.dataset.estimates import read_estimates
 from air_sitl.dataset.manifest import read_manifest
@@ -155,12 +155,13 @@ def test_vo_on_the_bus_answers_every_frame_like_offline(tmp_path: Path) -> None:
 def test_denial_windows_give_gnss_outside_them_and_deadreckon_learns_the_wind(
     tmp_path: Path,
 ) -> None:
-    """A recorded denial window: fixes before and after it; 4 m/s of wind learnt from them."""
+    """A recorded denial window: fixes before and after it; 4 m/s of wind learnt from them.
+    deadreckon reads no pixels: the small camera."""
     plan = write_short_plan(tmp_path / "short.plan", HOME, leg_m=300.0)
     out = tmp_path / "deny"
     run = subprocess.run(
         cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out),
-            "--gps-denied-window", "5:12", "--wind", "4@270"),
+            "--gps-denied-window", "5:12", "--wind", "4@270", *SMALL_CAMERA),
         capture_output=True, text=True, timeout=600, check=False,
     )  # fmt: skip
     assert run.returncode == 0, run.stderr
