@@ -129,7 +129,7 @@ def test_the_command_writes_a_valid_archive_and_refuses_a_zip(flight: Path, tmp_
 
 def test_vo_on_the_bus_answers_every_frame_like_offline(tmp_path: Path) -> None:
     """fly --wait-for vo and localize --bus as two processes; then the same offline."""
-    plan = write_short_plan(tmp_path / "short.plan", HOME, leg_m=150.0)
+    plan = write_short_plan(tmp_path / "short.plan", HOME, leg_m=120.0)  # about 360 frames
     out = tmp_path / "bus"
     # The localizer leaves by itself once the capture window is over.
     loc_out = fly_with_bus_localizer(
