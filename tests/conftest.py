@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 from hypothesis import settings
-from shared_builds import fly, fly_uc200_start, session_folder, shared
+from shared_builds import fly_uc200_start, session_folder, shared
 
 from air_sitl.compiled import build_all
 
@@ -64,16 +64,8 @@ def shared_folder(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempP
 
 
 @pytest.fixture(scope="session")
-def uc200_air(shared_folder: Path) -> Path:
-    """AIR's UC-200 from its first waypoint (``--air-start``): a circle of about 1 km, 3400
-    frames of the default camera. Shared, read-only: copy it (shared_builds.copy_archive)
-    before writing into it."""
-    plan = REPO / "missions" / "UC-200.plan"
-    return shared(shared_folder, "UC-200-air", lambda out: fly(plan, out, "--air-start"))
-
-
-@pytest.fixture(scope="session")
 def uc200_date1_start(shared_folder: Path) -> Path:
-    """The first 600 frames of UC-200 from the air over the urban map at date 1 (mapmatch's and
-    fused's flight, shared_builds.fly_uc200_start). Shared, read-only."""
+    """The first 600 frames of UC-200 from the air over the urban map at date 1 (mapmatch's,
+    fused's and the offline baselines' flight, shared_builds.fly_uc200_start). Shared,
+    read-only: copy it (shared_builds.copy_archive) before writing into it."""
     return shared(shared_folder, "UC-200-date1-45s", fly_uc200_start)

@@ -100,7 +100,7 @@ def test_a_bench_over_two_dates_scores_each_gap(tmp_path: Path) -> None:
     home = GeoPoint(lat_deg=38.54, lon_deg=-121.49, alt_amsl_m=10.0)
     missions = tmp_path / "missions"
     missions.mkdir()
-    short_plans.write_short_plan(missions / "UT-200.plan", home, leg_m=150.0)
+    short_plans.write_short_plan(missions / "UT-200.plan", home, leg_m=60.0)
     out = tmp_path / "b"
     argv = [
         "bench", "--scenarios", "UT-200", "--methods", "mapmatch,deadreckon", "--missions",

@@ -137,9 +137,10 @@ def test_dataset_with_two_workers_reports_each_scenarios_frames_when_piped(
 ) -> None:
     missions = tmp_path / "missions"
     missions.mkdir()
-    # 350 m legs: about 1150 frames each, forecast from the plans (the bars' totals).
+    # 150 m legs: about 500 frames each, forecast from the plans (the bars' totals); a line
+    # at each tenth, the workers reporting every simulated second (50 frames).
     for name in ("UC-200", "UC-300"):
-        write_short_plan(missions / f"{name}.plan", HOME, leg_m=350.0, leg="north")
+        write_short_plan(missions / f"{name}.plan", HOME, leg_m=150.0, leg="north")
     run = subprocess.run(
         [sys.executable, "-m", "air_sitl", "dataset", "--missions", str(missions),
          "--scenarios", "UC-200,UC-300", "-j", "2", "--air-start", "--out", str(tmp_path / "air"),

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 from cli_errors import one_line_error
-from short_plans import write_short_plan
+from short_plans import SMALL_CAMERA, write_short_plan
 
 import air_sitl.dataset
 from air_sitl.cli import main
@@ -22,6 +22,8 @@ from air_sitl.state import GeoPoint
 pytestmark = pytest.mark.integration
 
 HOME = GeoPoint(lat_deg=47.3769, lon_deg=8.5417, alt_amsl_m=400.0)
+# The workers, kills, resumes and zips are tested, not the pixels: those runs render the small
+# camera (a third of a 640 x 480 frame's CPU); the map tests keep the default one.
 
 
 def write_plan_file(path: Path, leg_m: float, alt_m: float) -> None:
@@ -42,7 +44,7 @@ def test_two_scenarios_in_parallel_with_zips_and_the_air_table(
 ) -> None:
     root = tmp_path / "root"
     argv = ["dataset", "--missions", str(missions), "--scenarios", "uc-200,FC-300"]
-    argv += ["-j", "2", "--zip", "--air-start", "--out", str(root)]
+    argv += ["-j", "2", "--zip", "--air-start", *SMALL_CAMERA, "--out", str(root)]
     assert main(argv) == 0
     out = capsys.readouterr()
     assert "UC-200" in out.out and "total" in out.out
@@ -128,7 +130,7 @@ def test_killing_a_parallel_run_leaves_no_worker_and_resume_matches_a_serial_run
     missions: Path, tmp_path: Path
 ) -> None:
     base = ["dataset", "--missions", str(missions), "--scenarios", "UC-200,FC-300"]
-    base += ["--air-start", "--quiet"]
+    base += ["--air-start", "--quiet", *SMALL_CAMERA]
     serial = tmp_path / "serial"
     assert main([*base, "-j", "1", "--out", str(serial)]) == 0
     killed = tmp_path / "killed"
@@ -174,7 +176,7 @@ for _ in range(20):
     cv2.warpAffine(img, numpy.eye(2, 3), (2000, 2000))  # parallel: the pool's threads run
 raise SystemExit(main(["dataset", "--missions", {str(missions)!r}, "--scenarios",
                        "UC-200,FC-300", "--air-start", "--quiet", "-j", "2",
-                       "--out", {str(tmp_path / "out")!r}]))
+                       *{SMALL_CAMERA!r}, "--out", {str(tmp_path / "out")!r}]))
 """
     r = subprocess.run(
         [sys.executable, "-c", script], check=False, capture_output=True, text=True, timeout=60

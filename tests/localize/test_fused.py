@@ -10,6 +10,7 @@ import pytest
 
 from air_sitl.dataset.reader import open_archive
 from air_sitl.localize.archive import context_of, observations, run_method
+from air_sitl.localize.base import Estimate
 from air_sitl.localize.fused import REACQUIRE_FIXES, FusedLocalizer
 from air_sitl.localize.mapmatch import MapMatchLocalizer
 from air_sitl.localize.mapmatch_filter import PositionFilter, tilt_jacobian
@@ -29,8 +30,11 @@ def flight(uc200_date1_start: Path) -> Path:
 
 
 @pytest.fixture(scope="module")
-def runs(flight: Path) -> tuple[FusedLocalizer, np.ndarray, np.ndarray]:
-    """``fused`` and ``mapmatch`` over the flight: the fused method and both error series."""
+def runs(
+    flight: Path, mapmatch_on_start: tuple[MapMatchLocalizer, list[Estimate]]
+) -> tuple[FusedLocalizer, np.ndarray, np.ndarray]:
+    """``fused`` and ``mapmatch`` (conftest's run) over the flight: the fused method and both
+    error series."""
     rows = truth_rows(flight)
     fused = FusedLocalizer()
     with open_archive(flight) as arch:
@@ -39,12 +43,7 @@ def runs(flight: Path) -> tuple[FusedLocalizer, np.ndarray, np.ndarray]:
             run_method(fused, context, observations(arch, needs_image=False), total=len(arch)),
             rows,
         )
-        e_mm = horizontal_errors(
-            run_method(
-                MapMatchLocalizer(), context, observations(arch, needs_image=False), total=len(arch)
-            ),
-            rows,
-        )
+    e_mm = horizontal_errors(mapmatch_on_start[1], rows)
     return fused, e_fused, e_mm
 
 

@@ -1,8 +1,14 @@
-"""MAVSDK 4.x (native binding) flies the AIR rectangle and circle plans on our endpoint."""
+"""MAVSDK 4.x (native binding) flies the AIR rectangle and circle plans on our endpoint.
+
+MAVSDK imports each AIR plan file as it is; what is flown is the same items on the course
+drawn 40 % as large around home (:func:`course_at`): the climb, the turns, the loiter and the
+return are all in it, and the flight (this test's CPU) about halves.
+"""
 
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import math
 import time
 from pathlib import Path
@@ -16,8 +22,9 @@ from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
 from mavsdk_wait import ground_station
 
-from air_sitl.mission.items import MissionType
-from air_sitl.mission.plan_file import load_mission
+from air_sitl.frames import geodetic2ned, ned2geodetic
+from air_sitl.mission.items import MissionItem, MissionType
+from air_sitl.mission.plan_file import load_mission, write_plan
 
 REPO = Path(__file__).resolve().parents[2]
 # AIR's line (UL-300) is left out: its items (take-off, waypoints, camera trigger, RTL) are
@@ -27,8 +34,27 @@ PLANS = {
     "circle": REPO / "missions" / "UC-300.plan",
 }
 SPEED = 100.0
+COURSE_SCALE = 0.4
 EARTH_RADIUS_M = 6_371_000.0
 pytestmark = pytest.mark.integration
+
+
+def course_at(plan: Path, out: Path, scale: float) -> Path:
+    """``plan`` with every waypoint's north and east offsets from home times ``scale`` (the
+    altitudes, the loiter radius and every other item as they are), written to ``out``."""
+    mission = load_mission(plan)
+    home = mission.planned_home
+    assert home is not None
+
+    def scaled(item: MissionItem) -> MissionItem:
+        if not (item.is_nav and (item.lat_deg or item.lon_deg)):
+            return item
+        n, e, _ = geodetic2ned(item.lat_deg, item.lon_deg, 0.0, home.lat_deg, home.lon_deg, 0.0)
+        lat, lon, _ = ned2geodetic(n * scale, e * scale, 0.0, home.lat_deg, home.lon_deg, 0.0)
+        return dataclasses.replace(item, lat_deg=lat, lon_deg=lon)
+
+    write_plan(dataclasses.replace(mission, items=tuple(map(scaled, mission.items))), out)
+    return out
 
 
 def _fields(item: object) -> tuple[object, ...]:
@@ -55,17 +81,29 @@ def _track_errors(vehicle: Vehicle, received: list[tuple[float, float, float, in
     return worst
 
 
+def _unplaced(item: object) -> tuple[object, ...]:
+    """:func:`_fields` but the position (x, y)."""
+    fields = _fields(item)
+    return fields[:4] + fields[6:]
+
+
 async def _fly(
-    plan: Path, port: int, vehicle: Vehicle, received: list[tuple[float, float, float, int]]
+    air_plan: Path,
+    plan: Path,
+    port: int,
+    vehicle: Vehicle,
+    received: list[tuple[float, float, float, int]],
 ) -> dict[str, float]:
     async with ground_station(port, timeout_s=SAFETY_S) as system:
         mission = MissionRawAsync(system)
         telemetry = TelemetryAsync(system)
         action = ActionAsync(system)
 
+        air = (await mission.import_qgroundcontrol_mission(str(air_plan))).mission_items
         imported = await mission.import_qgroundcontrol_mission(str(plan))
         items = imported.mission_items
         assert len(items) >= 5
+        assert [_unplaced(i) for i in items] == [_unplaced(i) for i in air]
         t0 = time.monotonic()
         await mission.upload_mission(items)
         upload_s = time.monotonic() - t0
@@ -123,14 +161,14 @@ async def _fly(
 
 
 @pytest.mark.parametrize("shape", sorted(PLANS))
-def test_mavsdk_uploads_and_flies_the_air_plans(shape: str) -> None:
-    plan = PLANS[shape]
+def test_mavsdk_uploads_and_flies_the_air_plans(shape: str, tmp_path: Path) -> None:
+    plan = course_at(PLANS[shape], tmp_path / PLANS[shape].name, COURSE_SCALE)
     home = load_mission(plan).planned_home
     assert home is not None
     port = free_udp_port()
     received: list[tuple[float, float, float, int]] = []
     with running_vehicle([f"udpout:127.0.0.1:{port}"], home, speed=SPEED) as vehicle:
-        result = asyncio.run(_fly(plan, port, vehicle, received))
+        result = asyncio.run(_fly(PLANS[shape], plan, port, vehicle, received))
         assert vehicle.flight.autopilot.mission_completed
     result["max_pos_err_m"] = _track_errors(vehicle, received)
     assert result["positions"] > 20 and result["attitudes"] > 20, result

@@ -24,6 +24,9 @@ pytestmark = pytest.mark.integration
 
 HOME = GeoPoint(lat_deg=38.54, lon_deg=-121.49, alt_amsl_m=10.0)
 RUNS = 9  # the 2x2x2 product and one run over a map that does not exist
+# The runs' frames are scored by deadreckon (no pixels) or not at all: the small camera (160 x
+# 120, no noise: short_plans.SMALL_CAMERA), a third of the default frame's CPU.
+SMALL = {"camera-width": 160, "camera-height": 120, "noise-sigma": 0}
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +35,7 @@ def spec(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (root / "plans").mkdir()
     short_plans.write_short_plan(root / "plans" / "UT-200.plan", HOME, leg_m=30.0)  # 100 frames
     content = {
-        "base": {"plan": "plans/UT-200.plan", "air-start": True, "max-sim-time": 60},
+        "base": {"plan": "plans/UT-200.plan", "air-start": True, "max-sim-time": 60, **SMALL},
         "axes": {"map-date": [0, 1], "wind": ["0@0", "5@270"], "seed": [1, 2]},
         "runs": [{"map": "nowhere/urban.tif", "seed": 3}],
         "methods": ["deadreckon"],
@@ -52,7 +55,7 @@ def small(spec: Path) -> Path:
     """Three runs without methods: what the kill and Ctrl-C tests interrupt."""
     path = spec.with_name("small.yaml")
     content = {
-        "base": {"plan": "plans/UT-200.plan", "air-start": True, "max-sim-time": 60},
+        "base": {"plan": "plans/UT-200.plan", "air-start": True, "max-sim-time": 60, **SMALL},
         "axes": {"seed": [1, 2, 3]},
     }
     path.write_text(yaml.safe_dump(content, sort_keys=False), encoding="utf-8")
