@@ -20,7 +20,7 @@ from inproc import Vehicle, running_vehicle
 from mavsdk.asyncio.plugins.action import ActionAsync
 from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync
-from mavsdk_wait import ground_station
+from mavsdk_wait import ground_station, until_answered
 
 from air_sitl.frames import geodetic2ned, ned2geodetic
 from air_sitl.mission.items import MissionItem, MissionType
@@ -105,7 +105,7 @@ async def _fly(
         assert len(items) >= 5
         assert [_unplaced(i) for i in items] == [_unplaced(i) for i in air]
         t0 = time.monotonic()
-        await mission.upload_mission(items)
+        await until_answered(lambda: mission.upload_mission(items), timeout_s=SAFETY_S)
         upload_s = time.monotonic() - t0
         downloaded = await mission.download_mission()
         assert [_fields(i) for i in downloaded] == [_fields(i) for i in items]
@@ -116,8 +116,8 @@ async def _fly(
         position = await asyncio.wait_for(anext(telemetry.subscribe_position()), SAFETY_S)
         assert math.isfinite(position.latitude_deg)
 
-        await action.arm()
-        await mission.start_mission()
+        await until_answered(action.arm, timeout_s=SAFETY_S)
+        await until_answered(mission.start_mission, timeout_s=SAFETY_S)
         checked = {"positions": 0, "attitudes": 0, "max_att_err_deg": 0.0}
 
         async def check_telemetry() -> None:
