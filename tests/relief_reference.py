@@ -24,9 +24,10 @@ def bilinear(values: F64, x: F64, y: F64) -> F64:
     x0 = np.minimum(np.floor(x).astype(np.int64), w - 2)
     y0 = np.minimum(np.floor(y).astype(np.int64), h - 2)
     fx, fy = x - x0, y - y0
-    v = values
-    top = v[y0, x0] * (1.0 - fx) + v[y0, x0 + 1] * fx
-    bottom = v[y0 + 1, x0] * (1.0 - fx) + v[y0 + 1, x0 + 1] * fx
+    flat, at = values.ravel(), y0 * w + x0  # the posts by flat index: [y0, x0] is at[...]
+    gx = 1.0 - fx
+    top = flat.take(at) * gx + flat.take(at + 1) * fx
+    bottom = flat.take(at + w) * gx + flat.take(at + w + 1) * fx
     out: F64 = top * (1.0 - fy) + bottom * fy
     return out
 
