@@ -38,7 +38,8 @@ def marks_image(
     sig = sigma_m / gsd_m
     step = spacing_m / gsd_m
     centres = []
-    yy, xx = np.mgrid[0:size, 0:size].astype(np.float32)
+    # Pixel coordinates as float32, cut to each dot's box below (not two size x size grids).
+    coords = np.arange(size, dtype=np.float32)
     rng = np.random.default_rng(5)
     c = step / 2
     while c < size - step / 2:
@@ -53,7 +54,8 @@ def marks_image(
     for cx, cy in centres:
         x0, x1 = max(0, int(cx) - rad), min(size, int(cx) + rad)
         y0, y1 = max(0, int(cy) - rad), min(size, int(cy) + rad)
-        g = np.exp(-((xx[y0:y1, x0:x1] - cx) ** 2 + (yy[y0:y1, x0:x1] - cy) ** 2) / (2 * sig**2))
+        xx, yy = coords[np.newaxis, x0:x1], coords[y0:y1, np.newaxis]
+        g = np.exp(-((xx - cx) ** 2 + (yy - cy) ** 2) / (2 * sig**2))
         img[y0:y1, x0:x1] -= 160.0 * g
     gray = np.clip(np.rint(img), 0, 255).astype(np.uint8)
     return np.dstack([gray, gray, gray]), centres
@@ -97,11 +99,20 @@ def px_to_latlon(
     crs: str, transform: tuple[float, float, float, float, float, float], col: float, row: float
 ) -> tuple[float, float]:
     """Pixel-centre coordinates to WGS84 through GDAL (the independent truth)."""
+    return pxs_to_latlons(crs, transform, [(col, row)])[0]
+
+
+def pxs_to_latlons(
+    crs: str,
+    transform: tuple[float, float, float, float, float, float],
+    points: list[tuple[float, float]],
+) -> list[tuple[float, float]]:
+    """:func:`px_to_latlon` of many (column, row) points, in one call of GDAL."""
     t0, t1, t2, t3, t4, t5 = transform
-    x = t0 + t1 * (col + 0.5) + t2 * (row + 0.5)
-    y = t3 + t4 * (col + 0.5) + t5 * (row + 0.5)
-    lons, lats = warp_transform(crs, "EPSG:4326", [x], [y])
-    return (float(lats[0]), float(lons[0]))
+    xs = [t0 + t1 * (col + 0.5) + t2 * (row + 0.5) for col, row in points]
+    ys = [t3 + t4 * (col + 0.5) + t5 * (row + 0.5) for col, row in points]
+    lons, lats = warp_transform(crs, "EPSG:4326", xs, ys)
+    return [(float(lat), float(lon)) for lat, lon in zip(lats, lons, strict=True)]
 
 
 def latlon_to_px(

@@ -16,16 +16,18 @@ from air_sitl.camera.relief import HeightWindow
 F64 = npt.NDArray[np.float64]
 
 
-def bilinear(values: npt.NDArray[np.float32], x: F64, y: F64) -> F64:
-    """Heights at level pixels (x, y) of the window, edges repeated outward."""
+def bilinear(values: F64, x: F64, y: F64) -> F64:
+    """Heights at level pixels (x, y) of the window (its heights as float64), edges repeated
+    outward."""
     h, w = values.shape
     x, y = np.clip(x, 0.0, w - 1.0), np.clip(y, 0.0, h - 1.0)
     x0 = np.minimum(np.floor(x).astype(np.int64), w - 2)
     y0 = np.minimum(np.floor(y).astype(np.int64), h - 2)
     fx, fy = x - x0, y - y0
-    v = values.astype(np.float64)
-    top = v[y0, x0] * (1.0 - fx) + v[y0, x0 + 1] * fx
-    bottom = v[y0 + 1, x0] * (1.0 - fx) + v[y0 + 1, x0 + 1] * fx
+    flat, at = values.ravel(), y0 * w + x0  # the posts by flat index: [y0, x0] is at[...]
+    gx = 1.0 - fx
+    top = flat.take(at) * gx + flat.take(at + 1) * fx
+    bottom = flat.take(at + w) * gx + flat.take(at + w + 1) * fx
     out: F64 = top * (1.0 - fy) + bottom * fy
     return out
 
@@ -53,7 +55,7 @@ def reference_hits(
     ax = (jac[0] * dn + jac[1] * de) / (s * dd)  # level pixels per metre of descent
     ay = (jac[2] * dn + jac[3] * de) / (s * dd)
     x_cam, y_cam = cx - window.x0, cy - window.y0
-    values = window.values
+    values = window.values.astype(np.float64)  # once, not at each of the march's steps
     z_top, z_bot = min(float(values.max()), cam_z), float(values.min())
 
     slope = float(np.abs(np.concatenate([ax, ay])).max())
@@ -90,7 +92,7 @@ def reference_hits(
 
 
 def _above_at(
-    values: npt.NDArray[np.float32], x_cam: float, y_cam: float, cam_z: float, ax: F64,
+    values: F64, x_cam: float, y_cam: float, cam_z: float, ax: F64,
     ay: F64, z: F64,
 ) -> npt.NDArray[np.bool_]:  # fmt: skip
     x, y = x_cam + (cam_z - z) * ax, y_cam + (cam_z - z) * ay

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 import pytest
 from georef_helpers import HOME, utm_grid
 from vehicle_states import above
@@ -18,35 +20,50 @@ ALT_M = 3000.0
 GSD_M = 2.0
 
 
-def _grating_map(levels: int | None = None) -> ArrayMap:
-    """A sinusoidal grating of period 2.5 map px (5 m): far above the image Nyquist at 3000 m."""
-    crs, transform, size = utm_grid(HOME, GSD_M, 2200.0)
+@functools.cache
+def _grating() -> npt.NDArray[np.uint8]:
+    """A sinusoidal grating of period 2.5 map px (5 m): far above the image Nyquist at 3000 m
+    (made once: each map below copies it)."""
+    _crs, _transform, size = utm_grid(HOME, GSD_M, 2200.0)
     yy, xx = np.mgrid[0:size, 0:size].astype(np.float32)
     a = math.radians(30.0)
     phase = (xx * math.cos(a) + yy * math.sin(a)) * (2 * math.pi / 2.5)
     gray = np.clip(128 + 100 * np.sin(phase), 0, 255).astype(np.uint8)
-    m = ArrayMap(
-        np.dstack([gray] * 3), crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m
-    )
-    if levels is not None:
-        m.num_levels = levels  # a map without a pyramid: the naive renderer
-    return m
+    bgr = np.dstack([gray] * 3)
+    bgr.flags.writeable = False
+    return bgr
 
 
-def _texture_map(levels: int | None = None) -> ArrayMap:
-    """Broadband random texture (detail at every scale down to the map pixel)."""
-    crs, transform, size = utm_grid(HOME, GSD_M, 2200.0)
+@functools.cache
+def _texture() -> npt.NDArray[np.uint8]:
+    """Broadband random texture (detail at every scale down to the map pixel), made once."""
+    _crs, _transform, size = utm_grid(HOME, GSD_M, 2200.0)
     rng = np.random.default_rng(3)
     noise = rng.normal(0, 1, (size, size)).astype(np.float32)
     tex = sum(cv2.GaussianBlur(noise, (0, 0), s) * s for s in (0.7, 2.0, 6.0))
     tex = 128 + 60 * tex / tex.std()
     gray = np.clip(tex, 0, 255).astype(np.uint8)
-    m = ArrayMap(
-        np.dstack([gray] * 3), crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m
-    )
+    bgr = np.dstack([gray] * 3)
+    bgr.flags.writeable = False
+    return bgr
+
+
+def _map(bgr: npt.NDArray[np.uint8], levels: int | None) -> ArrayMap:
+    """A map of its own (ArrayMap copies the pixels) over ``bgr``; ``levels=1``: a map without
+    a pyramid, the naive renderer's."""
+    crs, transform, _size = utm_grid(HOME, GSD_M, 2200.0)
+    m = ArrayMap(bgr, crs=crs, transform=transform, ground_elevation_m=HOME.alt_amsl_m)
     if levels is not None:
         m.num_levels = levels
     return m
+
+
+def _grating_map(levels: int | None = None) -> ArrayMap:
+    return _map(_grating(), levels)
+
+
+def _texture_map(levels: int | None = None) -> ArrayMap:
+    return _map(_texture(), levels)
 
 
 def _state(roll_deg: float = 0.0):  # type: ignore[no-untyped-def]

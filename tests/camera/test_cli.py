@@ -38,9 +38,10 @@ def test_render_writes_a_jpeg(tmp_path: Path) -> None:
 
 @pytest.mark.integration
 def test_map_make_then_render_it(tmp_path: Path) -> None:
+    # 300 x 240 m: the frame at 200 m (217 x 163 m) with 40 m to spare on each side.
     tif = tmp_path / "m.tif"
     r = _cli(
-        *("map", "make", "forest", "--out", str(tif), "--size-m", "900", "700"),
+        *("map", "make", "forest", "--out", str(tif), "--size-m", "300", "240"),
         *("--origin", f"{HOME.lat_deg},{HOME.lon_deg}", "--date", "2"),
     )
     assert r.returncode == 0, r.stderr
@@ -50,6 +51,7 @@ def test_map_make_then_render_it(tmp_path: Path) -> None:
         *("--alt-agl", "200", "--out", str(out), "--noise-sigma", "0"),
     )
     assert r.returncode == 0, r.stderr
+    assert "off the map" not in r.stderr, r.stderr  # the whole frame shows the map made
     img = cv2.imread(str(out))
     assert img is not None and img.shape == (480, 640, 3)
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from georef_helpers import HOME, latlon_to_px, marks_image, px_to_latlon, utm_grid, write_tif
+from georef_helpers import HOME, latlon_to_px, marks_image, pxs_to_latlons, utm_grid, write_tif
 
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
@@ -56,8 +56,7 @@ def test_marks_land_within_half_a_pixel(marks_map, roll_deg: float, pitch_deg: f
     )
     gray = renderer.render(state)[:, :, 1].astype(np.float64)
     errors = []
-    for col, row in centres:
-        mlat, mlon = px_to_latlon(crs, transform, col, row)
+    for mlat, mlon in pxs_to_latlons(crs, transform, centres):
         ned = geodetic2ned(mlat, mlon, HOME.alt_amsl_m, lat, lon, HOME.alt_amsl_m + alt)
         p = camera.project_ned(ned, (0.0, 0.0, 0.0), state.q_body_to_ned_wxyz)[0]
         rng_m = math.sqrt(sum(v * v for v in ned))

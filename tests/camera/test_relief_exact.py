@@ -18,7 +18,6 @@ from relief_reference import reference_hits
 from air_sitl.camera import relief
 from air_sitl.camera.model import CameraModel
 from air_sitl.camera.render import Renderer, pose_state
-from air_sitl.maps.base import MapSource
 from air_sitl.maps.geotiff import GeoTiffDem
 from air_sitl.maps.open import open_map, open_surface
 from air_sitl.maps.surface import SurfaceModel
@@ -28,9 +27,11 @@ MAX_OFF_SHARE = 0.005  # the issue's bound: at most 0.5 % of the pixels off
 WINDOW = (slice(0, 96), slice(0, 128))  # image rows, columns: a corner, where things lean most
 
 
-def _dsm(path: Path, m: MapSource) -> GeoTiffDem:
-    """The urban built-in surface as a lidar-like GeoTIFF DSM at twice the map's pixel size
-    (1.2 m), 1.5 km around home, opened as a DEM over the map."""
+@pytest.fixture(scope="module")
+def dsm_tif(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The urban built-in surface (seed 2) as a lidar-like GeoTIFF DSM at twice the map's
+    pixel size (1.2 m), 1.5 km around home: written once for the three altitudes."""
+    m = open_map("urban", HOME, seed=2)
     builtin = open_surface("builtin", m)
     assert builtin is not None
     hx, hy = m.latlon_to_map_px(HOME.lat_deg, HOME.lon_deg)
@@ -39,8 +40,8 @@ def _dsm(path: Path, m: MapSource) -> GeoTiffDem:
     heights = builtin.heights(1, x0, y0, 2 * n, 2 * n)
     _, t1, t2, _, t4, t5 = m.georef.transform
     ex, ey = m.georef.px_to_crs(2 * x0 - 0.5, 2 * y0 - 0.5)  # level-1 pixel (x0, y0)'s corner
-    tif = write_tif(path, heights, m.georef.crs, (ex, 2 * t1, 2 * t2, ey, 2 * t4, 2 * t5))
-    return GeoTiffDem(tif, m)
+    path = tmp_path_factory.mktemp("relief_exact") / "dsm.tif"
+    return write_tif(path, heights, m.georef.crs, (ex, 2 * t1, 2 * t2, ey, 2 * t4, 2 * t5))
 
 
 def renderer_maps(renderer: Renderer, state: Any) -> tuple[Any, ...]:
@@ -78,11 +79,14 @@ def off_share(renderer: Renderer, alt_m: float) -> tuple[float, int]:
 @pytest.mark.parametrize("alt_m", [200.0, 300.0, 3000.0])
 @pytest.mark.parametrize("source", ["urban", "forest", "dsm"])
 def test_every_pixel_shows_the_first_surface_its_ray_meets(
-    source: str, alt_m: float, tmp_path: Path
+    source: str, alt_m: float, request: pytest.FixtureRequest
 ) -> None:
     m = open_map("urban" if source == "dsm" else source, HOME, seed=2)
     surface: SurfaceModel | None
-    surface = _dsm(tmp_path / "dsm.tif", m) if source == "dsm" else open_surface("builtin", m)
+    if source == "dsm":  # the DSM opened as a DEM over the map
+        surface = GeoTiffDem(request.getfixturevalue("dsm_tif"), m)
+    else:
+        surface = open_surface("builtin", m)
     renderer = Renderer(m, CameraModel(noise_sigma=0.0), seed=2, surface=surface)
     share, level = off_share(renderer, alt_m)
     assert level == (3 if alt_m > 1000 else 0)  # the levels the figures are about

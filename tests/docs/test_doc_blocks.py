@@ -22,9 +22,10 @@ the ports of a real ground station:
   flight, and the localizer answers each of the climb's 1,800 frames too, 20 s of CPU against
   10 s from the air); ``dataset``,
   ``bench`` and ``sweep`` get ``--missions missions`` (the short plans, not the checkout's).
-- ``map make`` writes at 5 m pixels (``--gsd-m 5``), and a ``--size-m`` window becomes 800 m
+- ``map make`` writes at 2.5 m pixels (``--gsd-m 2.5``), and a ``--size-m`` window becomes 800 m
   square around the short flight from the nearest plan's home (a procedural map's cost grows
-  with its area, whatever its pixels: 1300 x 3800 m took a minute of CPU at any pixel size).
+  with its area, whatever its pixels: 1300 x 3800 m took a minute of CPU at any pixel size;
+  800 m took 0.6 s at 2.5 m pixels, 1.3 s at 5 m, where the coarser level draws a wider square).
   tests/docs/test_readme_tour.py checks the full window against the full plan.
 - a SPEC from ``examples/`` is cut to its first value on every axis and 45 simulated seconds.
 - ``serve`` gets ``--max-sim-time 5``, ``--no-video`` and a link on a port the kernel picks;
@@ -169,7 +170,7 @@ def as_run(argv: list[str], folder: Path, endpoint: str) -> list[str]:
     ):
         args += ["--missions", "missions"]  # the short plans (else the checkout's own)
     if args[:2] == ["map", "make"] and "--gsd-m" not in args:
-        args += ["--gsd-m", "5"]
+        args += ["--gsd-m", "2.5"]
     if args[:2] == ["map", "make"] and "--size-m" in args and "--origin" in args:
         at = args.index("--origin") + 1
         args[at] = short_flight_area(args[at])

@@ -3,6 +3,7 @@ determinism, bounded memory."""
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -31,15 +32,25 @@ def _gray(img: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float32)
 
 
+@functools.cache
+def _date_frame(kind: str, date: int) -> np.ndarray:
+    """The frame at 300 m over ``kind`` at ``date``, from a map and renderer of its own:
+    rendered once for the two date pairs below that read it."""
+    cam = CameraModel(noise_sigma=0.0)
+    frame = Renderer(open_map(kind, HOME, seed=3, date=date), cam).render(
+        _state(300.0, 120.0, -80.0)
+    )
+    frame.flags.writeable = False
+    return frame
+
+
 @pytest.mark.parametrize("kind", ["urban", "forest"])
 @pytest.mark.parametrize(("d0", "d1"), [(0, 1), (0, 2), (1, 2)])
 def test_dates_differ_and_are_misregistered_within_bounds(kind: str, d0: int, d1: int) -> None:
     """Each date is its own survey: the orthophotos are misregistered against each other
     like real ones (a shift of 0.5-1.5 m plus a local warp below 1 m), never more."""
     cam = CameraModel(noise_sigma=0.0)
-    state = _state(300.0, 120.0, -80.0)
-    a = Renderer(open_map(kind, HOME, seed=3, date=d0), cam).render(state)
-    b = Renderer(open_map(kind, HOME, seed=3, date=d1), cam).render(state)
+    a, b = _date_frame(kind, d0), _date_frame(kind, d1)
     differ = (np.abs(a.astype(np.int16) - b.astype(np.int16)).max(axis=2) > 20).mean()
     assert differ >= 0.10, f"only {differ:.1%} of pixels differ"
     window = cv2.createHanningWindow((a.shape[1], a.shape[0]), cv2.CV_32F)
@@ -90,10 +101,21 @@ def test_memory_stays_bounded_on_a_long_flight() -> None:
     cap = 24 * 1024 * 1024
     m = ProceduralMap("urban", HOME, seed=1, cache_bytes=cap)
     renderer = Renderer(m, CameraModel(noise_sigma=0.0))
-    for i in range(60):  # 6 km east at 300 m: new ground all the way
+    put = m._cache.put
+    stored = []  # bytes of every tile put in the cache
+
+    def counting_put(key: tuple[int, int, int], tile: np.ndarray) -> None:
+        stored.append(tile.nbytes)
+        put(key, tile)
+
+    m._cache.put = counting_put  # type: ignore[method-assign]
+    for i in range(45):  # 4.5 km east at 300 m: new ground all the way
         renderer.render(_state(300.0, 0.0, 100.0 * i, yaw=math.pi / 2))
         assert m.cache_bytes <= cap
-    assert m.cache_bytes > cap // 2  # the cache was really used and evicted
+    assert m.cache_bytes > cap // 2  # the cache was really used
+    # and evicted: the flight drew more ground than the cache holds (a third more; it is full
+    # by 3 km, then each new tile evicts one)
+    assert sum(stored) > cap, sum(stored) / cap
 
 
 def test_map_make_writes_the_procedural_pixels(tmp_path: Path) -> None:
