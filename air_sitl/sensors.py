@@ -56,25 +56,26 @@ class SensorNoise:
 class NormalRows:
     """Rows of standard normal draws served one at a time from pre-drawn blocks (fast, seeded;
     the stream does not depend on the block size): as lists (:meth:`row`) or as an index into
-    the block's array (:meth:`index`, for the compiled sensors)."""
+    the block's array (:meth:`index`, for the compiled sensors). ``next_index`` is the next
+    row's index while it is below ``len(array)`` (a 200 Hz caller may take it itself)."""
 
-    __slots__ = ("_block", "_i", "_rng", "_width", "array")
+    __slots__ = ("_block", "_rng", "_width", "array", "next_index")
 
     def __init__(self, rng: np.random.Generator, width: int) -> None:
         self._rng = rng
         self._width = width
         self.array = np.zeros((0, width))
         self._block: list[list[float]] | None = []
-        self._i = 0
+        self.next_index = 0
 
     def index(self) -> int:
         """The next row's index in :attr:`array`."""
-        if self._i >= len(self.array):
+        if self.next_index >= len(self.array):
             self.array = self._rng.standard_normal((2048, self._width))
             self._block = None
-            self._i = 0
-        self._i += 1
-        return self._i - 1
+            self.next_index = 0
+        self.next_index += 1
+        return self.next_index - 1
 
     def row(self) -> list[float]:
         """The next row."""
@@ -127,12 +128,18 @@ class SensorSuite:
     def sample(self, state: VehicleState) -> tuple[ImuSample, GpsFix | None]:
         """Sensor readings for one physics step (call once per step, in order)."""
         rows = self._step_noise
-        i = rows.index()
+        i = rows.next_index  # rows.index(), the common case written out (a 200 Hz path)
+        if i < len(rows.array):
+            rows.next_index = i + 1
+        else:
+            i = rows.index()
         p, q, r = state.rate_frd_rad_s
         fx, fy, fz = state.specific_force_frd_m_s2
         aw, ax, ay, az = state.q_body_to_ned_wxyz
-        o = sk.imu(rows.array, i, self._errors, self._figures, p, q, r, fx, fy, fz, aw, ax, ay, az)
-        imu = imu_sample(state.sim_time_ns, o[:3], o[3:6], o[6:])  # ImuSample's field order
+        gyro, accel, ahrs = sk.imu(
+            rows.array, i, self._errors, self._figures, p, q, r, fx, fy, fz, aw, ax, ay, az
+        )
+        imu = imu_sample(state.sim_time_ns, gyro, accel, ahrs)  # ImuSample's field order
         gps = None
         if state.sim_time_ns % self.gps_period_ns == 0:
             # Draw even while denied so denial windows do not shift later noise.

@@ -377,7 +377,16 @@ class JSBSimModel:
 
     def step(self, command: ActuatorCommand) -> VehicleState:
         """Apply ``command`` and advance one physics step."""
-        self._apply(command)
+        # _apply written out (a 200 Hz path): the same properties in the same order.
+        self._set_aileron(command.aileron)
+        self._set_elevator(command.elevator)
+        rudder = command.rudder
+        self._set_rudder(-rudder)
+        self._set_steer(rudder)
+        self._set_throttle(command.throttle)
+        brake = command.brake
+        self._set_brake_left(brake)
+        self._set_brake_right(brake)
         run = self._run
         if self._substeps == 1:
             run()
@@ -404,18 +413,18 @@ class JSBSimModel:
             # The ground the wheels meet during the next step: the terrain under the aircraft.
             ground_m, surface_m = terrain.ground_and_surface_at(lat, lon)
             self._set_terrain_ft(ground_m * M_FT)
-        o = state_kernel.truth(self._ned.array, lat, lon, alt_m, phi, theta, psi)
+        ned, quat, yaw = state_kernel.truth(self._ned.array, lat, lon, alt_m, phi, theta, psi)
         return vehicle_state(
             self._time_ns,
             lat,
             lon,
             alt_m,
             alt_m - self._ground.alt_amsl_m,
-            o[:3],
-            o[3:7],
+            ned,
+            quat,
             phi,
             theta,
-            o[7],
+            yaw,
             (g[6]() * FT_M, g[7]() * FT_M, g[8]() * FT_M),
             (g[9](), g[10](), g[11]()),
             (g[12]() * FT_M, g[13]() * FT_M, g[14]() * FT_M),
