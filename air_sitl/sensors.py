@@ -123,6 +123,8 @@ class SensorSuite:
 
     def gps_denied(self, sim_time_ns: int) -> bool:
         """True inside any GNSS denial window [start, end)."""
+        if not self.gps_denied_ns:
+            return False  # none (the filter asks at 50 Hz)
         return any(a <= sim_time_ns < b for a, b in self.gps_denied_ns)
 
     def sample(self, state: VehicleState) -> tuple[ImuSample, GpsFix | None]:

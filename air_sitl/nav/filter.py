@@ -59,10 +59,16 @@ class NavFilter:
 
     def __init__(self, home: GeoPoint, params: NavParams | None = None) -> None:
         self.home = home
-        self._local = LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
         self.params = p = params or NavParams()
         self.g = g = normal_gravity_m_s2(home.lat_deg, home.alt_amsl_m)
         self.ekf = ekf = ErrorStateEkf(p, g)
+        from air_sitl.nav import geodetic  # compiled, as ErrorStateEkf's kernels: loaded now
+
+        self._local = LocalNed(
+            home.lat_deg, home.lon_deg, home.alt_amsl_m, lat_alt=geodetic.lat_alt
+        )
+        # The estimate's attitude as ZYX Euler angles (frames.quat2euler, compiled).
+        self.euler = geodetic.euler
         self._strapdown = sd = ekf.strapdown
         # The output predictor (the state at the newest filter period, see strapdown), the
         # ring of IMU deltas the delayed filter has not reached yet, and its indices.

@@ -27,7 +27,6 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Protocol
 
-from air_sitl.frames import quat2euler
 from air_sitl.nav.filter import NavFilter
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.sensors_extra import (
@@ -196,7 +195,7 @@ class OnboardNav:
             # A filter period passed (every 20 ms): the full estimate.
             self._out_t = out_t
             est = self.estimate = nav.estimate()
-            self._euler = quat2euler(est.q_body_to_ned_wxyz)
+            self._euler = nav.euler(*est.q_body_to_ned_wxyz)  # frames.quat2euler, compiled
         # Between periods the attitude and velocity of the last period (at most 15 ms old),
         # the position moved on along the velocity, the rates of this IMU sample.
         dt = (t - est.sim_time_ns) * 1e-9
