@@ -61,7 +61,7 @@ def _row(sample: SimSample) -> str:
     return _ROW_FORMAT % (
         s.sim_time_ns, s.lat_deg, s.lon_deg, s.alt_amsl_m, *s.pos_ned_m,
         *s.q_body_to_ned_wxyz, *s.vel_ned_m_s, *s.rate_frd_rad_s, s.airspeed_m_s,
-        a.mode.value, a.current_seq, a.capturing,
+        a.mode._value_, a.current_seq, a.capturing,  # _value_: .value without enum's property
     )  # fmt: skip
 
 

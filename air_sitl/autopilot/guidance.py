@@ -81,19 +81,21 @@ def follow_line(
     damping: float,
     bank_limit_rad: float,
     heading_rad: float = 0.0,
+    course_gs: tuple[float, float] | None = None,
 ) -> LineTracking:
     """L1 bank command to follow the line A->B from position (pn, pe) at ground velocity.
 
     Far behind A (more than L1 away and more than 45 degrees off the line's direction) the
     aircraft heads for A first, as PX4 does; otherwise it intercepts the line at up to 45
     degrees. ``heading_rad`` stands in for the ground course when hardly moving.
+    ``course_gs``: :func:`course_of` the velocity and heading, when the caller has it.
     """
     dn = b[0] - a[0]
     de = b[1] - a[1]
     leg = math.hypot(dn, de)
-    chi_v, gs = course_of(vn, ve, heading_rad)
+    chi_v, gs = course_gs if course_gs is not None else course_of(vn, ve, heading_rad)
     speed = gs if gs > MIN_GUIDANCE_SPEED_M_S else MIN_GUIDANCE_SPEED_M_S
-    l1 = l1_ratio(period_s, damping) * speed
+    l1 = period_s * damping / math.pi * speed  # l1_ratio written out (50 Hz)
     rn = pn - a[0]
     re = pe - a[1]
     if leg < 1e-6:
@@ -113,7 +115,7 @@ def follow_line(
         s = xtrack / l1
         s = _SIN_45 if s > _SIN_45 else (-_SIN_45 if s < -_SIN_45 else s)
         chi_ref = course - math.asin(s)
-    eta = wrap_pi(chi_ref - chi_v)
+    eta = (chi_ref - chi_v + math.pi) % _TWO_PI - math.pi  # wrap_pi written out (50 Hz)
     eta = _HALF_PI if eta > _HALF_PI else (-_HALF_PI if eta < -_HALF_PI else eta)
     accel = 4.0 * damping * damping * speed * speed / l1 * math.sin(eta)
     return LineTracking(bank_for_accel(accel, bank_limit_rad), xtrack, along, leg, course)
@@ -132,6 +134,7 @@ def follow_circle(
     damping: float,
     bank_limit_rad: float,
     heading_rad: float = 0.0,
+    course_gs: tuple[float, float] | None = None,
 ) -> CircleTracking:
     """L1 loiter: bank command to circle ``center`` at ``radius_m``.
 
@@ -139,6 +142,7 @@ def follow_circle(
     ArduPilot's ``update_loiter``: outside the circle the aircraft heads for the centre
     ("capture") until the circle law asks for the sharper turn, then flies the circle with a
     PD law on the radial error plus the centripetal acceleration of the tangential speed.
+    ``course_gs``: :func:`course_of` the velocity and heading, when the caller has it.
     """
     rn = pn - center[0]
     re = pe - center[1]
@@ -147,9 +151,9 @@ def follow_circle(
         urn, ure = 1.0, 0.0
     else:
         urn, ure = rn / dist, re / dist
-    chi_v, gs = course_of(vn, ve, heading_rad)
+    chi_v, gs = course_gs if course_gs is not None else course_of(vn, ve, heading_rad)
     speed = gs if gs > MIN_GUIDANCE_SPEED_M_S else MIN_GUIDANCE_SPEED_M_S
-    l1 = l1_ratio(period_s, damping) * speed
+    l1 = period_s * damping / math.pi * speed  # l1_ratio written out (50 Hz)
     omega = _TWO_PI / period_s
     # Capture: L1 toward the centre.
     nu = wrap_pi(math.atan2(-ure, -urn) - chi_v)
