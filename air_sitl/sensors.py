@@ -8,14 +8,22 @@ here reads the wall clock.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from air_sitl import sensors_kernel as sk
 from air_sitl.clock import NS_PER_S
-from air_sitl.frames import ned2geodetic
-from air_sitl.state import GeoPoint, GpsFix, ImuSample, VehicleState, imu_sample
+from air_sitl.frames import LocalNed
+from air_sitl.state import (
+    GeoPoint,
+    GpsFix,
+    ImuSample,
+    VehicleState,
+    imu_sample,
+    positional_builder,
+)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -99,6 +107,8 @@ class SensorSuite:
     ) -> None:
         self.noise = noise or SensorNoise()
         self.home = home
+        self._local_home: GeoPoint | None = None  # the home of _local (made at the first fix)
+        self._local: LocalNed | None = None
         self.step_s = step_ns / NS_PER_S
         self.gps_period_ns = round(NS_PER_S / self.noise.gps_rate_hz)
         self.gps_denied_ns = gps_denied_ns
@@ -153,27 +163,32 @@ class SensorSuite:
     def _fix(self, state: VehicleState, g: list[float]) -> GpsFix:
         n = self.noise
         north, east, down = state.pos_ned_m
-        lat, lon, alt = ned2geodetic(
+        home = self.home
+        local = self._local
+        if local is None or self._local_home is not home:  # ned2geodetic's frame, made once
+            self._local_home = home
+            local = self._local = LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
+        lat, lon, alt = local.to_geodetic(
             north + g[0] * n.gps_horizontal_m,
             east + g[1] * n.gps_horizontal_m,
             down + g[2] * n.gps_vertical_m,
-            self.home.lat_deg,
-            self.home.lon_deg,
-            self.home.alt_amsl_m,
         )
         v = state.vel_ned_m_s
-        return GpsFix(
-            sim_time_ns=state.sim_time_ns,
-            lat_deg=lat,
-            lon_deg=lon,
-            alt_amsl_m=alt,
-            vel_ned_m_s=(
+        return gps_fix(  # positional, in GpsFix's field order (5 Hz)
+            state.sim_time_ns,
+            lat,
+            lon,
+            alt,
+            (
                 v[0] + g[3] * n.gps_velocity_m_s,
                 v[1] + g[4] * n.gps_velocity_m_s,
                 v[2] + g[5] * n.gps_velocity_m_s,
             ),
-            fix_type=3,
-            satellites=14,
-            eph_m=max(n.gps_horizontal_m, 0.01),
-            epv_m=max(n.gps_vertical_m, 0.01),
+            3,
+            14,
+            max(n.gps_horizontal_m, 0.01),
+            max(n.gps_vertical_m, 0.01),
         )
+
+
+gps_fix: Callable[..., GpsFix] = positional_builder(GpsFix)

@@ -201,13 +201,14 @@ class MissionSequencer:
         self._do.update(state)
         tick = self._tick = self._tick_now()
         out = self._task.update(tick)
-        # Tasks may finish several in a row (a waypoint, then DO items): bounded by the items.
-        for _ in range(len(self._items) + 4):
-            if not self._task.done:
-                break
-            self._task_done()
-            tick.speed = self._speed(p, tick.course)
-            out = self._task.update(tick)
+        if self._task.done:
+            # Tasks may finish several in a row (a waypoint, then DO items): bounded by the items.
+            for _ in range(len(self._items) + 4):
+                if not self._task.done:
+                    break
+                self._task_done()
+                tick.speed = self._speed(p, tick.course)
+                out = self._task.update(tick)
         task = self._task
         if self._terrain is not None and isinstance(task, (LegTask, LoiterTask)):
             out = self._follow_terrain(out, tick)

@@ -180,15 +180,9 @@ class TakeoffTask(Task):
             # Steer back onto the runway centre line; wings level.
             heading = self.course - max(-0.2, min(0.2, line.cross_track_m / 50.0))
             bank = 0.0
-        target = ControlTarget(
-            phase=self.stage,
-            roll_rad=bank,
-            altitude_amsl_m=self.alt,
-            airspeed_m_s=t.speed,
-            heading_rad=heading,
-            climb_rate_limit_m_s=p.climb_max_m_s,
-        )
-        return NavOutput(target)
+        # positional, in ControlTarget's field order (the rest their defaults), at 50 Hz
+        target = control_target(self.stage, bank, self.alt, t.speed, heading, p.climb_max_m_s)
+        return nav_output(target)
 
 
 class LegTask(Task):
