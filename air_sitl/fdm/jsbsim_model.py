@@ -399,13 +399,17 @@ class JSBSimModel:
     def _build_state(self) -> VehicleState:
         # A 200 Hz path: geodetic -> NED about _LocalNed's origin and Euler -> quaternion
         # compiled (state_kernel), the state built positionally (state.vehicle_state).
-        g = self._getters
-        lat = g[0]()
-        lon = g[1]()
-        alt_m = g[2]() * FT_M
-        phi = g[3]()
-        theta = g[4]()
-        psi = g[5]()
+        (
+            get_lat, get_lon, get_alt, get_phi, get_theta, get_psi, get_vn, get_ve, get_vd,
+            get_p, get_q, get_r, get_fx, get_fy, get_fz, get_vtrue, get_wow,
+        ) = self._getters  # fmt: skip
+        ft_m = FT_M
+        lat = get_lat()
+        lon = get_lon()
+        alt_m = get_alt() * ft_m
+        phi = get_phi()
+        theta = get_theta()
+        psi = get_psi()
         ground_m: float | None = None
         surface_m: float | None = None
         terrain = self._terrain
@@ -425,11 +429,11 @@ class JSBSimModel:
             phi,
             theta,
             yaw,
-            (g[6]() * FT_M, g[7]() * FT_M, g[8]() * FT_M),
-            (g[9](), g[10](), g[11]()),
-            (g[12]() * FT_M, g[13]() * FT_M, g[14]() * FT_M),
-            g[15]() * FT_M,
-            g[16]() > 0.5,
+            (get_vn() * ft_m, get_ve() * ft_m, get_vd() * ft_m),
+            (get_p(), get_q(), get_r()),
+            (get_fx() * ft_m, get_fy() * ft_m, get_fz() * ft_m),
+            get_vtrue() * ft_m,
+            get_wow() > 0.5,
             ground_m,
             surface_m,
         )
