@@ -201,11 +201,14 @@ def switch_distance_m(
     The tangent point of a turn at 80% of the bank limit: ``R * tan(turn / 2)``, capped at
     three turn radii for near-reversals.
     """
-    turn = abs(wrap_pi(course_out_rad - course_in_rad))
-    radius = turn_radius_m(max(speed_m_s, MIN_GUIDANCE_SPEED_M_S), 0.8 * bank_limit_rad)
+    # wrap_pi, turn_radius_m, max and min written out (50 Hz), choosing as the builtins do.
+    turn = abs((course_out_rad - course_in_rad + math.pi) % _TWO_PI - math.pi)
+    speed = MIN_GUIDANCE_SPEED_M_S if speed_m_s < MIN_GUIDANCE_SPEED_M_S else speed_m_s
+    radius = speed * speed / (GRAVITY_M_S2 * math.tan(0.8 * bank_limit_rad))
     if turn >= 0.8 * math.pi:
         return 3.0 * radius
-    return min(3.0 * radius, radius * math.tan(0.5 * turn))
+    ahead = radius * math.tan(0.5 * turn)
+    return ahead if ahead < 3.0 * radius else 3.0 * radius
 
 
 def angle_travelled(previous_rad: float, current_rad: float, direction: int) -> float:

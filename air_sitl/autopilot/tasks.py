@@ -229,16 +229,15 @@ class LegTask(Task):
         dist_b = math.hypot(self.b[0] - t.pn, self.b[1] - t.pe)
         switch = self.acc
         if self.course_out is not None and line.leg_length_m > 0.0:
-            turn_speed = max(t.gs, t.speed)
-            switch = max(
-                switch,
-                min(
-                    0.5 * line.leg_length_m,
-                    guidance.switch_distance_m(
-                        line.course_rad, self.course_out, turn_speed, p.bank_limit_rad
-                    ),
-                ),
+            # max(t.gs, t.speed), max(switch, min(half the leg, the turn's distance)) written
+            # out (50 Hz), choosing as the builtins do.
+            turn_speed = t.speed if t.speed > t.gs else t.gs
+            half = 0.5 * line.leg_length_m
+            turn = guidance.switch_distance_m(
+                line.course_rad, self.course_out, turn_speed, p.bank_limit_rad
             )
+            turn = turn if turn < half else half
+            switch = turn if turn > switch else switch
         if dist_b <= switch or (
             line.leg_length_m > 0.0 and line.along_track_m >= line.leg_length_m
         ):
