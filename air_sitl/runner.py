@@ -29,7 +29,14 @@ from air_sitl.nav.params import NavParams
 from air_sitl.options import DEFAULT_AIRCRAFT, FlightOptions
 from air_sitl.sensors import SensorNoise, SensorSuite
 from air_sitl.sinks import FlightResult, FrameSource, Sink
-from air_sitl.state import CameraTick, GeoPoint, SimSample, VehicleState, sim_sample
+from air_sitl.state import (
+    CameraTick,
+    GeoPoint,
+    SimSample,
+    VehicleState,
+    camera_tick,
+    sim_sample,
+)
 
 InboxItem = Callable[["Flight"], None]
 ProgressFn = Callable[[SimSample, "Flight"], None]
@@ -134,7 +141,7 @@ class Flight:
         elif not self.keep_camera_on:
             return None
         c.camera_ticks += 1
-        return CameraTick(index=c.camera_ticks - 1, capture_index=capture_index)
+        return camera_tick(c.camera_ticks - 1, capture_index)  # positional: index, capture
 
     def _deliver(self, frames: Iterable[object]) -> None:
         for frame in frames:
