@@ -19,6 +19,7 @@ _SIN_45 = math.sqrt(0.5)
 _HALF_PI = 0.5 * math.pi
 _TWO_PI = 2.0 * math.pi
 MIN_GUIDANCE_SPEED_M_S = 5.0  # below this (on the ground) L1 uses this speed for its distance
+_tuple_new = tuple.__new__  # what a NamedTuple's __new__ calls, without its Python frame
 
 
 class LineTracking(NamedTuple):
@@ -118,7 +119,14 @@ def follow_line(
     eta = (chi_ref - chi_v + math.pi) % _TWO_PI - math.pi  # wrap_pi written out (50 Hz)
     eta = _HALF_PI if eta > _HALF_PI else (-_HALF_PI if eta < -_HALF_PI else eta)
     accel = 4.0 * damping * damping * speed * speed / l1 * math.sin(eta)
-    return LineTracking(bank_for_accel(accel, bank_limit_rad), xtrack, along, leg, course)
+    # LineTracking(bank_for_accel(...), ...) written out (50 Hz): the tuple NamedTuple's
+    # __new__ makes, the bank as bank_for_accel clamps it.
+    bank = math.atan(accel / GRAVITY_M_S2)
+    if bank > bank_limit_rad:
+        bank = bank_limit_rad
+    elif bank < -bank_limit_rad:
+        bank = -bank_limit_rad
+    return _tuple_new(LineTracking, (bank, xtrack, along, leg, course))
 
 
 def follow_circle(
@@ -172,9 +180,13 @@ def follow_circle(
     accel = accel_capture if capturing else accel_circle
     angle = math.atan2(ure, urn)
     course = angle + direction * _HALF_PI
-    return CircleTracking(
-        bank_for_accel(accel, bank_limit_rad), radial_error, angle, capturing, wrap_pi(course)
-    )
+    bank = math.atan(accel / GRAVITY_M_S2)  # bank_for_accel written out (50 Hz)
+    if bank > bank_limit_rad:
+        bank = bank_limit_rad
+    elif bank < -bank_limit_rad:
+        bank = -bank_limit_rad
+    course = (course + math.pi) % _TWO_PI - math.pi  # wrap_pi
+    return _tuple_new(CircleTracking, (bank, radial_error, angle, capturing, course))
 
 
 def altitude_on_leg(

@@ -199,7 +199,9 @@ class MissionSequencer:
             deferred, self._deferred = self._deferred, None
             deferred()
         self._do.update(state)
-        tick = self._tick = self._tick_now()
+        p_now = self.guidance_params  # _tick_now written out (50 Hz): the state is this one
+        tick = self._tick = Tick(state, p_now, 0.0)
+        tick.speed = self._speed(p_now, tick.course)
         out = self._task.update(tick)
         if self._task.done:
             # Tasks may finish several in a row (a waypoint, then DO items): bounded by the items.
