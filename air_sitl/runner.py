@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from air_sitl.autopilot.autopilot import Autopilot, air_start_pose
 from air_sitl.autopilot.control import Controller, gains_for
 from air_sitl.autopilot.params import ParamStore
-from air_sitl.battery import Battery, live_spec
+from air_sitl.battery import Battery
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S, PHYSICS_STEP_NS, Pacer, SimClock
 from air_sitl.errors import PlanError
 from air_sitl.fdm.base import FlightModel, InitialCondition, Terrain
@@ -335,7 +335,7 @@ def assemble_flight(
         ),
         clock=SimClock(fdm.step_ns),
         state=state0,
-        battery=Battery(live_spec(params)),
+        battery=Battery.following(params),
         keep_camera_on=options.nav_aid is not None,
     )
     return flight, home, initial
