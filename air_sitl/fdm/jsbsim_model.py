@@ -169,6 +169,7 @@ class JSBSimModel:
         self._set_throttle: Any = None
         self._set_brake_left: Any = None
         self._set_brake_right: Any = None
+        self._setters: tuple[Any, ...] = ()  # the seven above, in _apply's order (step's)
         self._new_exec()  # fail early on a model JSBSim cannot load
 
     # ------------------------------------------------------------------ set-up
@@ -211,6 +212,10 @@ class JSBSimModel:
         self._set_throttle = node("fcs/throttle-cmd-norm").set_double_value
         self._set_brake_left = node("fcs/left-brake-cmd-norm").set_double_value
         self._set_brake_right = node("fcs/right-brake-cmd-norm").set_double_value
+        self._setters = (
+            self._set_aileron, self._set_elevator, self._set_rudder, self._set_steer,
+            self._set_throttle, self._set_brake_left, self._set_brake_right,
+        )  # fmt: skip
         self._set_terrain_ft = node("position/terrain-elevation-asl-ft").set_double_value
         self._run = fdm.run
         self._fdm = fdm
@@ -378,15 +383,14 @@ class JSBSimModel:
     def step(self, command: ActuatorCommand) -> VehicleState:
         """Apply ``command`` and advance one physics step."""
         # _apply written out (a 200 Hz path): the same properties in the same order.
-        self._set_aileron(command.aileron)
-        self._set_elevator(command.elevator)
-        rudder = command.rudder
-        self._set_rudder(-rudder)
-        self._set_steer(rudder)
-        self._set_throttle(command.throttle)
-        brake = command.brake
-        self._set_brake_left(brake)
-        self._set_brake_right(brake)
+        aileron, elevator, rudder, steer, throttle, brake_left, brake_right = self._setters
+        aileron(command.aileron)
+        elevator(command.elevator)
+        rudder(-command.rudder)
+        steer(command.rudder)
+        throttle(command.throttle)
+        brake_left(command.brake)
+        brake_right(command.brake)
         run = self._run
         if self._substeps == 1:
             run()
