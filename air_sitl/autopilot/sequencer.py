@@ -199,18 +199,15 @@ class MissionSequencer:
             deferred, self._deferred = self._deferred, None
             deferred()
         self._do.update(state)
-        p_now = self.guidance_params  # _tick_now written out (50 Hz): the state is this one
-        tick = self._tick = Tick(state, p_now, 0.0)
-        tick.speed = self._speed(p_now, tick.course)
+        tick = self._tick = self._tick_now()
         out = self._task.update(tick)
-        if self._task.done:
-            # Tasks may finish several in a row (a waypoint, then DO items): bounded by the items.
-            for _ in range(len(self._items) + 4):
-                if not self._task.done:
-                    break
-                self._task_done()
-                tick.speed = self._speed(p, tick.course)
-                out = self._task.update(tick)
+        # Tasks may finish several in a row (a waypoint, then DO items): bounded by the items.
+        for _ in range(len(self._items) + 4):
+            if not self._task.done:
+                break
+            self._task_done()
+            tick.speed = self._speed(p, tick.course)
+            out = self._task.update(tick)
         task = self._task
         if self._terrain is not None and isinstance(task, (LegTask, LoiterTask)):
             out = self._follow_terrain(out, tick)
