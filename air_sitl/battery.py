@@ -86,7 +86,11 @@ def terminal_voltage_v(open_circuit_v: float, r_ohm: float, power_w: float) -> f
 
 
 class Battery:
-    """Integrates the pack's charge over simulated time."""
+    """Integrates the pack's charge over simulated time.
+
+    ``spec``: the pack, or a function giving it now; :meth:`following` a parameter store
+    (the pack read again only when the store changes).
+    """
 
     def __init__(self, spec: BatterySpec | Callable[[], BatterySpec]) -> None:
         self._spec = spec if callable(spec) else (lambda: spec)
@@ -95,17 +99,23 @@ class Battery:
         self.consumed_wh = 0.0
         self._packed_spec: BatterySpec | None = None
         self._pack = np.zeros(0)
+        self._params: VersionedParams | None = None
+        self._params_version = -1
+
+    @classmethod
+    def following(cls, params: VersionedParams) -> Battery:
+        """The pack of ``params`` (BAT1_*, :func:`live_spec`), asked for only after a change
+        of the store (its ``version``), not at every step."""
+        battery = cls(live_spec(params))
+        battery._params = params
+        return battery
 
     def step(self, sim_time_ns: int, throttle: float) -> BatteryState:
         """The state after flying at ``throttle`` since the last step (compiled: a 200 Hz
         path, :mod:`air_sitl.battery_kernel`)."""
-        spec = self._spec()
-        if spec is not self._packed_spec:
-            self._packed_spec = spec
-            self._pack = np.array(
-                [spec.capacity_mah, spec.cells, spec.v_charged_cell, spec.v_empty_cell,
-                 spec.r_internal_ohm, 2.0, 3.0], dtype=np.float64,
-            )  # fmt: skip
+        params = self._params
+        if params is None or params.version != self._params_version:
+            self._refresh_pack()
         last = self._last_ns
         dt_s = 0.0 if last is None else (sim_time_ns - last) / NS_PER_S
         self._last_ns = sim_time_ns
@@ -113,6 +123,19 @@ class Battery:
         self.consumed_mah = out[2]
         self.consumed_wh = out[3]
         return battery_state(*out)  # BatteryState's field order
+
+    def _refresh_pack(self) -> None:
+        """The kernel's array of the pack as ``spec`` gives it now (built again when it
+        changes); the store's version it was read at (a battery following one)."""
+        if self._params is not None:
+            self._params_version = self._params.version
+        spec = self._spec()
+        if spec is not self._packed_spec:
+            self._packed_spec = spec
+            self._pack = np.array(
+                [spec.capacity_mah, spec.cells, spec.v_charged_cell, spec.v_empty_cell,
+                 spec.r_internal_ohm, 2.0, 3.0], dtype=np.float64,
+            )  # fmt: skip
 
 
 # Warning levels, as MAV_BATTERY_CHARGE_STATE: OK 1, LOW 2, CRITICAL 3, EMERGENCY 4.

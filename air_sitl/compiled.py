@@ -55,7 +55,8 @@ class Group:
 
 GROUPS = {
     "nav": Group("the navigation filter",
-                 ("air_sitl.nav.quaternion", "air_sitl.nav.kernels", "air_sitl.nav.strapdown")),
+                 ("air_sitl.nav.quaternion", "air_sitl.nav.kernels", "air_sitl.nav.strapdown",
+                  "air_sitl.nav.geodetic")),
     "relief": Group("the relief renderer", ("air_sitl.camera.relief_march",)),
     "effects": Group("the camera effects", ("air_sitl.camera.effects_kernel",
                                              "air_sitl.camera.effects_pixels_kernel")),

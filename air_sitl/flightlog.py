@@ -17,7 +17,7 @@ from air_sitl.errors import DatasetError
 from air_sitl.files import write_all, write_error
 from air_sitl.nav.columns import NAV_COLUMNS, nav_fields
 from air_sitl.sinks import FlightResult, NullSink
-from air_sitl.state import BatteryState, FlightMode, SimSample, VehicleState
+from air_sitl.state import AutopilotStatus, BatteryState, FlightMode, SimSample, VehicleState
 
 TRAJECTORY_COLUMNS = (
     "sim_time_ns",
@@ -61,7 +61,7 @@ def _row(sample: SimSample) -> str:
     return _ROW_FORMAT % (
         s.sim_time_ns, s.lat_deg, s.lon_deg, s.alt_amsl_m, *s.pos_ned_m,
         *s.q_body_to_ned_wxyz, *s.vel_ned_m_s, *s.rate_frd_rad_s, s.airspeed_m_s,
-        a.mode.value, a.current_seq, a.capturing,
+        a.mode._value_, a.current_seq, a.capturing,  # _value_: .value without enum's property
     )  # fmt: skip
 
 
@@ -205,6 +205,7 @@ class FlightStats:
         self.sim_time_ns = 0
         self.battery: BatteryState | None = None
         self.min_battery_v: float | None = None
+        self._tracked: AutopilotStatus | None = None  # the status whose errors are counted
 
     def add(self, sample: SimSample) -> None:
         """Account for one physics sample (a 200 Hz path: the common case written out)."""
@@ -231,7 +232,9 @@ class FlightStats:
                 self._in_contact = False
             if a.mission_completed and self.crashed is None:
                 self.mission_completed = True
-        if a.tracking_settled:
+        if a.tracking_settled and a is not self._tracked:
+            # Guidance's errors change at 50 Hz: a status seen already adds nothing.
+            self._tracked = a
             if not math.isnan(a.cross_track_m):
                 self.max_cross_track_m = max(self.max_cross_track_m or 0.0, abs(a.cross_track_m))
             if not math.isnan(a.alt_error_m):

@@ -8,6 +8,7 @@ vectors expressed in frame a into frame b. Pure Python ``math``: fast enough for
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from air_sitl.state import Quat, Vec3
 
@@ -16,7 +17,7 @@ WGS84_F = 1.0 / 298.257223563
 WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
 WGS84_B_M = WGS84_A_M * (1.0 - WGS84_F)
 GRAVITY_M_S2 = 9.80665
-_NEAR_POLE_RAD = math.radians(89.0)  # beyond: the height from z (cos(lat) vanishes)
+NEAR_POLE_RAD = math.radians(89.0)  # beyond: the height from z (cos(lat) vanishes)
 
 
 def geodetic2ecef(lat_deg: float, lon_deg: float, alt_m: float) -> Vec3:
@@ -45,7 +46,7 @@ def geodetic_lat_alt(p: float, z: float) -> tuple[float, float]:
         n = WGS84_A_M / math.sqrt(1.0 - WGS84_E2 * sin_lat * sin_lat)
         alt = (
             p / math.cos(lat) - n
-            if abs(lat) < _NEAR_POLE_RAD
+            if abs(lat) < NEAR_POLE_RAD
             else z / sin_lat - n * (1.0 - WGS84_E2)
         )
         new = math.atan2(z, p * (1.0 - WGS84_E2 * n / (n + alt)))
@@ -67,11 +68,20 @@ class LocalNed:
     """A local NED frame at a fixed origin, its rotation and ECEF origin computed once (a
     filter converting every 20 ms at one home pays only for the conversion itself)."""
 
-    __slots__ = ("_m", "_origin")
+    __slots__ = ("_lat_alt", "_m", "_origin")
 
-    def __init__(self, lat0_deg: float, lon0_deg: float, alt0_m: float) -> None:
+    def __init__(
+        self,
+        lat0_deg: float,
+        lon0_deg: float,
+        alt0_m: float,
+        *,
+        lat_alt: Callable[[float, float], tuple[float, float]] = geodetic_lat_alt,
+    ) -> None:
+        """``lat_alt``: :func:`geodetic_lat_alt`, or a compiled twin of it (the filter's)."""
         self._m = _ecef2ned_matrix(lat0_deg, lon0_deg)
         self._origin = geodetic2ecef(lat0_deg, lon0_deg, alt0_m)
+        self._lat_alt = lat_alt
 
     def from_geodetic(self, lat_deg: float, lon_deg: float, alt_m: float) -> Vec3:
         """Position of a WGS84 point in this frame (n, e, d metres)."""
@@ -93,7 +103,10 @@ class LocalNed:
         dy = m[0][1] * n_m + m[1][1] * e_m + m[2][1] * d_m
         dz = m[0][2] * n_m + m[1][2] * e_m + m[2][2] * d_m
         x0, y0, z0 = self._origin
-        return ecef2geodetic(x0 + dx, y0 + dy, z0 + dz)
+        # ecef2geodetic, with this frame's lat_alt.
+        x, y, z = x0 + dx, y0 + dy, z0 + dz
+        lat, alt = self._lat_alt(math.hypot(x, y), z)
+        return (math.degrees(lat), math.degrees(math.atan2(y, x)), alt)
 
 
 def geodetic2ned(

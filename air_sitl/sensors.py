@@ -8,14 +8,22 @@ here reads the wall clock.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from air_sitl import sensors_kernel as sk
 from air_sitl.clock import NS_PER_S
-from air_sitl.frames import ned2geodetic
-from air_sitl.state import GeoPoint, GpsFix, ImuSample, VehicleState, imu_sample
+from air_sitl.frames import LocalNed
+from air_sitl.state import (
+    GeoPoint,
+    GpsFix,
+    ImuSample,
+    VehicleState,
+    imu_sample,
+    positional_builder,
+)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -56,25 +64,26 @@ class SensorNoise:
 class NormalRows:
     """Rows of standard normal draws served one at a time from pre-drawn blocks (fast, seeded;
     the stream does not depend on the block size): as lists (:meth:`row`) or as an index into
-    the block's array (:meth:`index`, for the compiled sensors)."""
+    the block's array (:meth:`index`, for the compiled sensors). ``next_index`` is the next
+    row's index while it is below ``len(array)`` (a 200 Hz caller may take it itself)."""
 
-    __slots__ = ("_block", "_i", "_rng", "_width", "array")
+    __slots__ = ("_block", "_rng", "_width", "array", "next_index")
 
     def __init__(self, rng: np.random.Generator, width: int) -> None:
         self._rng = rng
         self._width = width
         self.array = np.zeros((0, width))
         self._block: list[list[float]] | None = []
-        self._i = 0
+        self.next_index = 0
 
     def index(self) -> int:
         """The next row's index in :attr:`array`."""
-        if self._i >= len(self.array):
+        if self.next_index >= len(self.array):
             self.array = self._rng.standard_normal((2048, self._width))
             self._block = None
-            self._i = 0
-        self._i += 1
-        return self._i - 1
+            self.next_index = 0
+        self.next_index += 1
+        return self.next_index - 1
 
     def row(self) -> list[float]:
         """The next row."""
@@ -98,6 +107,8 @@ class SensorSuite:
     ) -> None:
         self.noise = noise or SensorNoise()
         self.home = home
+        self._local_home: GeoPoint | None = None  # the home of _local (made at the first fix)
+        self._local: LocalNed | None = None
         self.step_s = step_ns / NS_PER_S
         self.gps_period_ns = round(NS_PER_S / self.noise.gps_rate_hz)
         self.gps_denied_ns = gps_denied_ns
@@ -122,17 +133,25 @@ class SensorSuite:
 
     def gps_denied(self, sim_time_ns: int) -> bool:
         """True inside any GNSS denial window [start, end)."""
+        if not self.gps_denied_ns:
+            return False  # none (the filter asks at 50 Hz)
         return any(a <= sim_time_ns < b for a, b in self.gps_denied_ns)
 
     def sample(self, state: VehicleState) -> tuple[ImuSample, GpsFix | None]:
         """Sensor readings for one physics step (call once per step, in order)."""
         rows = self._step_noise
-        i = rows.index()
+        i = rows.next_index  # rows.index(), the common case written out (a 200 Hz path)
+        if i < len(rows.array):
+            rows.next_index = i + 1
+        else:
+            i = rows.index()
         p, q, r = state.rate_frd_rad_s
         fx, fy, fz = state.specific_force_frd_m_s2
         aw, ax, ay, az = state.q_body_to_ned_wxyz
-        o = sk.imu(rows.array, i, self._errors, self._figures, p, q, r, fx, fy, fz, aw, ax, ay, az)
-        imu = imu_sample(state.sim_time_ns, o[:3], o[3:6], o[6:])  # ImuSample's field order
+        gyro, accel, ahrs = sk.imu(
+            rows.array, i, self._errors, self._figures, p, q, r, fx, fy, fz, aw, ax, ay, az
+        )
+        imu = imu_sample(state.sim_time_ns, gyro, accel, ahrs)  # ImuSample's field order
         gps = None
         if state.sim_time_ns % self.gps_period_ns == 0:
             # Draw even while denied so denial windows do not shift later noise.
@@ -144,27 +163,32 @@ class SensorSuite:
     def _fix(self, state: VehicleState, g: list[float]) -> GpsFix:
         n = self.noise
         north, east, down = state.pos_ned_m
-        lat, lon, alt = ned2geodetic(
+        home = self.home
+        local = self._local
+        if local is None or self._local_home is not home:  # ned2geodetic's frame, made once
+            self._local_home = home
+            local = self._local = LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
+        lat, lon, alt = local.to_geodetic(
             north + g[0] * n.gps_horizontal_m,
             east + g[1] * n.gps_horizontal_m,
             down + g[2] * n.gps_vertical_m,
-            self.home.lat_deg,
-            self.home.lon_deg,
-            self.home.alt_amsl_m,
         )
         v = state.vel_ned_m_s
-        return GpsFix(
-            sim_time_ns=state.sim_time_ns,
-            lat_deg=lat,
-            lon_deg=lon,
-            alt_amsl_m=alt,
-            vel_ned_m_s=(
+        return gps_fix(  # positional, in GpsFix's field order (5 Hz)
+            state.sim_time_ns,
+            lat,
+            lon,
+            alt,
+            (
                 v[0] + g[3] * n.gps_velocity_m_s,
                 v[1] + g[4] * n.gps_velocity_m_s,
                 v[2] + g[5] * n.gps_velocity_m_s,
             ),
-            fix_type=3,
-            satellites=14,
-            eph_m=max(n.gps_horizontal_m, 0.01),
-            epv_m=max(n.gps_vertical_m, 0.01),
+            3,
+            14,
+            max(n.gps_horizontal_m, 0.01),
+            max(n.gps_vertical_m, 0.01),
         )
+
+
+gps_fix: Callable[..., GpsFix] = positional_builder(GpsFix)

@@ -24,16 +24,17 @@ WALK, GYRO_NOISE, ACCEL_NOISE, DRIFT, AHRS_NOISE, DRIFT_LIMIT = range(6)
 
 
 @compiled(
-    "UniTuple(f8, 10)(f8[:, ::1], i8, f8[::1], f8[::1], f8, f8, f8, f8, f8, f8, f8, f8, f8, f8)"
+    "Tuple((UniTuple(f8, 3), UniTuple(f8, 3), UniTuple(f8, 4)))"
+    "(f8[:, ::1], i8, f8[::1], f8[::1], f8, f8, f8, f8, f8, f8, f8, f8, f8, f8)"
 )
 def imu(
     Z: Array, row: int, E: Array, F: Array, p: float, q: float, r: float, fx: float,
     fy: float, fz: float, aw: float, ax: float, ay: float, az: float,
-) -> tuple[float, ...]:  # fmt: skip
-    """Gyro (3), accelerometer (3) and the AHRS quaternion (4) of the truth's rates ``p, q,
-    r``, specific force ``f`` and attitude ``a`` (w, x, y, z), with the draws ``Z[row]``: per
-    step bias walk (3), gyro noise (3), accel noise (3), AHRS drift (3), jitter (3). ``E``:
-    gyro bias (3), accelerometer bias (3), AHRS drift (3), updated."""
+) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:  # fmt: skip
+    """Gyro (3), accelerometer (3) and the AHRS quaternion (4), as ImuSample's tuples, of the
+    truth's rates ``p, q, r``, specific force ``f`` and attitude ``a`` (w, x, y, z), with the
+    draws ``Z[row]``: per step bias walk (3), gyro noise (3), accel noise (3), AHRS drift (3),
+    jitter (3). ``E``: gyro bias (3), accelerometer bias (3), AHRS drift (3), updated."""
     z = Z[row]
     walk = F[WALK]
     E[0] += z[0] * walk
@@ -66,4 +67,4 @@ def imu(
     qz = aw * ez + ax * ey - ay * ex + az
     norm = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
     k = 1.0 / norm if qw >= 0 else -1.0 / norm
-    return (g0, g1, g2, a0, a1, a2, qw * k, qx * k, qy * k, qz * k)
+    return (g0, g1, g2), (a0, a1, a2), (qw * k, qx * k, qy * k, qz * k)

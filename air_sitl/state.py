@@ -276,3 +276,4 @@ imu_sample: Callable[..., ImuSample] = positional_builder(ImuSample)
 actuator_command: Callable[..., ActuatorCommand] = positional_builder(ActuatorCommand)
 battery_state: Callable[..., BatteryState] = positional_builder(BatteryState)
 autopilot_status: Callable[..., AutopilotStatus] = positional_builder(AutopilotStatus)
+camera_tick: Callable[..., CameraTick] = positional_builder(CameraTick)  # 50 Hz

@@ -137,9 +137,9 @@ def step_parts(
 
         fdm = flight.fdm
         assert isinstance(fdm, JSBSimModel)
-        timed(fdm, "_run", "JSBSim FGFDMExec.run()")
-        timed(fdm, "_build_state", "property reads -> VehicleState (truth)")
-        timed(fdm, "_apply", "commands -> JSBSim properties")
+        timed(fdm, "step", "flight model (JSBSimModel.step: commands, frame, reads)")
+        timed(fdm, "_run", "  JSBSim FGFDMExec.run()")
+        timed(fdm, "_build_state", "  property reads -> VehicleState (truth)")
         timed(flight.sensors, "sample", "sensors: IMU, AHRS, GNSS")
         if flight.nav is not None:
             timed(flight.nav, "update", "onboard EKF (OnboardNav.update)")

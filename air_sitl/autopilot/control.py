@@ -38,6 +38,7 @@ from air_sitl.clock import NS_PER_S, PHYSICS_STEP_NS
 from air_sitl.state import ActuatorCommand, VehicleState, actuator_command
 
 GRAVITY_M_S2 = ck.GRAVITY_M_S2
+_CRUISE = ControlPhase.CRUISE
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -195,8 +196,19 @@ class Controller:
     def update(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
         """One step of the control law of ``target.phase``."""
         phase = target.phase
-        if phase is ControlPhase.CRUISE and self._prev_phase is ControlPhase.CRUISE:
-            return self._cruise(state, target)  # the 200 Hz path: one compiled call
+        if phase is _CRUISE and self._prev_phase is _CRUISE:
+            # The 200 Hz path: _cruise written out, one compiled call.
+            p, q, r = state.rate_frd_rad_s
+            fx, fy, _ = state.specific_force_frd_m_s2
+            return actuator_command(  # positional, in ActuatorCommand's field order
+                *ck.cruise(
+                    self._g, self._m, state.roll_rad, state.pitch_rad, p, q, r,
+                    state.vel_ned_m_s[2], fx, fy, state.airspeed_m_s, state.alt_amsl_m,
+                    state.on_ground, target.roll_rad, target.altitude_amsl_m,
+                    target.airspeed_m_s, target.climb_rate_limit_m_s, target.pitch_min_rad,
+                    target.pitch_max_rad,
+                )
+            )  # fmt: skip
         g = self.gains
         m = self._m
         # max() and min() written out, choosing as the builtins do.
@@ -286,30 +298,15 @@ class Controller:
         )
 
     def _climb(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
-        g = self.gains
-        scale = self._schedule(state.airspeed_m_s)
-        speed_dem = _clamp(target.airspeed_m_s, g.min_airspeed_m_s, g.max_airspeed_m_s)
-        # Pitch for airspeed: too fast -> pitch up. The balance integrator trims the attitude.
-        speed_err = state.airspeed_m_s - speed_dem
-        balance_i = self._integrate(
-            float(self._m[ck.BALANCE_I]), g.climb_speed_k * 0.2 * speed_err, g.energy_i_limit
-        )
-        self._m[ck.BALANCE_I] = balance_i
-        pitch_cmd = g.climb_pitch_rad + g.climb_speed_k * speed_err + balance_i
-        pitch_cmd = max(pitch_cmd, g.trim_pitch_rad)
-        elevator = self._elevator(state, pitch_cmd, scale)
-        aileron = self._aileron(state, target.roll_rad, scale)
-        rudder = self._rudder_air(state, scale) if not state.on_ground else 0.0
-        # Do not climb faster than the target allows: take power off (pitch keeps the speed).
-        over = -state.vel_ned_m_s[2] - target.climb_rate_limit_m_s
-        throttle = g.climb_throttle
-        if over > 0.0:
-            throttle = max(
-                g.climb_throttle - 3.0 * g.throttle_ff * over / max(state.airspeed_m_s, 1.0),
-                g.trim_throttle,
+        p, q, r = state.rate_frd_rad_s
+        return actuator_command(  # positional, in ActuatorCommand's field order
+            *ck.climb(
+                self._g, self._m, state.roll_rad, state.pitch_rad, p, q, r,
+                state.vel_ned_m_s[2], state.specific_force_frd_m_s2[1], state.airspeed_m_s,
+                state.on_ground, target.roll_rad, target.airspeed_m_s,
+                target.climb_rate_limit_m_s,
             )
-        self._m[ck.THROTTLE_I] = 0.0
-        return ActuatorCommand(aileron=aileron, elevator=elevator, rudder=rudder, throttle=throttle)
+        )  # fmt: skip
 
     def _cruise(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
         p, q, r = state.rate_frd_rad_s
@@ -320,8 +317,7 @@ class Controller:
                 state.vel_ned_m_s[2], fx, fy, state.airspeed_m_s, state.alt_amsl_m,
                 state.on_ground, target.roll_rad, target.altitude_amsl_m, target.airspeed_m_s,
                 target.climb_rate_limit_m_s, target.pitch_min_rad, target.pitch_max_rad,
-            ),
-            0.0,
+            )
         )  # fmt: skip
 
     def _land(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:

@@ -22,7 +22,8 @@ from air_sitl.compiled import compiled
 Array = npt.NDArray[np.float64]
 GRAVITY_M_S2 = 9.80665
 
-# The gains array: ControlGains' fields of these names, then the step and the exponent 2.0.
+# The gains array: ControlGains' fields of these names, then the step and the exponent 2.0,
+# then the climb's (CLIMB_FIELDS).
 GAIN_FIELDS = (
     "ref_airspeed_m_s", "min_airspeed_m_s", "max_airspeed_m_s", "trim_throttle",
     "trim_pitch_rad", "roll_kp", "roll_ki", "roll_kd", "roll_i_limit", "max_bank_rad",
@@ -34,7 +35,9 @@ GAIN_FIELDS = (
 (REF_V, MIN_V, MAX_V, TRIM_THROTTLE, TRIM_PITCH, ROLL_KP, ROLL_KI, ROLL_KD, ROLL_I_LIMIT,
  MAX_BANK, PITCH_KP, PITCH_KI, PITCH_KD, PITCH_I_LIMIT, MAX_PITCH, MIN_PITCH, YAW_KY, YAW_KR,
  HEIGHT_K, SPEED_K, MAX_ACCEL, MAX_VERT_ACCEL, DEMAND_FILTER_S, ACCEL_FILTER_S, THROTTLE_FF,
- THROTTLE_KP, THROTTLE_KI, BALANCE_KP, BALANCE_KI, ENERGY_I_LIMIT, DT, TWO) = range(32)  # fmt: skip
+ THROTTLE_KP, THROTTLE_KI, BALANCE_KP, BALANCE_KI, ENERGY_I_LIMIT, DT, TWO, CLIMB_PITCH,
+ CLIMB_SPEED_K, CLIMB_THROTTLE) = range(35)  # fmt: skip
+CLIMB_FIELDS = ("climb_pitch_rad", "climb_speed_k", "climb_throttle")
 # The memory array: integrators, filters, the pitch limits of the current step.
 (ROLL_I, PITCH_I, THROTTLE_I, BALANCE_I, VDOT, HDOT_DEM, H_DEM_PREV, H_DEM_RATE, PITCH_LO,
  PITCH_HI) = range(10)  # fmt: skip
@@ -43,7 +46,10 @@ MEMORY = 10
 
 def gains_array(gains: Any, dt_s: float) -> Array:
     """``gains`` (a ControlGains) as the kernels' array."""
-    return np.array([*(float(getattr(gains, name)) for name in GAIN_FIELDS), dt_s, 2.0])
+    return np.array(
+        [*(float(getattr(gains, name)) for name in GAIN_FIELDS), dt_s, 2.0,
+         *(float(getattr(gains, name)) for name in CLIMB_FIELDS)]
+    )  # fmt: skip
 
 
 @compiled("f8(f8[::1], f8)")
@@ -188,7 +194,7 @@ def _tecs(
 
 
 @compiled(
-    "UniTuple(f8, 4)(f8[::1], f8[::1], f8, f8, f8, f8, f8, f8, f8, f8, f8, f8, b1, f8, "
+    "UniTuple(f8, 5)(f8[::1], f8[::1], f8, f8, f8, f8, f8, f8, f8, f8, f8, f8, b1, f8, "
     "f8, f8, f8, f8, f8)"
 )
 def cruise(
@@ -196,10 +202,10 @@ def cruise(
     fx: float, fy: float, airspeed: float, h: float, on_ground: bool, roll_cmd: float,
     height_dem_m: float, speed_dem_m_s: float, climb_limit: float, pitch_min: float,
     pitch_max: float,
-) -> tuple[float, float, float, float]:  # fmt: skip
+) -> tuple[float, float, float, float, float]:  # fmt: skip
     """One step of the cruise phase from the state's attitude, rates, down velocity, specific
     force, airspeed and altitude AMSL and the target's: (aileron, elevator, rudder,
-    throttle)."""
+    throttle, brake), ActuatorCommand's fields."""
     M[PITCH_LO] = pitch_min if pitch_min > G[MIN_PITCH] else G[MIN_PITCH]
     M[PITCH_HI] = pitch_max if pitch_max < G[MAX_PITCH] else G[MAX_PITCH]
     scale = schedule(G, airspeed)
@@ -211,4 +217,43 @@ def cruise(
         elevator(G, M, pitch, q, roll, airspeed, pitch_cmd, scale),
         rudder_air(G, roll, pitch, airspeed, fy, r, scale),
         throttle,
+        0.0,
     )
+
+
+@compiled("UniTuple(f8, 5)(f8[::1], f8[::1], f8, f8, f8, f8, f8, f8, f8, f8, b1, f8, f8, f8)")
+def climb(
+    G: Array, M: Array, roll: float, pitch: float, p: float, q: float, r: float, vd: float,
+    fy: float, airspeed: float, on_ground: bool, roll_cmd: float, speed_dem_m_s: float,
+    climb_limit: float,
+) -> tuple[float, float, float, float, float]:  # fmt: skip
+    """One step of the climb-out from the state's attitude, rates, down velocity, lateral
+    specific force and airspeed and the target's bank, airspeed and climb-rate limit:
+    (aileron, elevator, rudder, throttle, brake): pitch for airspeed (too fast, pitch up;
+    ``M[BALANCE_I]`` trims it), full power less what would climb faster than the limit."""
+    scale = schedule(G, airspeed)
+    v_min, v_max = G[MIN_V], G[MAX_V]
+    speed_dem = (
+        v_min if speed_dem_m_s < v_min else v_max if speed_dem_m_s > v_max else speed_dem_m_s
+    )
+    speed_err = airspeed - speed_dem
+    k = G[CLIMB_SPEED_K]
+    limit = G[ENERGY_I_LIMIT]
+    i = M[BALANCE_I] + k * 0.2 * speed_err * G[DT]
+    balance_i = -limit if i < -limit else limit if i > limit else i
+    M[BALANCE_I] = balance_i
+    pitch_cmd = G[CLIMB_PITCH] + k * speed_err + balance_i
+    trim_pitch = G[TRIM_PITCH]
+    pitch_cmd = trim_pitch if trim_pitch > pitch_cmd else pitch_cmd  # max(pitch_cmd, trim)
+    elevator_out = elevator(G, M, pitch, q, roll, airspeed, pitch_cmd, scale)
+    aileron_out = aileron(G, M, roll, p, on_ground, roll_cmd, scale)
+    rudder_out = 0.0 if on_ground else rudder_air(G, roll, pitch, airspeed, fy, r, scale)
+    over = -vd - climb_limit
+    throttle = G[CLIMB_THROTTLE]
+    if over > 0.0:
+        v = 1.0 if airspeed < 1.0 else airspeed  # max(airspeed, 1.0)
+        x = G[CLIMB_THROTTLE] - 3.0 * G[THROTTLE_FF] * over / v
+        trim = G[TRIM_THROTTLE]
+        throttle = trim if trim > x else x  # max(x, trim)
+    M[THROTTLE_I] = 0.0
+    return aileron_out, elevator_out, rudder_out, throttle, 0.0

@@ -19,6 +19,7 @@ _SIN_45 = math.sqrt(0.5)
 _HALF_PI = 0.5 * math.pi
 _TWO_PI = 2.0 * math.pi
 MIN_GUIDANCE_SPEED_M_S = 5.0  # below this (on the ground) L1 uses this speed for its distance
+_tuple_new = tuple.__new__  # what a NamedTuple's __new__ calls, without its Python frame
 
 
 class LineTracking(NamedTuple):
@@ -81,19 +82,21 @@ def follow_line(
     damping: float,
     bank_limit_rad: float,
     heading_rad: float = 0.0,
+    course_gs: tuple[float, float] | None = None,
 ) -> LineTracking:
     """L1 bank command to follow the line A->B from position (pn, pe) at ground velocity.
 
     Far behind A (more than L1 away and more than 45 degrees off the line's direction) the
     aircraft heads for A first, as PX4 does; otherwise it intercepts the line at up to 45
     degrees. ``heading_rad`` stands in for the ground course when hardly moving.
+    ``course_gs``: :func:`course_of` the velocity and heading, when the caller has it.
     """
     dn = b[0] - a[0]
     de = b[1] - a[1]
     leg = math.hypot(dn, de)
-    chi_v, gs = course_of(vn, ve, heading_rad)
+    chi_v, gs = course_gs if course_gs is not None else course_of(vn, ve, heading_rad)
     speed = gs if gs > MIN_GUIDANCE_SPEED_M_S else MIN_GUIDANCE_SPEED_M_S
-    l1 = l1_ratio(period_s, damping) * speed
+    l1 = period_s * damping / math.pi * speed  # l1_ratio written out (50 Hz)
     rn = pn - a[0]
     re = pe - a[1]
     if leg < 1e-6:
@@ -113,10 +116,17 @@ def follow_line(
         s = xtrack / l1
         s = _SIN_45 if s > _SIN_45 else (-_SIN_45 if s < -_SIN_45 else s)
         chi_ref = course - math.asin(s)
-    eta = wrap_pi(chi_ref - chi_v)
+    eta = (chi_ref - chi_v + math.pi) % _TWO_PI - math.pi  # wrap_pi written out (50 Hz)
     eta = _HALF_PI if eta > _HALF_PI else (-_HALF_PI if eta < -_HALF_PI else eta)
     accel = 4.0 * damping * damping * speed * speed / l1 * math.sin(eta)
-    return LineTracking(bank_for_accel(accel, bank_limit_rad), xtrack, along, leg, course)
+    # LineTracking(bank_for_accel(...), ...) written out (50 Hz): the tuple NamedTuple's
+    # __new__ makes, the bank as bank_for_accel clamps it.
+    bank = math.atan(accel / GRAVITY_M_S2)
+    if bank > bank_limit_rad:
+        bank = bank_limit_rad
+    elif bank < -bank_limit_rad:
+        bank = -bank_limit_rad
+    return _tuple_new(LineTracking, (bank, xtrack, along, leg, course))
 
 
 def follow_circle(
@@ -132,6 +142,7 @@ def follow_circle(
     damping: float,
     bank_limit_rad: float,
     heading_rad: float = 0.0,
+    course_gs: tuple[float, float] | None = None,
 ) -> CircleTracking:
     """L1 loiter: bank command to circle ``center`` at ``radius_m``.
 
@@ -139,6 +150,7 @@ def follow_circle(
     ArduPilot's ``update_loiter``: outside the circle the aircraft heads for the centre
     ("capture") until the circle law asks for the sharper turn, then flies the circle with a
     PD law on the radial error plus the centripetal acceleration of the tangential speed.
+    ``course_gs``: :func:`course_of` the velocity and heading, when the caller has it.
     """
     rn = pn - center[0]
     re = pe - center[1]
@@ -147,9 +159,9 @@ def follow_circle(
         urn, ure = 1.0, 0.0
     else:
         urn, ure = rn / dist, re / dist
-    chi_v, gs = course_of(vn, ve, heading_rad)
+    chi_v, gs = course_gs if course_gs is not None else course_of(vn, ve, heading_rad)
     speed = gs if gs > MIN_GUIDANCE_SPEED_M_S else MIN_GUIDANCE_SPEED_M_S
-    l1 = l1_ratio(period_s, damping) * speed
+    l1 = period_s * damping / math.pi * speed  # l1_ratio written out (50 Hz)
     omega = _TWO_PI / period_s
     # Capture: L1 toward the centre.
     nu = wrap_pi(math.atan2(-ure, -urn) - chi_v)
@@ -168,9 +180,13 @@ def follow_circle(
     accel = accel_capture if capturing else accel_circle
     angle = math.atan2(ure, urn)
     course = angle + direction * _HALF_PI
-    return CircleTracking(
-        bank_for_accel(accel, bank_limit_rad), radial_error, angle, capturing, wrap_pi(course)
-    )
+    bank = math.atan(accel / GRAVITY_M_S2)  # bank_for_accel written out (50 Hz)
+    if bank > bank_limit_rad:
+        bank = bank_limit_rad
+    elif bank < -bank_limit_rad:
+        bank = -bank_limit_rad
+    course = (course + math.pi) % _TWO_PI - math.pi  # wrap_pi
+    return _tuple_new(CircleTracking, (bank, radial_error, angle, capturing, course))
 
 
 def altitude_on_leg(
@@ -197,11 +213,14 @@ def switch_distance_m(
     The tangent point of a turn at 80% of the bank limit: ``R * tan(turn / 2)``, capped at
     three turn radii for near-reversals.
     """
-    turn = abs(wrap_pi(course_out_rad - course_in_rad))
-    radius = turn_radius_m(max(speed_m_s, MIN_GUIDANCE_SPEED_M_S), 0.8 * bank_limit_rad)
+    # wrap_pi, turn_radius_m, max and min written out (50 Hz), choosing as the builtins do.
+    turn = abs((course_out_rad - course_in_rad + math.pi) % _TWO_PI - math.pi)
+    speed = MIN_GUIDANCE_SPEED_M_S if speed_m_s < MIN_GUIDANCE_SPEED_M_S else speed_m_s
+    radius = speed * speed / (GRAVITY_M_S2 * math.tan(0.8 * bank_limit_rad))
     if turn >= 0.8 * math.pi:
         return 3.0 * radius
-    return min(3.0 * radius, radius * math.tan(0.5 * turn))
+    ahead = radius * math.tan(0.5 * turn)
+    return ahead if ahead < 3.0 * radius else 3.0 * radius
 
 
 def angle_travelled(previous_rad: float, current_rad: float, direction: int) -> float:

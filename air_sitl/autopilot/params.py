@@ -195,5 +195,8 @@ class GuidanceParams:
         )
 
     def clamp_speed(self, speed_m_s: float) -> float:
-        """Airspeed within [FW_AIRSPD_MIN, FW_AIRSPD_MAX]."""
-        return min(self.max_m_s, max(self.min_m_s, speed_m_s))
+        """Airspeed within [FW_AIRSPD_MIN, FW_AIRSPD_MAX] (min(max, max(min, speed)) written
+        out, choosing as the builtins do: guidance asks at 50 Hz)."""
+        lo, hi = self.min_m_s, self.max_m_s
+        v = speed_m_s if speed_m_s > lo else lo
+        return v if v < hi else hi

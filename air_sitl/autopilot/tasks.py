@@ -46,7 +46,10 @@ _CRUISE = ControlPhase.CRUISE
 class Tick:
     """The inputs of one guidance update, unpacked from the state once."""
 
-    __slots__ = ("alt", "course", "gs", "now_ns", "p", "pe", "pn", "speed", "state", "ve", "vn")
+    __slots__ = (
+        "alt", "course", "course_gs", "gs", "now_ns", "p", "pe", "pn", "speed", "state", "ve",
+        "vn",
+    )  # fmt: skip
 
     def __init__(self, state: VehicleState, p: GuidanceParams, speed_m_s: float) -> None:
         self.state = state
@@ -56,7 +59,8 @@ class Tick:
         self.pn, self.pe = state.pos_ned_m[0], state.pos_ned_m[1]
         self.vn, self.ve = state.vel_ned_m_s[0], state.vel_ned_m_s[1]
         self.alt = state.alt_amsl_m
-        self.course, self.gs = guidance.course_of(self.vn, self.ve, state.yaw_rad)
+        self.course_gs = guidance.course_of(self.vn, self.ve, state.yaw_rad)
+        self.course, self.gs = self.course_gs
 
 
 class Task:
@@ -168,7 +172,7 @@ class TakeoffTask(Task):
         line = guidance.follow_line(
             t.pn, t.pe, t.vn, t.ve, self.a, self.b,
             period_s=p.l1_period_s, damping=p.l1_damping, bank_limit_rad=bank_limit,
-            heading_rad=s.yaw_rad,
+            heading_rad=s.yaw_rad, course_gs=t.course_gs,
         )  # fmt: skip
         heading = self.course
         bank = line.bank_rad
@@ -176,15 +180,9 @@ class TakeoffTask(Task):
             # Steer back onto the runway centre line; wings level.
             heading = self.course - max(-0.2, min(0.2, line.cross_track_m / 50.0))
             bank = 0.0
-        target = ControlTarget(
-            phase=self.stage,
-            roll_rad=bank,
-            altitude_amsl_m=self.alt,
-            airspeed_m_s=t.speed,
-            heading_rad=heading,
-            climb_rate_limit_m_s=p.climb_max_m_s,
-        )
-        return NavOutput(target)
+        # positional, in ControlTarget's field order (the rest their defaults), at 50 Hz
+        target = control_target(self.stage, bank, self.alt, t.speed, heading, p.climb_max_m_s)
+        return nav_output(target)
 
 
 class LegTask(Task):
@@ -226,21 +224,20 @@ class LegTask(Task):
         line = guidance.follow_line(
             t.pn, t.pe, t.vn, t.ve, self.a, self.b,
             period_s=p.l1_period_s, damping=p.l1_damping, bank_limit_rad=p.bank_limit_rad,
-            heading_rad=t.state.yaw_rad,
+            heading_rad=t.state.yaw_rad, course_gs=t.course_gs,
         )  # fmt: skip
         dist_b = math.hypot(self.b[0] - t.pn, self.b[1] - t.pe)
         switch = self.acc
         if self.course_out is not None and line.leg_length_m > 0.0:
-            turn_speed = max(t.gs, t.speed)
-            switch = max(
-                switch,
-                min(
-                    0.5 * line.leg_length_m,
-                    guidance.switch_distance_m(
-                        line.course_rad, self.course_out, turn_speed, p.bank_limit_rad
-                    ),
-                ),
+            # max(t.gs, t.speed), max(switch, min(half the leg, the turn's distance)) written
+            # out (50 Hz), choosing as the builtins do.
+            turn_speed = t.speed if t.speed > t.gs else t.gs
+            half = 0.5 * line.leg_length_m
+            turn = guidance.switch_distance_m(
+                line.course_rad, self.course_out, turn_speed, p.bank_limit_rad
             )
+            turn = turn if turn < half else half
+            switch = turn if turn > switch else switch
         if dist_b <= switch or (
             line.leg_length_m > 0.0 and line.along_track_m >= line.leg_length_m
         ):
@@ -311,7 +308,7 @@ class LoiterTask(Task):
         c = guidance.follow_circle(
             t.pn, t.pe, t.vn, t.ve, self.center, self.radius, self.direction,
             period_s=p.l1_period_s, damping=p.l1_damping, bank_limit_rad=p.bank_limit_rad,
-            heading_rad=t.state.yaw_rad,
+            heading_rad=t.state.yaw_rad, course_gs=t.course_gs,
         )  # fmt: skip
         if not self.established:
             tolerance = max(p.acc_radius_m, 0.05 * self.radius)
@@ -368,7 +365,7 @@ class LandTask(Task):
         line = guidance.follow_line(
             t.pn, t.pe, t.vn, t.ve, self.a, self.td,
             period_s=p.l1_period_s, damping=p.l1_damping, bank_limit_rad=p.bank_limit_rad,
-            heading_rad=s.yaw_rad,
+            heading_rad=s.yaw_rad, course_gs=t.course_gs,
         )  # fmt: skip
         if s.on_ground:
             self.touched = True

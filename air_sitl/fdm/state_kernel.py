@@ -21,7 +21,7 @@ _TWO_PI = 2.0 * math.pi
 X0, Y0, Z0, R = 0, 1, 2, 3
 
 
-@compiled("UniTuple(f8, 8)(f8[::1], f8, f8, f8, f8, f8, f8)")
+@compiled("Tuple((UniTuple(f8, 3), UniTuple(f8, 4), f8))(f8[::1], f8, f8, f8, f8, f8, f8)")
 def truth(
     origin: Array,
     lat_deg: float,
@@ -30,9 +30,9 @@ def truth(
     phi: float,
     theta: float,
     psi: float,
-) -> tuple[float, ...]:
-    """(north, east, down, qw, qx, qy, qz, yaw in [-pi, pi)) of a geodetic position and ZYX
-    Euler angles, about ``origin``."""
+) -> tuple[tuple[float, float, float], tuple[float, float, float, float], float]:
+    """((north, east, down), (qw, qx, qy, qz), yaw in [-pi, pi)) of a geodetic position and
+    ZYX Euler angles, about ``origin``: VehicleState's tuples as they are (no slicing)."""
     yaw = (psi + _PI) % _TWO_PI - _PI
     lat_r = math.radians(lat_deg)
     lon_r = math.radians(lon_deg)
@@ -45,13 +45,15 @@ def truth(
     cr, sr = math.cos(phi / 2), math.sin(phi / 2)
     cp, sp = math.cos(theta / 2), math.sin(theta / 2)
     cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return (
+    ned = (
         origin[R] * dx + origin[R + 1] * dy + origin[R + 2] * dz,
         origin[R + 3] * dx + origin[R + 4] * dy,
         origin[R + 5] * dx + origin[R + 6] * dy + origin[R + 7] * dz,
+    )
+    quat = (
         cr * cp * cy + sr * sp * sy,
         sr * cp * cy - cr * sp * sy,
         cr * sp * cy + sr * cp * sy,
         cr * cp * sy - sr * sp * cy,
-        yaw,
     )
+    return ned, quat, yaw

@@ -59,10 +59,16 @@ class NavFilter:
 
     def __init__(self, home: GeoPoint, params: NavParams | None = None) -> None:
         self.home = home
-        self._local = LocalNed(home.lat_deg, home.lon_deg, home.alt_amsl_m)
         self.params = p = params or NavParams()
         self.g = g = normal_gravity_m_s2(home.lat_deg, home.alt_amsl_m)
         self.ekf = ekf = ErrorStateEkf(p, g)
+        from air_sitl.nav import geodetic  # compiled, as ErrorStateEkf's kernels: loaded now
+
+        self._local = LocalNed(
+            home.lat_deg, home.lon_deg, home.alt_amsl_m, lat_alt=geodetic.lat_alt
+        )
+        # The estimate's attitude as ZYX Euler angles (frames.quat2euler, compiled).
+        self.euler = geodetic.euler
         self._strapdown = sd = ekf.strapdown
         # The output predictor (the state at the newest filter period, see strapdown), the
         # ring of IMU deltas the delayed filter has not reached yet, and its indices.
@@ -114,18 +120,18 @@ class NavFilter:
             if dt > 0.1:
                 dt = self._imu_dt  # a gap: do not integrate across it
         self._t_imu = t
-        g = imu.gyro_frd_rad_s
-        f = imu.accel_frd_m_s2
         if not self.aligned:
-            self._align_step(t, f)
+            self._align_step(t, imu.accel_frd_m_s2)
             return
+        g0, g1, g2 = imu.gyro_frd_rad_s
+        f0, f1, f2 = imu.accel_frd_m_s2
         a = self._acc
-        a[0] += g[0] * dt
-        a[1] += g[1] * dt
-        a[2] += g[2] * dt
-        a[3] += f[0] * dt
-        a[4] += f[1] * dt
-        a[5] += f[2] * dt
+        a[0] += g0 * dt
+        a[1] += g1 * dt
+        a[2] += g2 * dt
+        a[3] += f0 * dt
+        a[4] += f1 * dt
+        a[5] += f2 * dt
         self._acc_dt += dt
         if t - self._acc_t0 >= self._period_ns:
             self._push_delta(t)

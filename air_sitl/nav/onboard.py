@@ -27,7 +27,6 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Protocol
 
-from air_sitl.frames import quat2euler
 from air_sitl.nav.filter import NavFilter
 from air_sitl.nav.params import NavParams
 from air_sitl.nav.sensors_extra import (
@@ -196,12 +195,14 @@ class OnboardNav:
             # A filter period passed (every 20 ms): the full estimate.
             self._out_t = out_t
             est = self.estimate = nav.estimate()
-            self._euler = quat2euler(est.q_body_to_ned_wxyz)
+            self._euler = nav.euler(*est.q_body_to_ned_wxyz)  # frames.quat2euler, compiled
         # Between periods the attitude and velocity of the last period (at most 15 ms old),
         # the position moved on along the velocity, the rates of this IMU sample.
         dt = (t - est.sim_time_ns) * 1e-9
-        p, v = est.pos_ned_m, est.vel_ned_m_s
-        pos = (p[0] + v[0] * dt, p[1] + v[1] * dt, p[2] + v[2] * dt)
+        p0, p1, p2 = est.pos_ned_m
+        v = est.vel_ned_m_s
+        v0, v1, v2 = v
+        pos = (p0 + v0 * dt, p1 + v1 * dt, p2 + v2 * dt)
         if tick:
             self._flown = pos
             self._score(truth, pos)
@@ -209,10 +210,12 @@ class OnboardNav:
             self._ticks += 1
             if self.status_wanted and self._ticks % 10 == 0:
                 self.last_status = nav.status()
-        g, bg = imu.gyro_frd_rad_s, est.gyro_bias_rad_s
-        f, ba = imu.accel_frd_m_s2, est.accel_bias_m_s2
+        g0, g1, g2 = imu.gyro_frd_rad_s
+        bg0, bg1, bg2 = est.gyro_bias_rad_s
+        f0, f1, f2 = imu.accel_frd_m_s2
+        ba0, ba1, ba2 = est.accel_bias_m_s2
         roll, pitch, yaw = self._euler
-        alt = est.alt_amsl_m - v[2] * dt
+        alt = est.alt_amsl_m - v2 * dt
         tas = self._airspeed_m_s if self._airspeed_m_s > 0.0 else truth.airspeed_m_s
         return vehicle_state(  # positional, in VehicleState's field order (a 200 Hz path)
             t,
@@ -226,8 +229,8 @@ class OnboardNav:
             pitch,
             yaw,
             v,
-            (g[0] - bg[0], g[1] - bg[1], g[2] - bg[2]),  # body rates
-            (f[0] - ba[0], f[1] - ba[1], f[2] - ba[2]),  # specific force
+            (g0 - bg0, g1 - bg1, g2 - bg2),  # body rates
+            (f0 - ba0, f1 - ba1, f2 - ba2),  # specific force
             tas,
             truth.on_ground,  # weight on wheels: a switch, not an estimate
         )

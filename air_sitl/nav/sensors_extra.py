@@ -17,9 +17,13 @@ from air_sitl.clock import NS_PER_S
 from air_sitl.frames import wrap_pi
 from air_sitl.nav.types import AirspeedSample, BaroSample, HeadingSample
 from air_sitl.sensors import NormalRows
-from air_sitl.state import VehicleState
+from air_sitl.state import VehicleState, positional_builder
 
 R = TypeVar("R")  # a sensor's reading
+# The readings, built positionally (fields in declared order: time, value), 40 a second.
+_baro_sample = positional_builder(BaroSample)
+_airspeed_sample = positional_builder(AirspeedSample)
+_heading_sample = positional_builder(HeadingSample)
 
 
 def _draws(seed: int, salt: int, width: int) -> NormalRows:
@@ -70,7 +74,7 @@ class Barometer(_DriftingSensor[BaroSample]):
 
     def _reading(self, state: VehicleState, drift: float, white: float) -> BaroSample:
         alt_m = state.alt_amsl_m + drift + white
-        return BaroSample(sim_time_ns=state.sim_time_ns, alt_amsl_m=alt_m)
+        return _baro_sample(state.sim_time_ns, alt_m)
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -96,7 +100,7 @@ class AirspeedSensor:
             return None
         z = self._draws.row()
         value = state.airspeed_m_s * self.scale + z[0] * self.noise.noise_m_s
-        return AirspeedSample(sim_time_ns=state.sim_time_ns, airspeed_m_s=max(0.0, value))
+        return _airspeed_sample(state.sim_time_ns, max(0.0, value))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -119,4 +123,4 @@ class Magnetometer(_DriftingSensor[HeadingSample]):
 
     def _reading(self, state: VehicleState, drift: float, white: float) -> HeadingSample:
         heading = state.yaw_rad - self.noise.declination_rad + drift + white
-        return HeadingSample(sim_time_ns=state.sim_time_ns, heading_rad=wrap_pi(heading))
+        return _heading_sample(state.sim_time_ns, wrap_pi(heading))

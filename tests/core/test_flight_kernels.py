@@ -8,6 +8,7 @@ change only where a flight meets those cases; these check the cases themselves.
 
 from __future__ import annotations
 
+import math
 import random
 from collections.abc import Callable
 
@@ -49,3 +50,24 @@ def test_the_battery_cubes_the_throttle_as_cpython() -> None:
         voltage_v = terminal_voltage_v(v_full, spec.r_internal_ohm, power_w)
         assert state.voltage_v == voltage_v
         assert state.current_a == power_w / voltage_v
+
+
+def test_the_filters_geodetic_conversions_round_as_frames() -> None:
+    """nav.geodetic (compiled) gives the bits of frames' Python: the latitude iteration at
+    every latitude (the near-pole branch too) and the Euler angles of any attitude."""
+    from air_sitl.frames import geodetic2ecef, geodetic_lat_alt, quat2euler
+    from air_sitl.nav import geodetic
+
+    rng = random.Random(3)
+    for _ in range(20_000):
+        lat, lon = rng.uniform(-90.0, 90.0), rng.uniform(-180.0, 180.0)
+        x, y, z = geodetic2ecef(lat, lon, rng.uniform(-500.0, 20_000.0))
+        p = math.hypot(x, y)
+        assert geodetic.lat_alt(p, z) == geodetic_lat_alt(p, z)
+    quats = [(1.0, 0.0, 0.0, 0.0), (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0)]
+    for _ in range(20_000):
+        q = [rng.gauss(0.0, 1.0) for _ in range(4)]
+        norm = math.sqrt(sum(v * v for v in q))
+        quats.append((q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm))
+    for w, x, y, z in quats:
+        assert geodetic.euler(w, x, y, z) == quat2euler((w, x, y, z))
