@@ -4,9 +4,11 @@ a port the system picks as it binds."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -27,6 +29,13 @@ ROOT = Path(__file__).resolve().parents[2]
 HOME = GeoPoint(lat_deg=38.54, lon_deg=-121.49, alt_amsl_m=10.0)
 
 
+def _hang_up(listener: socket.socket) -> None:
+    """Accept and close each connection until ``listener`` is closed."""
+    with contextlib.suppress(OSError):
+        while True:
+            listener.accept()[0].close()
+
+
 def test_a_port_taken_before_the_flight_listens_is_replaced(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -37,6 +46,9 @@ def test_a_port_taken_before_the_flight_listens_is_replaced(
         holder.bind(("127.0.0.1", ports.free_port()))
         holder.listen()
         taken = int(holder.getsockname()[1])
+        # It hangs up on whoever connects (the localizer): a program that accepted and said
+        # nothing would hold the localizer's zenoh handshake, and its SIGINT, for 10 s.
+        threading.Thread(target=_hang_up, args=(holder,), daemon=True).start()
         picks: Iterator[int] = iter([taken])
         monkeypatch.setattr(external, "free_port", lambda: next(picks, None) or ports.free_port())
         localizer = ExternalLocalizer(
