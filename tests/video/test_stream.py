@@ -78,7 +78,8 @@ def test_qgc_pipeline_decodes_and_a_viewer_joining_late_sees_a_picture_within_a_
 def test_decoded_frames_match_the_rendered_ones_at_the_default_bitrate(tmp_path: Path) -> None:
     port = free_port(socket.SOCK_DGRAM)
     render = Rendered()
-    viewer = PyavViewer(port, tmp_path)  # listening before the first packet
+    viewer = PyavViewer(port, tmp_path)
+    viewer.wait_listening()  # before the first packet
     stream = open_stream(port, render)
     try:
         fly_east(stream, 4.0)
