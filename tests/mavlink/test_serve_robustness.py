@@ -194,7 +194,8 @@ def test_tcp_link_send_never_blocks_and_drops_for_a_full_client() -> None:
 
 @pytest.mark.integration
 def test_signing_rejects_unsigned_and_accepts_signed() -> None:
-    with serve("--mavlink", "udpin:127.0.0.1:0", "--signing-key", KEY_HEX) as s:
+    # At 4x: the two simulated seconds read below are a margin in simulated time.
+    with serve("--mavlink", "udpin:127.0.0.1:0", "--signing-key", KEY_HEX, "--speed", "4") as s:
         port = s.ports[0]
         unsigned = Gcs(f"udpout:127.0.0.1:{port}", system_id=201)
         hb = unsigned.connect()  # telemetry is sent signed; unsigned readers still parse it
