@@ -170,7 +170,8 @@ class PyavViewer:
         """Wait until FFmpeg's socket is bound to the port (this process's UDP sockets)."""
         deadline = time.monotonic() + timeout_s
         me = psutil.Process()
-        while not any(c.laddr and c.laddr.port == self.port for c in me.net_connections("udp")):
+        sockets = getattr(me, "net_connections", None) or me.connections  # psutil < 6
+        while not any(c.laddr and c.laddr.port == self.port for c in sockets("udp")):
             assert self._thread.is_alive(), repr(self.error)
             assert time.monotonic() < deadline, "FFmpeg did not bind its port"
             time.sleep(0.01)
