@@ -29,11 +29,24 @@ ROOT = Path(__file__).resolve().parents[2]
 HOME = GeoPoint(lat_deg=38.54, lon_deg=-121.49, alt_amsl_m=10.0)
 
 
-def _hang_up(listener: socket.socket) -> None:
-    """Accept and close each connection until ``listener`` is closed."""
-    with contextlib.suppress(OSError):
-        while True:
-            listener.accept()[0].close()
+@contextlib.contextmanager
+def hanging_up(listener: socket.socket) -> Iterator[None]:
+    """Accept and close each connection to ``listener`` until the block ends."""
+    done = threading.Event()
+
+    def run() -> None:
+        listener.settimeout(0.1)
+        while not done.is_set():
+            with contextlib.suppress(TimeoutError):
+                listener.accept()[0].close()
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
 
 
 def test_a_port_taken_before_the_flight_listens_is_replaced(
@@ -46,9 +59,6 @@ def test_a_port_taken_before_the_flight_listens_is_replaced(
         holder.bind(("127.0.0.1", ports.free_port()))
         holder.listen()
         taken = int(holder.getsockname()[1])
-        # It hangs up on whoever connects (the localizer): a program that accepted and said
-        # nothing would hold the localizer's zenoh handshake, and its SIGINT, for 10 s.
-        threading.Thread(target=_hang_up, args=(holder,), daemon=True).start()
         picks: Iterator[int] = iter([taken])
         monkeypatch.setattr(external, "free_port", lambda: next(picks, None) or ports.free_port())
         localizer = ExternalLocalizer(
@@ -56,13 +66,16 @@ def test_a_port_taken_before_the_flight_listens_is_replaced(
             argv=(sys.executable, str(ROOT / "bridges" / "example_localizer.py"), "--name", "ex"),
         )
         log = tmp_path / "ex.log"
-        why = fly_in_lockstep(
-            plan,
-            ["--air-start", "--nav", "truth", "--wait-timeout", "120"],
-            tmp_path / "flight",
-            localizer,
-            log,
-        )
+        # The holder hangs up on whoever connects (the localizer): a program that accepted and
+        # said nothing would hold the localizer's zenoh handshake, and its SIGINT, for 10 s.
+        with hanging_up(holder):
+            why = fly_in_lockstep(
+                plan,
+                ["--air-start", "--nav", "truth", "--wait-timeout", "120"],
+                tmp_path / "flight",
+                localizer,
+                log,
+            )
         assert next(picks, None) is None  # the taken port was handed out
     assert why is None, why
     assert f"tcp/127.0.0.1:{taken} was taken; again on another port" in log.read_text()
