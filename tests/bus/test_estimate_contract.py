@@ -176,9 +176,10 @@ def test_a_flight_reports_rejections_and_unanswered_frames(tmp_path: Path) -> No
 
 
 def test_a_flight_says_when_the_awaited_estimator_never_spoke(tmp_path: Path) -> None:
-    """At real-time pace the capture leg lasts over 5 s: the warning comes during the flight
-    (before the end's), and again at the end."""
-    plan = write_short_plan(tmp_path / "UB.plan", HOME, leg_m=100.0, name="UB")
+    """At real-time pace the flight goes on over 7 s after its first frame (the capture leg,
+    then 60 m to the last waypoint): the warning, 5 s after that frame, comes during the
+    flight (before the end's), and again at the end."""
+    plan = write_short_plan(tmp_path / "UB.plan", HOME, leg_m=60.0, name="UB")
     out = tmp_path / "out"
     flown = subprocess.run(
         cli("fly", str(plan), "--air-start", "--quiet", "--out", str(out), "--speed", "1",

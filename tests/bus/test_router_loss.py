@@ -1,4 +1,4 @@
-"""The router killed mid-flight and restarted on the same port 10 s later (real processes,
+"""The router killed mid-flight and restarted on the same port 4 s later (real processes,
 client mode: every sample goes through the router). In lockstep the awaited frame is offered
 again once the bus is back and the flight goes on, every frame answered; without lockstep the
 frames that got no estimate are counted in summary.json and told at the exit."""
@@ -13,11 +13,15 @@ from pathlib import Path
 import pytest
 from short_plans import SMALL_CAMERA, write_short_plan
 
+from air_sitl.bus.lockstep import REOFFER_S
+
 from .helpers import HOME, cli, free_endpoint, start, stop, wait_for_line, wait_until
 
 pytestmark = pytest.mark.integration
 
-OUTAGE_S = 10.0  # the scenario: how long the router stays away (not a speed assumption)
+# The scenario: how long the router stays away (not a speed assumption). Twice the lockstep's
+# re-offer period: the awaited frame is offered again at least once while the bus is down.
+OUTAGE_S = 2 * REOFFER_S
 
 
 def rows(path: Path) -> int:

@@ -180,7 +180,8 @@ def test_a_companion_aids_a_denied_flight_that_mavsdk_sees_finish(tmp_path: Path
     from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
     from mavsdk_wait import ground_station
 
-    plan = write_short_plan(tmp_path / "AID.plan", HOME, leg_m=1200.0)
+    # The denial (from 40 s) lasts over 80 s of the flight: more than the 30 s asserted.
+    plan = write_short_plan(tmp_path / "AID.plan", HOME, leg_m=200.0)
 
     async def fly(port: int) -> list[tuple[int, int]]:
         async with ground_station(port, timeout_s=15) as system:

@@ -154,13 +154,14 @@ def test_a_tcp_client_that_never_reads_does_not_stall_the_simulation() -> None:
         assert reader.connect().get_srcSystem() == 1
         gcs = Gcs(f"udpout:127.0.0.1:{udp.local_address[1]}")
         gcs.connect()
-        assert gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 1000) == M.MAV_RESULT_ACCEPTED
         # Wait until the endpoint drops frames for the client that reads nothing ...
         dropping = False
         while not dropping:
             gcs.collect(["ATTITUDE"], 1.0)
             dropping = any(ch.dropped_frames > 0 for ch in list(tcp.channels.values()))
-        # ... then the simulation goes on: 30 more simulated seconds arrive on the UDP link.
+        # ... then the simulation goes on: 30 more simulated seconds arrive on the UDP link,
+        # with ATTITUDE at 1 kHz there.
+        assert gcs.command(M.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 1000) == M.MAV_RESULT_ACCEPTED
         att = gcs.collect(["ATTITUDE"], 30.0)
         assert (att[-1].time_boot_ms - att[0].time_boot_ms) / 1000 > 29.0
         assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, 148) == M.MAV_RESULT_ACCEPTED
@@ -193,7 +194,8 @@ def test_tcp_link_send_never_blocks_and_drops_for_a_full_client() -> None:
 
 @pytest.mark.integration
 def test_signing_rejects_unsigned_and_accepts_signed() -> None:
-    with serve("--mavlink", "udpin:127.0.0.1:0", "--signing-key", KEY_HEX) as s:
+    # At 4x: the two simulated seconds read below are a margin in simulated time.
+    with serve("--mavlink", "udpin:127.0.0.1:0", "--signing-key", KEY_HEX, "--speed", "4") as s:
         port = s.ports[0]
         unsigned = Gcs(f"udpout:127.0.0.1:{port}", system_id=201)
         hb = unsigned.connect()  # telemetry is sent signed; unsigned readers still parse it

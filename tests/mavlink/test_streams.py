@@ -7,6 +7,7 @@ busy machine changes how long a test takes, never its outcome.
 from __future__ import annotations
 
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 from gcs import Gcs, serve
@@ -61,8 +62,9 @@ def two_links() -> Iterator[tuple[Gcs, Gcs]]:
     links = ["udpin:127.0.0.1:0", "udpin:127.0.0.1:0"]
     with running_vehicle(links, HOME, speed=10.0, options=options) as vehicle:
         a, b = (Gcs(f"udpout:127.0.0.1:{link.local_address[1]}") for link in vehicle.endpoint.links)
-        a.connect()
-        b.connect()
+        # Side by side: each waits for a HEARTBEAT, which the vehicle sends once a wall second.
+        with ThreadPoolExecutor(2) as pool:
+            list(pool.map(Gcs.connect, (a, b)))
         yield a, b
         a.close()
         b.close()

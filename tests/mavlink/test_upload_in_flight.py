@@ -41,7 +41,9 @@ def test_reuploads_in_flight_keep_the_mission_going() -> None:
     mission = load_mission(UC200)
     home = mission.planned_home
     assert home is not None
-    with running_vehicle(["udpin:127.0.0.1:0"], home, speed=20.0, mission=mission) as vehicle:
+    # Everything below waits on telemetry by simulated time: the speed only says how fast
+    # the 170 simulated seconds to item 3 go by (a loaded machine just runs slower).
+    with running_vehicle(["udpin:127.0.0.1:0"], home, speed=50.0, mission=mission) as vehicle:
         gcs = Gcs(f"udpout:127.0.0.1:{vehicle.endpoint.links[0].local_address[1]}")
         gcs.connect()
         assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED

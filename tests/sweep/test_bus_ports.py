@@ -4,9 +4,11 @@ a port the system picks as it binds."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -27,6 +29,26 @@ ROOT = Path(__file__).resolve().parents[2]
 HOME = GeoPoint(lat_deg=38.54, lon_deg=-121.49, alt_amsl_m=10.0)
 
 
+@contextlib.contextmanager
+def hanging_up(listener: socket.socket) -> Iterator[None]:
+    """Accept and close each connection to ``listener`` until the block ends."""
+    done = threading.Event()
+
+    def run() -> None:
+        listener.settimeout(0.1)
+        while not done.is_set():
+            with contextlib.suppress(TimeoutError):
+                listener.accept()[0].close()
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+
+
 def test_a_port_taken_before_the_flight_listens_is_replaced(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -44,13 +66,16 @@ def test_a_port_taken_before_the_flight_listens_is_replaced(
             argv=(sys.executable, str(ROOT / "bridges" / "example_localizer.py"), "--name", "ex"),
         )
         log = tmp_path / "ex.log"
-        why = fly_in_lockstep(
-            plan,
-            ["--air-start", "--nav", "truth", "--wait-timeout", "120"],
-            tmp_path / "flight",
-            localizer,
-            log,
-        )
+        # The holder hangs up on whoever connects (the localizer): a program that accepted and
+        # said nothing would hold the localizer's zenoh handshake, and its SIGINT, for 10 s.
+        with hanging_up(holder):
+            why = fly_in_lockstep(
+                plan,
+                ["--air-start", "--nav", "truth", "--wait-timeout", "120"],
+                tmp_path / "flight",
+                localizer,
+                log,
+            )
         assert next(picks, None) is None  # the taken port was handed out
     assert why is None, why
     assert f"tcp/127.0.0.1:{taken} was taken; again on another port" in log.read_text()

@@ -60,7 +60,7 @@ def test_qgc_pipeline_decodes_and_a_viewer_joining_late_sees_a_picture_within_a_
     render = Rendered()
     stream = open_stream(port, render)
     try:
-        t_ns = fly_east(stream, 5.0)  # nobody listening yet
+        t_ns = fly_east(stream, 2.0)  # nobody listening yet: four keyframe periods go by
         with gst_viewer(port, WIDTH, HEIGHT, tmp_path) as late:
             joined = late.wait_playing()
             fly_east(stream, 60.0, start_ns=t_ns, until=lambda: late.frames() >= 60)
@@ -78,7 +78,8 @@ def test_qgc_pipeline_decodes_and_a_viewer_joining_late_sees_a_picture_within_a_
 def test_decoded_frames_match_the_rendered_ones_at_the_default_bitrate(tmp_path: Path) -> None:
     port = free_port(socket.SOCK_DGRAM)
     render = Rendered()
-    viewer = PyavViewer(port, tmp_path)  # listening before the first packet
+    viewer = PyavViewer(port, tmp_path)
+    viewer.wait_listening()  # before the first packet
     stream = open_stream(port, render)
     try:
         fly_east(stream, 4.0)

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import psutil
 from bus.helpers import make_sample
 
 from air_sitl.clock import CAMERA_PERIOD_NS
@@ -128,32 +129,35 @@ def sdp_of(port: int) -> str:
 
 class PyavViewer:
     """FFmpeg's RTP receiver through PyAV: decoded frames with their RTP time (90 kHz ticks
-    from the first packet received)."""
+    from the first packet received). It opens on its own thread, as FFmpeg's open reads the
+    stream's first packets (or waits 10 s for them): send once :meth:`wait_listening`. The
+    packets that open read are decoded too (no ``fflags nobuffer``, which drops them)."""
 
     def __init__(self, port: int, folder: Path) -> None:
-        import av  # the test side's own use of PyAV
-
         sdp = folder / f"stream-{port}.sdp"
         sdp.write_text(sdp_of(port), encoding="utf-8")
+        self.port = port
         self.frames: list[tuple[int, Image]] = []
         self.error: BaseException | None = None
         self._stop = False
-        self._container: Any = av.open(
-            str(sdp),
-            format="sdp",
-            options={
-                "protocol_whitelist": "file,udp,rtp",
-                "reorder_queue_size": "0",
-                "max_delay": "0",
-                "fflags": "nobuffer",
-            },
-            timeout=(60.0, 3.0),
-        )
-        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._container: Any = None
+        self._thread = threading.Thread(target=self._run, args=(sdp,), daemon=True)
         self._thread.start()
 
-    def _run(self) -> None:
+    def _run(self, sdp: Path) -> None:
+        import av  # the test side's own use of PyAV
+
         try:
+            self._container = av.open(
+                str(sdp),
+                format="sdp",
+                options={
+                    "protocol_whitelist": "file,udp,rtp",
+                    "reorder_queue_size": "0",
+                    "max_delay": "0",
+                },
+                timeout=(60.0, 3.0),
+            )
             for frame in self._container.decode(video=0):
                 if frame.pts is not None:
                     self.frames.append((int(frame.pts), frame.to_ndarray(format="bgr24")))
@@ -161,6 +165,16 @@ class PyavViewer:
                     return
         except Exception as err:  # the read timeout ends the stream
             self.error = err
+
+    def wait_listening(self, timeout_s: float = 60.0) -> None:
+        """Wait until FFmpeg's socket is bound to the port (this process's UDP sockets)."""
+        deadline = time.monotonic() + timeout_s
+        me = psutil.Process()
+        sockets = getattr(me, "net_connections", None) or me.connections  # psutil < 6
+        while not any(c.laddr and c.laddr.port == self.port for c in sockets("udp")):
+            assert self._thread.is_alive(), repr(self.error)
+            assert time.monotonic() < deadline, "FFmpeg did not bind its port"
+            time.sleep(0.01)
 
     def close(self) -> None:
         """Stop reading and close the receiver."""
