@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from gcs import Gcs, free_udp_port
+from gcs import SAFETY_S, Gcs, free_udp_port
 from inproc import Vehicle, running_vehicle
 from pymavlink import mavutil
 from short_plans import write_short_plan
@@ -178,19 +178,20 @@ class Companion:
 def test_a_companion_aids_a_denied_flight_that_mavsdk_sees_finish(tmp_path: Path) -> None:
     from mavsdk.asyncio.plugins.action import ActionAsync
     from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync
-    from mavsdk_wait import ground_station
+    from mavsdk_wait import ground_station, until_answered
 
     # The denial (from 40 s) lasts over 80 s of the flight: more than the 30 s asserted.
     plan = write_short_plan(tmp_path / "AID.plan", HOME, leg_m=200.0)
 
     async def fly(port: int) -> list[tuple[int, int]]:
-        async with ground_station(port, timeout_s=15) as system:
+        async with ground_station(port, timeout_s=SAFETY_S) as system:
             mission = MissionRawAsync(system)
             action = ActionAsync(system)
             imported = await mission.import_qgroundcontrol_mission(str(plan))
-            await mission.upload_mission(imported.mission_items)
-            await action.arm()
-            await mission.start_mission()
+            items = imported.mission_items
+            await until_answered(lambda: mission.upload_mission(items), timeout_s=SAFETY_S)
+            await until_answered(action.arm, timeout_s=SAFETY_S)
+            await until_answered(mission.start_mission, timeout_s=SAFETY_S)
             seen: list[tuple[int, int]] = []
             async for progress in mission.subscribe_mission_progress():
                 seen.append((progress.current, progress.total))
