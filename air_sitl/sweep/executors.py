@@ -28,6 +28,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
+from types import FrameType
 from typing import Any
 
 from air_sitl.maps.procedural.shared_tiles import shared_folder
@@ -46,9 +47,16 @@ OnRow = Callable[[dict[str, Any]], None]
 CRASHES_ALLOWED = 1  # a run whose worker died this many times is tried once more, then failed
 
 
+def _no_interrupt(_signum: int, _frame: FrameType | None) -> None:
+    """A worker's SIGINT: nothing (see _init_worker)."""
+
+
 def _init_worker(shared_ground: Path | None = None) -> None:
-    # Ctrl-C reaches the whole process group: the driver alone decides, workers are stopped
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # Ctrl-C reaches the whole process group: the driver alone decides, workers are stopped.
+    # A handler that does nothing rather than SIG_IGN: an ignored signal stays ignored in the
+    # programs a worker starts (a user's localizer would sit out stop()'s SIGINT until its
+    # SIGKILL), a handler goes back to the default in them.
+    signal.signal(signal.SIGINT, _no_interrupt)
     die_with_parent()
     pin_threads()
     share_ground_through(shared_ground)
