@@ -6,10 +6,17 @@ the capture window. With a video stream, the video protocol as QGroundControl an
 it: CAMERA_INFORMATION flags HAS_VIDEO_STREAM; VIDEO_STREAM_INFORMATION and VIDEO_STREAM_STATUS
 of stream 1 (stream id 0 asks for all) by MAV_CMD_REQUEST_MESSAGE and by the legacy request
 commands; VIDEO_START_STREAMING / VIDEO_STOP_STREAMING start and stop it.
+
+A stream id left unset (NaN, as MAVSDK sends a parameter it does not use) is 0, all streams:
+common.xml's default for an unused MAV_CMD_REQUEST_MESSAGE parameter. CAMERA_INFORMATION of a
+camera with a stream is followed by the stream's VIDEO_STREAM_INFORMATION: MAVSDK (4.1) asks
+for it only every 20 s (CameraImpl::request_slower) and takes it unasked from a camera it has
+heard, so its camera plugin lists the stream with the camera rather than up to 20 s later.
 """
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 from air_sitl.mavlink import telemetry as tm
@@ -94,9 +101,9 @@ class CameraComponent:
         cmd = msg.command
         if cmd == mav.MAV_CMD_REQUEST_MESSAGE:
             answer = self._requested.get(whole(msg.param1))
-            self._answer(ch, msg, None if answer is None else answer(whole(msg.param2)))
+            self._answer(ch, msg, None if answer is None else answer(_index(msg.param2)))
         elif cmd in self._legacy:
-            self._answer(ch, msg, self._legacy[cmd](whole(msg.param1)))
+            self._answer(ch, msg, self._legacy[cmd](_index(msg.param1)))
         elif cmd in (mav.MAV_CMD_IMAGE_START_CAPTURE, mav.MAV_CMD_IMAGE_STOP_CAPTURE):
             self._capture(ch, msg, start=cmd == mav.MAV_CMD_IMAGE_START_CAPTURE)
         elif cmd in (mav.MAV_CMD_VIDEO_START_STREAMING, mav.MAV_CMD_VIDEO_STOP_STREAMING):
@@ -123,8 +130,10 @@ class CameraComponent:
         return latest.state.sim_time_ns if latest is not None else 0
 
     def _information(self, _param: int) -> list[Message]:
+        """CAMERA_INFORMATION, then the stream's VIDEO_STREAM_INFORMATION when there is one."""
         info = tm.camera_information(self._sim_ns(), self.camera, video=self.video is not None)
-        return [info]
+        stream = self._stream_information(0)
+        return [info, *stream] if isinstance(stream, list) else [info]
 
     def _settings(self, _param: int) -> list[Message]:
         return [tm.camera_settings(self._sim_ns(), self.mode_id)]
@@ -164,7 +173,7 @@ class CameraComponent:
         """Start or stop the stream (param1: stream id, 0 = all); the status follows."""
         if self.video is None:
             return int(mav.MAV_RESULT_UNSUPPORTED)
-        if whole(msg.param1) not in (0, tm.VIDEO_STREAM_ID):
+        if _index(msg.param1) not in (0, tm.VIDEO_STREAM_ID):
             return int(mav.MAV_RESULT_DENIED)
         if start:
             self.video.start()
@@ -185,3 +194,8 @@ class CameraComponent:
             return (mav.MAV_RESULT_ACCEPTED if ok else mav.MAV_RESULT_DENIED), ""
 
         run_then_ack(self._ep, capture, lambda result, _text: self._ack(ch, msg, result))
+
+
+def _index(value: float) -> int:
+    """A stream id parameter: NaN (left unset) is 0, all streams; other values as ``whole``."""
+    return 0 if math.isnan(value) else whole(value)

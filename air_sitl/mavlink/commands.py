@@ -1,5 +1,10 @@
 """COMMAND_LONG / COMMAND_INT and the other vehicle-control messages (SET_MODE,
 MISSION_SET_CURRENT, TIMESYNC): every command gets exactly one COMMAND_ACK.
+
+The autopilot proxies no camera: the camera is component 100 (camera.py), so requests for
+camera messages addressed to the autopilot are UNSUPPORTED. (The camera protocol has an
+autopilot answer CAMERA_INFORMATION only for the non-MAVLink cameras it proxies; MAVSDK takes
+any component that answers it for a camera, and listed the autopilot as a second one.)
 """
 
 from __future__ import annotations
@@ -157,8 +162,6 @@ class Commands(EndpointPart):
             self.request_message(ch, msg, mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
         elif cmd == mav.MAV_CMD_GET_HOME_POSITION:
             self.request_message(ch, msg, mav.MAVLINK_MSG_ID_HOME_POSITION)
-        elif cmd == mav.MAV_CMD_REQUEST_CAMERA_INFORMATION:
-            self.request_message(ch, msg, mav.MAVLINK_MSG_ID_CAMERA_INFORMATION)
         else:
             self.ack(ch, msg, mav.MAV_RESULT_UNSUPPORTED)
 

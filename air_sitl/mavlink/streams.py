@@ -127,9 +127,6 @@ class Streams:
                 s, len(ep.protocol.items(MissionType.MISSION))
             ),
             mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION: lambda _s, _f: tm.autopilot_version(),
-            mav.MAVLINK_MSG_ID_CAMERA_INFORMATION: lambda s, _f: tm.camera_information(
-                sim_ns(s), ep.options.camera, video=ep.options.video is not None
-            ),
             mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: needs_sample(
                 lambda s: tm.global_position_int(s, ep.home)
             ),

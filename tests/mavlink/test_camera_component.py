@@ -43,7 +43,8 @@ def test_the_camera_component_reports_the_served_camera() -> None:
         assert gcs.command(M.MAV_CMD_SET_CAMERA_ZOOM, 0, 2, component=cam) == (
             M.MAV_RESULT_UNSUPPORTED
         )
-        # The autopilot still answers for the camera it carries (older ground stations ask it).
-        assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, info_id) == M.MAV_RESULT_ACCEPTED
-        assert gcs.recv(["CAMERA_INFORMATION"]).resolution_h == 320
+        # The autopilot proxies no camera: it does not answer for component 100 (MAVSDK would
+        # list it as a second camera), by the new request nor by the legacy one.
+        assert gcs.command(M.MAV_CMD_REQUEST_MESSAGE, info_id) == M.MAV_RESULT_UNSUPPORTED
+        assert gcs.command(M.MAV_CMD_REQUEST_CAMERA_INFORMATION, 1) == M.MAV_RESULT_UNSUPPORTED
         gcs.close()

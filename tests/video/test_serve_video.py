@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import math
 import socket
 import time
 from pathlib import Path
@@ -70,11 +71,16 @@ def test_qgc_discovers_the_stream_decodes_its_uri_and_starts_and_stops_it(tmp_pa
             # QGC: a HEARTBEAT of component 100 of the vehicle's system is a camera.
             gcs.wait_heard({(1, 1), (1, CAMERA)})
             info = gcs.request(1, CAMERA, REQUEST, "CAMERA_INFORMATION", 259)
+            # ... followed by the stream's description, unasked (MAVSDK asks every 20 s only).
+            streams = [gcs.recv([STREAM_INFO], 1, CAMERA, 10.0)]
+            assert streams[0] is not None, "CAMERA_INFORMATION came alone"
             legacy = gcs.request(1, CAMERA, M.MAV_CMD_REQUEST_CAMERA_INFORMATION,
                                  "CAMERA_INFORMATION", 1)  # fmt: skip
             assert info.flags & M.CAMERA_CAP_FLAGS_HAS_VIDEO_STREAM
             assert legacy.flags == info.flags
-            streams = [gcs.request(1, CAMERA, REQUEST, STREAM_INFO, 269, sid) for sid in (0, 1)]
+            # Stream 0 is all streams; so is a stream id left unset (NaN: MAVSDK's requests).
+            streams += [gcs.request(1, CAMERA, REQUEST, STREAM_INFO, 269, sid)
+                        for sid in (0, 1, math.nan)]  # fmt: skip
             streams.append(
                 gcs.request(1, CAMERA, M.MAV_CMD_REQUEST_VIDEO_STREAM_INFORMATION, STREAM_INFO, 0)
             )
@@ -86,6 +92,8 @@ def test_qgc_discovers_the_stream_decodes_its_uri_and_starts_and_stops_it(tmp_pa
                 assert s.uri == f"udp://0.0.0.0:{video}" and s.name
             status = gcs.request(1, CAMERA, REQUEST, STREAM_STATUS, 270, 1)
             assert status.flags & M.VIDEO_STREAM_STATUS_FLAGS_RUNNING
+            unset = gcs.request(1, CAMERA, REQUEST, STREAM_STATUS, 270, math.nan)
+            assert unset.flags == status.flags
             old = gcs.request(1, CAMERA, M.MAV_CMD_REQUEST_VIDEO_STREAM_STATUS, STREAM_STATUS, 1)
             assert old.flags == status.flags
             assert gcs.command(1, CAMERA, REQUEST, 269, 2) == M.MAV_RESULT_DENIED  # no stream 2
@@ -203,10 +211,10 @@ def test_mavsdk_camera_plugin_lists_the_camera_and_its_stream() -> None:
         async with ground_station(port, timeout_s=60) as system:
             camera = CameraAsync(system)
 
-            async def first_camera() -> object:
+            async def listed() -> list[object]:
                 async for found in camera.subscribe_camera_list():
                     if found.cameras:
-                        return found.cameras[0]
+                        return list(found.cameras)
                 raise AssertionError("no camera list")
 
             async def first_stream() -> object:
@@ -215,12 +223,15 @@ def test_mavsdk_camera_plugin_lists_the_camera_and_its_stream() -> None:
                         return update
                 raise AssertionError("no video stream info")
 
-            cam = await asyncio.wait_for(first_camera(), 60)
-            # (this MAVSDK numbers the listed cameras from 1; the stream names component 100)
-            assert cam.vendor_name == "air-sitl"  # type: ignore[attr-defined]
-            assert cam.horizontal_resolution_px == 320  # type: ignore[attr-defined]
             update = await asyncio.wait_for(first_stream(), 60)
             assert update.component_id == CAMERA  # type: ignore[attr-defined]
+            # The list once the stream is known: the camera component alone (an autopilot that
+            # answers for the camera is listed too, as a second camera of component 1).
+            cameras = await asyncio.wait_for(listed(), 60)
+            assert [c.component_id for c in cameras] == [CAMERA]  # type: ignore[attr-defined]
+            cam = cameras[0]
+            assert cam.vendor_name == "air-sitl"  # type: ignore[attr-defined]
+            assert cam.horizontal_resolution_px == 320  # type: ignore[attr-defined]
             info = update.video_stream_info  # type: ignore[attr-defined]
             assert info.settings.uri == f"udp://0.0.0.0:{video}"
             assert (
