@@ -62,7 +62,7 @@ GROUPS = {
                                              "air_sitl.camera.effects_pixels_kernel")),
     "flight": Group("the flight loop", ("air_sitl.autopilot.control_kernel",
                                         "air_sitl.sensors_kernel", "air_sitl.battery_kernel",
-                                        "air_sitl.fdm.state_kernel")),
+                                        "air_sitl.fdm.state_kernel", "air_sitl.text_kernel")),
 }  # fmt: skip
 _GROUP_OF = {module: name for name, group in GROUPS.items() for module in group.modules}
 

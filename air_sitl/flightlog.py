@@ -12,10 +12,13 @@ import os
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from air_sitl import text_kernel
 from air_sitl.clock import CAMERA_PERIOD_NS, NS_PER_S
 from air_sitl.errors import DatasetError
 from air_sitl.files import write_all, write_error
-from air_sitl.nav.columns import NAV_COLUMNS, nav_fields
+from air_sitl.nav.columns import NAV_COLUMNS, NAV_FORMAT, nav_fields, nav_values
 from air_sitl.sinks import FlightResult, NullSink
 from air_sitl.state import AutopilotStatus, BatteryState, FlightMode, SimSample, VehicleState
 
@@ -55,6 +58,19 @@ _ROW_FORMAT = (
 )
 
 
+# The same text compiled (text_kernel): the formats' decimals, each mode's text as bytes.
+_DECIMALS = text_kernel.decimals(_ROW_FORMAT)
+_NAV_DECIMALS = text_kernel.decimals(NAV_FORMAT)
+_MODE_TEXT = {
+    m.value: np.frombuffer(m.value.encode("ascii"), dtype=np.uint8).copy() for m in FlightMode
+}
+_NO_NAV = (0.0,) * len(NAV_COLUMNS)
+_BUFFER_BYTES = 1 << 16  # a simulated second of rows (50) is under 32 kB
+# The buffer is written out once less than this is left after a row: a row (under 1 kB)
+# always has room (the kernel writes without bounds checks).
+_ROOM_BYTES = 4096
+
+
 def _row(sample: SimSample) -> str:
     s = sample.state
     a = sample.autopilot
@@ -68,11 +84,15 @@ def _row(sample: SimSample) -> str:
 class TrajectoryWriter(NullSink):
     """Writes truth at 50 Hz over the whole flight to ``trajectory.csv``.
 
-    Rows are written whole, once a simulated second, with ``os.write``; the bytes known on
-    disk are counted. A write that fails (a full disk, an I/O error) cuts the file back to its
-    last whole row and stops the flight with one line (DatasetError): the CSV stays readable
-    to its last row, as the camera archive's files do.
+    Rows are made in a byte buffer (compiled, :mod:`air_sitl.text_kernel`: the text of
+    :meth:`row`) and written whole, once a simulated second, with ``os.write``; the bytes
+    known on disk are counted. A write that fails (a full disk, an I/O error) cuts the file
+    back to its last whole row and stops the flight with one line (DatasetError): the CSV
+    stays readable to its last row, as the camera archive's files do.
     """
+
+    # NAV_COLUMNS after the truth's (NavTrajectoryWriter): their count, or 0.
+    nav_columns = 0
 
     def __init__(self, path: Path) -> None:
         self.path = path
@@ -82,9 +102,11 @@ class TrajectoryWriter(NullSink):
             msg = f"{path}: cannot write the trajectory: {err.strerror}"
             raise DatasetError(msg) from None
         self._size = 0  # bytes of whole rows on disk
-        self._pending: list[str] = [",".join(self.columns()) + "\n"]
+        self._buffer = np.empty(_BUFFER_BYTES, dtype=np.uint8)
+        self._used = 0  # bytes of whole rows in the buffer
         self._last_flush_ns = 0
         self.error: DatasetError | None = None
+        self._put((",".join(self.columns()) + "\n").encode("ascii"))
         self._write_pending()
 
     def columns(self) -> tuple[str, ...]:
@@ -99,16 +121,43 @@ class TrajectoryWriter(NullSink):
         t = sample.state.sim_time_ns
         if t % CAMERA_PERIOD_NS or self.error is not None:
             return
-        self._pending.append(self.row(sample))
-        if t - self._last_flush_ns >= NS_PER_S:
+        s = sample.state
+        a = sample.autopilot
+        extra, n_extra = _NO_NAV, 0
+        if self.nav_columns:  # NavTrajectoryWriter: the estimate's, or empty fields
+            est = sample.nav
+            extra, n_extra = _NO_NAV, -self.nav_columns
+            if est is not None:
+                extra, n_extra = nav_values(est), self.nav_columns
+        used = text_kernel.trajectory_row(
+            self._buffer, self._used, t,
+            (s.lat_deg, s.lon_deg, s.alt_amsl_m, *s.pos_ned_m, *s.q_body_to_ned_wxyz,
+             *s.vel_ned_m_s, *s.rate_frd_rad_s, s.airspeed_m_s),
+            _DECIMALS, _MODE_TEXT[a.mode._value_], a.current_seq, a.capturing, extra, _NAV_DECIMALS,
+            n_extra,
+        )  # fmt: skip
+        if used < 0:  # a value the kernel leaves to Python (not finite, or huge)
+            self._put(self.row(sample).encode("ascii"))
+        else:
+            self._used = used
+        if t - self._last_flush_ns >= NS_PER_S or self._used > _BUFFER_BYTES - _ROOM_BYTES:
             self._write_pending()
             self._last_flush_ns = t
 
+    def _put(self, data: bytes) -> None:
+        """Whole rows made in Python, after those in the buffer."""
+        if self._used + len(data) > len(self._buffer):
+            self._buffer = np.concatenate(
+                (self._buffer[: self._used], np.empty(len(data) + _BUFFER_BYTES, np.uint8))
+            )
+        self._buffer[self._used : self._used + len(data)] = np.frombuffer(data, np.uint8)
+        self._used += len(data)
+
     def _write_pending(self) -> None:
-        if not self._pending:
+        if not self._used:
             return
-        data = "".join(self._pending).encode("ascii")
-        self._pending.clear()
+        data = self._buffer[: self._used].tobytes()
+        self._used = 0
         try:
             write_all(self._fd, data)
         except OSError as err:
@@ -333,6 +382,8 @@ class FlightStats:
 
 class NavTrajectoryWriter(TrajectoryWriter):
     """TrajectoryWriter whose rows carry the onboard estimate too."""
+
+    nav_columns = len(NAV_COLUMNS)
 
     def columns(self) -> tuple[str, ...]:
         """Truth, then the onboard estimate."""

@@ -145,12 +145,10 @@ class SensorSuite:
             rows.next_index = i + 1
         else:
             i = rows.index()
-        p, q, r = state.rate_frd_rad_s
-        fx, fy, fz = state.specific_force_frd_m_s2
-        aw, ax, ay, az = state.q_body_to_ned_wxyz
         gyro, accel, ahrs = sk.imu(
-            rows.array, i, self._errors, self._figures, p, q, r, fx, fy, fz, aw, ax, ay, az
-        )
+            rows.array, i, self._errors, self._figures, state.rate_frd_rad_s,
+            state.specific_force_frd_m_s2, state.q_body_to_ned_wxyz,
+        )  # fmt: skip
         imu = imu_sample(state.sim_time_ns, gyro, accel, ahrs)  # ImuSample's field order
         gps = None
         if state.sim_time_ns % self.gps_period_ns == 0:

@@ -25,16 +25,20 @@ WALK, GYRO_NOISE, ACCEL_NOISE, DRIFT, AHRS_NOISE, DRIFT_LIMIT = range(6)
 
 @compiled(
     "Tuple((UniTuple(f8, 3), UniTuple(f8, 3), UniTuple(f8, 4)))"
-    "(f8[:, ::1], i8, f8[::1], f8[::1], f8, f8, f8, f8, f8, f8, f8, f8, f8, f8)"
+    "(f8[:, ::1], i8, f8[::1], f8[::1], UniTuple(f8, 3), UniTuple(f8, 3), UniTuple(f8, 4))"
 )
 def imu(
-    Z: Array, row: int, E: Array, F: Array, p: float, q: float, r: float, fx: float,
-    fy: float, fz: float, aw: float, ax: float, ay: float, az: float,
+    Z: Array, row: int, E: Array, F: Array, rates: tuple[float, float, float],
+    force: tuple[float, float, float], attitude: tuple[float, float, float, float],
 ) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:  # fmt: skip
     """Gyro (3), accelerometer (3) and the AHRS quaternion (4), as ImuSample's tuples, of the
-    truth's rates ``p, q, r``, specific force ``f`` and attitude ``a`` (w, x, y, z), with the
-    draws ``Z[row]``: per step bias walk (3), gyro noise (3), accel noise (3), AHRS drift (3),
-    jitter (3). ``E``: gyro bias (3), accelerometer bias (3), AHRS drift (3), updated."""
+    truth's ``rates`` (p, q, r), specific ``force`` and ``attitude`` (w, x, y, z: the
+    VehicleState's tuples as they are), with the draws ``Z[row]``: per step bias walk (3),
+    gyro noise (3), accel noise (3), AHRS drift (3), jitter (3). ``E``: gyro bias (3),
+    accelerometer bias (3), AHRS drift (3), updated."""
+    p, q, r = rates
+    fx, fy, fz = force
+    aw, ax, ay, az = attitude
     z = Z[row]
     walk = F[WALK]
     E[0] += z[0] * walk

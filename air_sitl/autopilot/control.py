@@ -198,15 +198,13 @@ class Controller:
         phase = target.phase
         if phase is _CRUISE and self._prev_phase is _CRUISE:
             # The 200 Hz path: _cruise written out, one compiled call.
-            p, q, r = state.rate_frd_rad_s
-            fx, fy, _ = state.specific_force_frd_m_s2
             return actuator_command(  # positional, in ActuatorCommand's field order
                 *ck.cruise(
-                    self._g, self._m, state.roll_rad, state.pitch_rad, p, q, r,
-                    state.vel_ned_m_s[2], fx, fy, state.airspeed_m_s, state.alt_amsl_m,
-                    state.on_ground, target.roll_rad, target.altitude_amsl_m,
-                    target.airspeed_m_s, target.climb_rate_limit_m_s, target.pitch_min_rad,
-                    target.pitch_max_rad,
+                    self._g, self._m, state.roll_rad, state.pitch_rad, state.rate_frd_rad_s,
+                    state.vel_ned_m_s[2], state.specific_force_frd_m_s2, state.airspeed_m_s,
+                    state.alt_amsl_m, state.on_ground, target.roll_rad,
+                    target.altitude_amsl_m, target.airspeed_m_s, target.climb_rate_limit_m_s,
+                    target.pitch_min_rad, target.pitch_max_rad,
                 )
             )  # fmt: skip
         g = self.gains
@@ -309,14 +307,13 @@ class Controller:
         )  # fmt: skip
 
     def _cruise(self, state: VehicleState, target: ControlTarget) -> ActuatorCommand:
-        p, q, r = state.rate_frd_rad_s
-        fx, fy, _ = state.specific_force_frd_m_s2
         return actuator_command(  # positional, in ActuatorCommand's field order
             *ck.cruise(
-                self._g, self._m, state.roll_rad, state.pitch_rad, p, q, r,
-                state.vel_ned_m_s[2], fx, fy, state.airspeed_m_s, state.alt_amsl_m,
-                state.on_ground, target.roll_rad, target.altitude_amsl_m, target.airspeed_m_s,
-                target.climb_rate_limit_m_s, target.pitch_min_rad, target.pitch_max_rad,
+                self._g, self._m, state.roll_rad, state.pitch_rad, state.rate_frd_rad_s,
+                state.vel_ned_m_s[2], state.specific_force_frd_m_s2, state.airspeed_m_s,
+                state.alt_amsl_m, state.on_ground, target.roll_rad, target.altitude_amsl_m,
+                target.airspeed_m_s, target.climb_rate_limit_m_s, target.pitch_min_rad,
+                target.pitch_max_rad,
             )
         )  # fmt: skip
 

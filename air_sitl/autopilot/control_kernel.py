@@ -194,18 +194,21 @@ def _tecs(
 
 
 @compiled(
-    "UniTuple(f8, 5)(f8[::1], f8[::1], f8, f8, f8, f8, f8, f8, f8, f8, f8, f8, b1, f8, "
-    "f8, f8, f8, f8, f8)"
+    "UniTuple(f8, 5)(f8[::1], f8[::1], f8, f8, UniTuple(f8, 3), f8, UniTuple(f8, 3), f8, f8, "
+    "b1, f8, f8, f8, f8, f8, f8)"
 )
 def cruise(
-    G: Array, M: Array, roll: float, pitch: float, p: float, q: float, r: float, vd: float,
-    fx: float, fy: float, airspeed: float, h: float, on_ground: bool, roll_cmd: float,
-    height_dem_m: float, speed_dem_m_s: float, climb_limit: float, pitch_min: float,
-    pitch_max: float,
+    G: Array, M: Array, roll: float, pitch: float, rates: tuple[float, float, float],
+    vd: float, force: tuple[float, float, float], airspeed: float, h: float, on_ground: bool,
+    roll_cmd: float, height_dem_m: float, speed_dem_m_s: float, climb_limit: float,
+    pitch_min: float, pitch_max: float,
 ) -> tuple[float, float, float, float, float]:  # fmt: skip
-    """One step of the cruise phase from the state's attitude, rates, down velocity, specific
-    force, airspeed and altitude AMSL and the target's: (aileron, elevator, rudder,
-    throttle, brake), ActuatorCommand's fields."""
+    """One step of the cruise phase from the state's attitude, rates (p, q, r), down
+    velocity, specific force (x, y, z: the VehicleState's tuples as they are), airspeed and
+    altitude AMSL and the target's: (aileron, elevator, rudder, throttle, brake),
+    ActuatorCommand's fields."""
+    p, q, r = rates
+    fx, fy, _ = force
     M[PITCH_LO] = pitch_min if pitch_min > G[MIN_PITCH] else G[MIN_PITCH]
     M[PITCH_HI] = pitch_max if pitch_max < G[MAX_PITCH] else G[MAX_PITCH]
     scale = schedule(G, airspeed)

@@ -199,7 +199,7 @@ class MissionSequencer:
             deferred, self._deferred = self._deferred, None
             deferred()
         self._do.update(state)
-        tick = self._tick = self._tick_now()
+        tick = self._tick = self._tick_now(p)
         out = self._task.update(tick)
         # Tasks may finish several in a row (a waypoint, then DO items): bounded by the items.
         for _ in range(len(self._items) + 4):
@@ -232,10 +232,12 @@ class MissionSequencer:
         assert self._terrain is not None
         return self._terrain.follow(out, tick, item.alt_m)
 
-    def _tick_now(self) -> Tick:
-        """A tick for the last state (commands create tasks between updates)."""
+    def _tick_now(self, p: GuidanceParams | None = None) -> Tick:
+        """A tick for the last state (commands create tasks between updates); ``p``: the
+        parameters now, when the caller has them (guidance, at 50 Hz)."""
         assert self._state is not None
-        p = self.guidance_params
+        if p is None:
+            p = self.guidance_params
         tick = Tick(self._state, p, 0.0)
         tick.speed = self._speed(p, tick.course)
         return tick

@@ -22,12 +22,17 @@ NAV_COLUMNS: tuple[str, ...] = (
 
 
 # NAV_COLUMNS' formats, in one ``%`` call (the same text as f-string specs of these letters).
-_NAV_FORMAT = "%.4f,%.4f,%.4f,%.9f,%.9f,%.4f,%.4f"
+NAV_FORMAT = "%.4f,%.4f,%.4f,%.9f,%.9f,%.4f,%.4f"
+
+
+def nav_values(est: NavEstimate) -> tuple[float, float, float, float, float, float, float]:
+    """The NAV_COLUMNS' values of an estimate, in NAV_FORMAT's order."""
+    n, e, d = est.pos_ned_m
+    return (e, n, -d, est.lat_deg, est.lon_deg, est.alt_amsl_m, est.std_h_m)
 
 
 def nav_fields(est: NavEstimate | None) -> str:
     """The NAV_COLUMNS of one row (empty fields before the filter has a position)."""
     if est is None:
         return ",,,,,,"
-    n, e, d = est.pos_ned_m
-    return _NAV_FORMAT % (e, n, -d, est.lat_deg, est.lon_deg, est.alt_amsl_m, est.std_h_m)
+    return NAV_FORMAT % nav_values(est)

@@ -1,8 +1,9 @@
 """The flight step's fast paths write what the plain code wrote (issue 34).
 
 The trajectory's rows and the estimate's columns are formatted with ``%`` in one call instead
-of an f-string per field: the same text for every float (rounding edges, NaN, infinities,
-signed zeros, huge and tiny values). Two air-start cruises of FR-300 (legs, turns, the capture
+of an f-string per field, and the writers make them compiled (text_kernel): the same text for
+every float (rounding edges and exact ties, NaN, infinities, signed zeros, huge and tiny
+values). Two air-start cruises of FR-300 (legs, turns, the capture
 window, settled tracking, the battery) give the bytes of 0c6e142, the code before these paths:
 every sample at full precision, the summary and the trajectory file.
 """
@@ -40,12 +41,17 @@ EDGES = [
 ]  # fmt: skip
 
 
-def _values(rng: random.Random, n: int) -> list[float]:
-    """Edge values first, then random ones on several scales."""
-    out = [rng.choice(EDGES) if rng.random() < 0.3 else 0.0 for _ in range(n)]
+def _values(rng: random.Random, n: int, edges: float = 0.3) -> list[float]:
+    """Edge values first (a share ``edges``), then random ones on several scales and exact
+    ties of the rounding (odd multiples of half a unit of the last decimal kept)."""
+    out = [rng.choice(EDGES) if rng.random() < edges else 0.0 for _ in range(n)]
     for i in range(n):
         if out[i] == 0.0 and rng.random() < 0.9:
-            out[i] = rng.uniform(-1.0, 1.0) * 10.0 ** rng.randint(-9, 7)
+            if rng.random() < 0.3:
+                k = rng.choice((4, 6, 8, 9))
+                out[i] = (2 * rng.randint(-(10**7), 10**7) + 1) / (2 * 10**k)
+            else:
+                out[i] = rng.uniform(-1.0, 1.0) * 10.0 ** rng.randint(-9, 8)
     return out
 
 
@@ -101,6 +107,49 @@ def test_rows_are_the_text_of_the_f_strings() -> None:
             gyro_bias_rad_s=(0.0, 0.0, 0.0), accel_bias_m_s2=(0.0, 0.0, 0.0), flags=flags,
         )  # fmt: skip
         assert nav_fields(est) == _plain_nav(est)
+
+
+@pytest.mark.parametrize("nav", [True, False])
+def test_the_writers_files_are_the_text_of_the_f_strings(tmp_path: Path, nav: bool) -> None:
+    """Rows made compiled, and (a value not finite or huge) by Python, in the file in
+    order: the text of the plain rows."""
+    rng = random.Random(35)
+    modes = list(FlightMode)
+    path = tmp_path / "trajectory.csv"
+    writer = (NavTrajectoryWriter if nav else TrajectoryWriter)(path)
+    expected = []
+    for k in range(4000):
+        v = _values(rng, 25, edges=0.01)
+        state = vehicle_state(
+            (k + rng.randint(0, 3)) * 20_000_000 + k * 80_000_000, v[0], v[1], v[2], v[3],
+            (v[4], v[5], v[6]), (v[7], v[8], v[9], v[10]), 0.0, 0.0, 0.0,
+            (v[11], v[12], v[13]), (v[14], v[15], v[16]), (0.0, 0.0, -9.8), v[17], False,
+        )  # fmt: skip
+        status = AutopilotStatus(
+            mode=modes[k % len(modes)], armed=True, current_seq=rng.randint(-1, 40),
+            capturing=k % 3 == 0, mission_completed=False,
+        )  # fmt: skip
+        flags = NavFlags(**{name: True for name in NavFlags.__dataclass_fields__})
+        est = None
+        if k % 5:
+            est = NavEstimate(
+                sim_time_ns=0, pos_ned_m=(v[18], v[19], v[20]), vel_ned_m_s=(0.0, 0.0, 0.0),
+                q_body_to_ned_wxyz=(1.0, 0.0, 0.0, 0.0), lat_deg=v[21], lon_deg=v[22],
+                alt_amsl_m=v[23], std_h_m=v[24], std_v_m=1.0, wind_ned_m_s=(0.0, 0.0),
+                gyro_bias_rad_s=(0.0, 0.0, 0.0), accel_bias_m_s2=(0.0, 0.0, 0.0), flags=flags,
+            )  # fmt: skip
+        imu = mission_sample(state).imu
+        sample = SimSample(state=state, autopilot=status, imu=imu, gps=None, nav=est)
+        writer.on_sample(sample)
+        row = _plain_row(sample)
+        if nav:
+            row = row[:-1] + "," + (",,,,,," if est is None else _plain_nav(est)) + "\n"
+        expected.append(row)
+    writer.close(FlightResult(mission_completed=False, sim_time_ns=0, wall_time_s=1.0))
+    header = ",".join(writer.columns()) + "\n"
+    text = path.read_text()
+    assert text.count("nan") > 10 and text.count("inf") > 10  # rows made by Python among them
+    assert text == header + "".join(expected)
 
 
 @pytest.mark.integration
