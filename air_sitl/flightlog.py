@@ -99,7 +99,14 @@ class TrajectoryWriter(NullSink):
         t = sample.state.sim_time_ns
         if t % CAMERA_PERIOD_NS or self.error is not None:
             return
-        self._pending.append(self.row(sample))
+        self.add_row(t, self.row(sample))
+
+    def add_row(self, t: int, row: str) -> None:
+        """Append the row of the 50 Hz sample at ``t`` (written once a simulated second);
+        :meth:`on_sample` formats it, files of one flight may share it."""
+        if self.error is not None:
+            return
+        self._pending.append(row)
         if t - self._last_flush_ns >= NS_PER_S:
             self._write_pending()
             self._last_flush_ns = t
