@@ -49,7 +49,9 @@ class GridFrames:
                 r.share_noise(first)
 
     def render(self, sample: SimSample, index: int) -> list[CameraFrame]:
-        """Frame ``index`` taken at ``sample``, one per map, in the renderers' order."""
+        """Frame ``index`` taken at ``sample``, one per map, in the renderers' order (on one
+        grid, a map much coarser than the camera is told once, by the first map's renderer:
+        the maps share their pixel size)."""
         if not self.shared:
             return [render_camera_frame(r, sample, index) for r in self.renderers]
         first = self.renderers[0]
