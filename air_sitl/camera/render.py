@@ -92,6 +92,7 @@ class Renderer:
         # (seed, frame index): deterministic, and different from frame to frame.
         self._noise_pos: Image | None = None
         self._noise_neg: Image | None = None
+        self._noise_at = threading.local()  # this thread's last (frame index, size, offset)
         self._local = threading.local()
         self._jacobians: dict[tuple[float, float], tuple[float, float, float, float]] = {}
         self._border = border_points(camera.width_px, camera.height_px)
@@ -391,13 +392,25 @@ class Renderer:
             return img
         return self._noised(img.copy(), noise, 0, img.shape[0])
 
+    def share_noise(self, other: Renderer) -> None:
+        """Take ``other``'s noise (the same camera and seed: the same bank, the same slice for
+        a frame): renderers of one frame over several maps then read one bank."""
+        assert (other.camera, other.seed) == (self.camera, self.seed), "share_noise: other noise"
+        self._noise_pos, self._noise_neg = other._noise_pos, other._noise_neg
+        self._noise_at = other._noise_at
+
     def _noise_of(self, index: int, shape: tuple[int, ...]) -> tuple[Image, Image] | None:
         """The frame's noise as (positive part, negative part) of image shape; None: none."""
         if self._noise_pos is None or self._noise_neg is None:
             return None
         size = math.prod(shape)
-        rng = np.random.default_rng(key_of(self.seed, 0x4E02, index))
-        offset = int(rng.integers(0, self._noise_pos.size - size + 1))
+        last = getattr(self._noise_at, "last", None)
+        if last is not None and last[:2] == (index, size):
+            offset = last[2]
+        else:
+            rng = np.random.default_rng(key_of(self.seed, 0x4E02, index))
+            offset = int(rng.integers(0, self._noise_pos.size - size + 1))
+            self._noise_at.last = (index, size, offset)
         pos = self._noise_pos[offset : offset + size].reshape(shape)
         neg = self._noise_neg[offset : offset + size].reshape(shape)
         return pos, neg

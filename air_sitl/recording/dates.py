@@ -7,17 +7,24 @@ the same samples: every archive gets its own camera (its date's map, the same ca
 writer, trajectory and checks, fed the very samples and frame indices a flight of its own
 would have fed them, so its bytes are those of flying that date alone (summary.json's wall
 time aside, which no two flights share).
+
+What the dates share is done once: a tick's frames of every date are rendered in one job on
+one pool of threads, with one geometry and one noise slice when the maps share a grid
+(:mod:`air_sitl.camera.same_grid`); a sample's ``imu.csv`` and ``trajectory.csv`` lines are
+formatted once, each date's files written from them.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from air_sitl.builder import FlightSetup, build_flight
 from air_sitl.clock import NS_PER_S
-from air_sitl.dataset.air_schema import TRAJECTORY_CSV
+from air_sitl.dataset.air_schema import TRAJECTORY_CSV, imu_row
+from air_sitl.dataset.writer import DatasetWriter
 from air_sitl.flightlog import NavTrajectoryWriter, TrajectoryWriter
 from air_sitl.options import FlightOptions
 from air_sitl.recording.archive import (
@@ -28,9 +35,12 @@ from air_sitl.recording.archive import (
     finish_archive,
     open_archive,
 )
-from air_sitl.recording.timing import timed_sinks, timed_source
-from air_sitl.sinks import FlightResult, FrameSource, Sink
+from air_sitl.recording.timing import OwnTime
+from air_sitl.sinks import FlightResult, Sink
 from air_sitl.state import CameraFrame, SimSample
+
+if TYPE_CHECKING:  # OpenCV loads with the first camera
+    from air_sitl.camera.same_grid import GridCamera
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,47 +51,104 @@ class _Dated:
     frame: CameraFrame
 
 
-class _DatesCamera:
-    """Every date's camera behind one FrameSource: each tick is rendered by all of them."""
+def _spend(clocks: Sequence[OwnTime], start: float) -> None:
+    """The wall time since ``start`` shared evenly among the dates' ``clocks``."""
+    if clocks:
+        share = (time.perf_counter() - start) / len(clocks)
+        for clock in clocks:
+            clock.seconds += share
 
-    def __init__(self, sources: Sequence[FrameSource]) -> None:
-        self._sources = list(sources)
+
+class _DatesCamera:
+    """Every date's camera behind one FrameSource: each tick rendered for all of them in one
+    job (:class:`~air_sitl.camera.same_grid.GridCamera`), delivered date by date; its time
+    on the simulation thread shared among the dates' clocks."""
+
+    def __init__(self, camera: GridCamera, clocks: Sequence[OwnTime]) -> None:
+        self._camera = camera
+        self._clocks = list(clocks)
 
     def submit(self, sample: SimSample, index: int) -> None:
-        for source in self._sources:
-            source.submit(sample, index)
+        start = time.perf_counter()
+        self._camera.submit(sample, index)
+        _spend(self._clocks, start)
 
     def ready(self) -> list[_Dated]:
-        return [_Dated(k, f) for k, s in enumerate(self._sources) for f in s.ready()]
+        start = time.perf_counter()
+        ticks = self._camera.ready()
+        _spend(self._clocks, start)
+        return [_Dated(k, f) for tick in ticks for k, f in enumerate(tick)]
 
     def flush(self) -> list[_Dated]:
-        return [_Dated(k, f) for k, s in enumerate(self._sources) for f in s.flush()]
+        start = time.perf_counter()
+        ticks = self._camera.flush()
+        _spend(self._clocks, start)
+        return [_Dated(k, f) for tick in ticks for k, f in enumerate(tick)]
 
     def close(self) -> None:
-        for source in self._sources:
-            source.close()
+        self._camera.close()
 
 
+@dataclass(frozen=True, slots=True)
 class _DateSinks:
-    """One date's sinks: every sample, and the frames of that date's camera only."""
+    """One date's sinks: its archive's checks, its trajectory and its writer."""
 
-    def __init__(self, slot: int, sinks: Sequence[Sink]) -> None:
-        self._slot = slot
-        self._sinks = list(sinks)
+    checks: list[Sink]
+    trajectory: TrajectoryWriter
+    writer: DatasetWriter
+    clock: OwnTime | None
+
+    @property
+    def sinks(self) -> list[Sink]:
+        return [*self.checks, self.trajectory, self.writer]
+
+
+class _DatesSinks:
+    """Every date's sinks as one sink. A sample's ``imu.csv`` line, which does not depend on
+    the imagery, is formatted once and handed to each date's writer, the same bytes as each
+    formatting its own (``trajectory.csv``'s rows are made by a compiled call, about 1 us a
+    row: each date makes its own); a frame goes to its date's sinks only."""
+
+    def __init__(self, dates: Sequence[_DateSinks]) -> None:
+        self._dates = list(dates)
+        self._clocks = [d.clock for d in self._dates if d.clock is not None]
+        # The last frame's CSV lines: (sample, index, map pixel, lines).
+        self._last: tuple[SimSample, int, tuple[int, int], tuple[str, str]] | None = None
 
     def on_sample(self, sample: SimSample) -> None:
-        for sink in self._sinks:
-            sink.on_sample(sample)
+        start = time.perf_counter()
+        line = imu_row(sample.imu)
+        for date in self._dates:
+            for check in date.checks:
+                check.on_sample(sample)
+            date.trajectory.on_sample(sample)
+            date.writer.on_sample_line(sample, line)
+        _spend(self._clocks, start)
 
     def on_frame(self, frame: CameraFrame) -> None:
         dated: Any = frame  # a _Dated: what _DatesCamera delivers
-        if dated.slot == self._slot:
-            for sink in self._sinks:
-                sink.on_frame(dated.frame)
+        date = self._dates[dated.slot]
+        start = time.perf_counter()
+        f: CameraFrame = dated.frame
+        for check in date.checks:
+            check.on_frame(f)
+        date.trajectory.on_frame(f)
+        # A tick's frames come date after date: the first one's CSV lines serve the others
+        # when they are the same frame but for the image (sample, index and map pixel).
+        last = self._last
+        same = last is not None and last[0] is f.sample and last[1:3] == (f.index, f.map_xy_px)
+        lines = date.writer.on_frame_lines(f, last[3] if same and last is not None else None)
+        self._last = None if lines is None else (f.sample, f.index, f.map_xy_px, lines)
+        if date.clock is not None:
+            date.clock.seconds += time.perf_counter() - start
 
     def close(self, result: FlightResult) -> None:
-        for sink in self._sinks:
-            sink.close(result)
+        for date in self._dates:
+            start = time.perf_counter()
+            for sink in date.sinks:
+                sink.close(result)
+            if date.clock is not None:
+                date.clock.seconds += time.perf_counter() - start
 
 
 def open_loop(options: FlightOptions, *, camera: bool, bus: bool) -> bool:
@@ -118,28 +185,43 @@ def record_dates(
 ) -> list[RecordingResult]:
     """Fly once and record every request's archive (``shares_flight(requests)`` holds)."""
     assert shares_flight(requests), "record_dates: the requests differ in more than the date"
+    from air_sitl.camera.bridge import CameraBridge
+    from air_sitl.camera.same_grid import GridCamera
+
     setup = requests[0].setup
     options = setup.options
     sides: list[ArchiveSide] = []
-    trajectories: list[TrajectoryWriter] = []
-    routers: list[Sink] = []
+    dates: list[_DateSinks] = []
+    grid: GridCamera | None = None
     try:
-        for slot, r in enumerate(requests):
+        for r in requests:
             side = open_archive(
                 r.setup, r.out, resume=False, overwrite=r.overwrite, io_thread=r.io_thread
             )
             sides.append(side)
             kind = NavTrajectoryWriter if options.nav == "ekf" else TrajectoryWriter
-            trajectories.append(kind(r.out / TRAJECTORY_CSV))
             assert side.writer is not None
-            router = _DateSinks(slot, [*side.sinks, trajectories[-1], side.writer])
-            routers.extend(timed_sinks([router], r.own_time))  # each date's own time apart
-        cameras = [timed_source(s.camera, r.own_time) for s, r in zip(sides, requests, strict=True)]
-        camera = _DatesCamera([c for c in cameras if c is not None])
-        flight = build_flight(setup, sinks=routers, camera=camera)  # type: ignore[arg-type]
+            trajectory = kind(r.out / TRAJECTORY_CSV)
+            dates.append(_DateSinks(side.sinks, trajectory, side.writer, r.own_time))
+        bridges: list[CameraBridge] = []
+        for side in sides:
+            assert isinstance(side.camera, CameraBridge)
+            bridges.append(side.camera)
+        grid = GridCamera(bridges, workers=setup.render_workers)
+        for side in sides:
+            side.camera = None  # the grid camera closes them
+        clocks = [r.own_time for r in requests if r.own_time is not None]
+        camera = _DatesCamera(grid, clocks)
+        sinks: list[Sink] = [_DatesSinks(dates)]
+        flight = build_flight(setup, sinks=sinks, camera=camera)  # type: ignore[arg-type]
     except BaseException:
+        if grid is not None:
+            grid.close()
         for side in sides:
             side.abort()
+        unflown = FlightResult(mission_completed=False, sim_time_ns=0, wall_time_s=0.0)
+        for date in dates:
+            date.trajectory.close(unflown)
         raise
     result = flight.run(
         stop=lambda sample: sample.autopilot.mission_completed or flight.stats.crashed is not None,
@@ -147,8 +229,8 @@ def record_dates(
         progress=progress,
     )
     results = []
-    for r, side, trajectory in zip(requests, sides, trajectories, strict=True):
-        trajectory.raise_if_failed()
+    for r, side, date in zip(requests, sides, dates, strict=True):
+        date.trajectory.raise_if_failed()
         summary = dict(result.summary)
         summary["plan"] = r.summary_plan if r.summary_plan is not None else str(r.setup.plan)
         manifest = finish_archive(side, summary, flight.counters.capture_ticks, r.own_time)

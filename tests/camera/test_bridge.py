@@ -38,7 +38,7 @@ def test_threaded_frames_are_ordered_and_equal_to_sync() -> None:
     for i, s in enumerate(samples):
         bridge.submit(s, i)
         got.extend(bridge.ready())
-        assert len(bridge._pending) <= 4  # bounded memory
+        assert bridge.in_flight <= 4  # bounded memory
     got.extend(bridge.flush())
     bridge.close()
     assert [f.index for f in got] == list(range(24))

@@ -35,12 +35,18 @@ def _summary(folder: Path) -> dict[str, object]:
     return summary
 
 
-def test_dates_flown_once_give_the_archives_of_flying_each_date(tmp_path: Path) -> None:
+# The onboard filter's trajectory.csv has columns of its own; effects render by another path.
+@pytest.mark.parametrize(
+    "extra", [[], ["--nav", "ekf", "--camera-effects", "blur,vignette"]], ids=["truth", "ekf"]
+)
+def test_dates_flown_once_give_the_archives_of_flying_each_date(
+    tmp_path: Path, extra: list[str]
+) -> None:
     missions = tmp_path / "missions"
     missions.mkdir()
     write_short_plan(missions / "UC-200.plan", HOME, leg_m=40.0, alt_m=200.0, leg="north")
     base = ["dataset", "--missions", str(missions), "--scenarios", "UC-200", "--air-start"]
-    base += ["--quiet"]
+    base += ["--quiet", *extra]
     assert main([*base, "--dates", "0,2", "--out", str(tmp_path / "once")]) == 0
     for date in ("0", "2"):
         alone = tmp_path / f"alone{date}"
