@@ -450,6 +450,13 @@ def render_camera_frame(renderer: Renderer, sample: SimSample, index: int) -> Ca
     tick = sample.camera
     in_window = tick is None or tick.capture_index is not None
     jpeg, xy = renderer.frame_jpeg(sample.state, index, warn=in_window)
+    return camera_frame(renderer, sample, index, jpeg, xy)
+
+
+def camera_frame(
+    renderer: Renderer, sample: SimSample, index: int, jpeg: bytes, xy: tuple[int, int]
+) -> CameraFrame:
+    """The CameraFrame of ``renderer``'s last frame on this thread (its JPEG, its map pixel)."""
     return CameraFrame(
         index=index,
         sim_time_ns=sample.state.sim_time_ns,

@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from air_sitl.camera.bridge import CameraBridge, OrderedPool
-from air_sitl.camera.render import Renderer, render_camera_frame
+from air_sitl.camera.render import Renderer, camera_frame, render_camera_frame
 from air_sitl.state import CameraFrame, SimSample
 
 
@@ -61,22 +61,10 @@ class GridFrames:
         g = first.geometry(state, warn=in_window)
         c = g.center_map_px
         xy = (-1, -1) if c is None else (round(c[0]), round(c[1]))
-        frames = []
-        for r in self.renderers:
-            jpeg = r.encode(r.render(state, g, noise_index=index))
-            frames.append(
-                CameraFrame(
-                    index=index,
-                    sim_time_ns=state.sim_time_ns,
-                    jpeg=jpeg,
-                    width_px=r.camera.width_px,
-                    height_px=r.camera.height_px,
-                    sample=sample,
-                    map_xy_px=xy,
-                    nodata_fraction=r.nodata_fraction(),
-                )
-            )
-        return frames
+        return [
+            camera_frame(r, sample, index, r.encode(r.render(state, g, noise_index=index)), xy)
+            for r in self.renderers
+        ]
 
 
 class GridCamera:
