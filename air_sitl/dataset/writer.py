@@ -280,14 +280,14 @@ class DatasetWriter(NullSink):
         for name, header, keep in specs:
             path = self.folder / name
             try:
-                if keep:
-                    fd = os.open(path, os.O_WRONLY | os.O_APPEND)
-                else:
-                    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
-                    write_all(fd, header.encode("ascii"))
-            except OSError as err:
+                if not keep:  # the header in place at once: a kill never leaves an empty CSV
+                    write_bytes_atomic(path, header.encode("ascii"))
+                fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+            except (OSError, DatasetError) as err:
                 for other in self._fds.values():
                     os.close(other)
+                if isinstance(err, DatasetError):
+                    raise  # write_bytes_atomic's line names the file already
                 raise write_error(path, err) from None
             self._fds[name] = fd
 

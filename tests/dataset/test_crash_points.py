@@ -106,3 +106,41 @@ def test_the_inspection_catches_a_row_written_before_its_image(
     fly(writer, 5)
     monkeypatch.undo()
     assert inspector.failures, "a row before its image went unnoticed"
+
+
+def test_check_calls_a_writer_killed_at_any_instant_of_its_start_unfinished(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`air-sitl check` as a user runs it on the folder a SIGKILL leaves, after each of the
+    writer's file-system calls from its first to its third frame: always "valid so far,
+    unfinished" (exit 3), never invalid. (A killed start left an empty metadata.csv, or
+    camera.yaml without it, which check called invalid.)"""
+    from air_sitl.cli import main
+
+    folder = tmp_path / "archive"
+    verdicts: list[tuple[str, int]] = []
+    inside = False
+
+    def wrap(fn: Callable[..., Any]) -> Callable[..., Any]:
+        def call(*args: Any, **kw: Any) -> Any:
+            nonlocal inside
+            result = fn(*args, **kw)
+            if not inside and folder.is_dir() and any(folder.iterdir()):
+                inside = True  # check's own file-system calls are not crash points
+                try:
+                    code = main(["check", str(folder), "--no-images"])
+                    verdicts.append((f"after {fn.__name__} #{len(verdicts) + 1}", code))
+                finally:
+                    inside = False
+            return result
+
+        return call
+
+    for name in ("write", "replace", "rename", "open", "close", "fsync", "unlink"):
+        monkeypatch.setattr(os, name, wrap(getattr(os, name)))
+    writer = DatasetWriter(folder, _info(), threaded=False)
+    fly(writer, FRAMES, stop_after_frame=2)
+    monkeypatch.undo()
+    capsys.readouterr()
+    assert len(verdicts) > 10  # the start's files and the first frames' writes
+    assert [v for v in verdicts if v[1] != 3] == [], verdicts
