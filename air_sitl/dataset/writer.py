@@ -417,9 +417,9 @@ def recover_partial(folder: Path) -> PartialArchive:
             if lines is None:
                 if path.exists():
                     trimmed += path.stat().st_size
-                    path.unlink()
-                # The writer appends from frame `kept`: start a clean file with its header.
-                path.write_bytes(header.encode("ascii"))
+                # The writer appends from frame `kept`: a clean file with its header, in place
+                # at once (a kill here leaves the old file or the header, never an empty one).
+                write_bytes_atomic(path, header.encode("ascii"))
                 continue
             size = lines[1] + sum(len(line) for line in lines[0][:kept])
             trimmed += path.stat().st_size - size
