@@ -159,24 +159,15 @@ class DatasetWriter(NullSink):
         frames outside it (for the bus); they are skipped, and the window's frames numbered
         without them.
         """
-        self.on_frame_lines(frame)
-
-    def on_frame_lines(
-        self, frame: CameraFrame, lines: tuple[str, str] | None = None
-    ) -> tuple[str, str] | None:
-        """:meth:`on_frame`, given the frame's ``metadata.csv`` and ``frames.csv`` lines when
-        another archive of the flight formatted them for its frame of this tick (they do not
-        depend on the image: the same sample, index, map pixel and GNSS fixes). Returns the
-        lines queued (None: the frame is not archived)."""
         self._raise_if_failed()
         tick = frame.sample.camera
         if tick is not None and tick.capture_index is None:
             self._outside += 1
-            return None
+            return
         if self._outside:
             frame = dataclasses.replace(frame, index=frame.index - self._outside)
         if frame.index < self.first_frame:
-            return None
+            return
         if frame.index != self.next_index:
             msg = (
                 f"{self.folder}: frame {frame.index} arrived where frame {self.next_index} "
@@ -188,18 +179,15 @@ class DatasetWriter(NullSink):
             self.first_time_ns = frame.sim_time_ns
         self.last_time_ns = frame.sim_time_ns
         name = frame_filename(frame.index)
-        if lines is None:
-            meta = metadata_row(name, frame.sample, frame.map_xy_px)
-            extra = frames_row(
-                frame,
-                name,
-                self._gps_at(frame.sim_time_ns),
-                nav=self.info.nav_columns,
-                agl=self.info.agl_column,
-            )
-            lines = (meta, extra)
-        self._post(("frame", name, frame.jpeg, *lines))
-        return lines
+        meta = metadata_row(name, frame.sample, frame.map_xy_px)
+        extra = frames_row(
+            frame,
+            name,
+            self._gps_at(frame.sim_time_ns),
+            nav=self.info.nav_columns,
+            agl=self.info.agl_column,
+        )
+        self._post(("frame", name, frame.jpeg, meta, extra))
 
     def close(self, result: FlightResult) -> None:
         """Write what is queued and close the files; never raises (see :meth:`finish`)."""

@@ -10,8 +10,8 @@ time aside, which no two flights share).
 
 What the dates share is done once: a tick's frames of every date are rendered in one job on
 one pool of threads, with one geometry and one noise slice when the maps share a grid
-(:mod:`air_sitl.camera.same_grid`); a sample's ``imu.csv`` and ``trajectory.csv`` lines are
-formatted once, each date's files written from them.
+(:mod:`air_sitl.camera.same_grid`); a sample's ``imu.csv`` line (200 a simulated second) is
+formatted once, each date's file written from it.
 """
 
 from __future__ import annotations
@@ -112,8 +112,6 @@ class _DatesSinks:
     def __init__(self, dates: Sequence[_DateSinks]) -> None:
         self._dates = list(dates)
         self._clocks = [d.clock for d in self._dates if d.clock is not None]
-        # The last frame's CSV lines: (sample, index, map pixel, lines).
-        self._last: tuple[SimSample, int, tuple[int, int], tuple[str, str]] | None = None
 
     def on_sample(self, sample: SimSample) -> None:
         start = time.perf_counter()
@@ -133,12 +131,7 @@ class _DatesSinks:
         for check in date.checks:
             check.on_frame(f)
         date.trajectory.on_frame(f)
-        # A tick's frames come date after date: the first one's CSV lines serve the others
-        # when they are the same frame but for the image (sample, index and map pixel).
-        last = self._last
-        same = last is not None and last[0] is f.sample and last[1:3] == (f.index, f.map_xy_px)
-        lines = date.writer.on_frame_lines(f, last[3] if same and last is not None else None)
-        self._last = None if lines is None else (f.sample, f.index, f.map_xy_px, lines)
+        date.writer.on_frame(f)
         if date.clock is not None:
             date.clock.seconds += time.perf_counter() - start
 
